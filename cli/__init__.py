@@ -1,0 +1,1 @@
+"""The ``csgs`` command-line front end (installed as the ``csgs_cli`` package)."""

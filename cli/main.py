@@ -1,0 +1,87 @@
+"""Entry point of the ``csgs`` command: argument parsing, warnings, errors and exit codes."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+import traceback
+import warnings
+
+from csgs_codec import __version__
+from csgs_codec.errors import CsgsError, CsgsWarning
+
+EXIT_OK = 0
+EXIT_FAILURE = 1
+EXIT_BAD_INPUT = 2
+
+
+def _command_modules():
+    from csgs_cli import commands
+
+    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
+        if info.name.startswith("_"):
+            continue
+        module = importlib.import_module(f"{commands.__name__}.{info.name}")
+        if hasattr(module, "NAME") and hasattr(module, "run"):
+            yield module
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full ``csgs`` argument parser with every discovered sub-command."""
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--quiet", "-q", action="store_true",
+                        help="no progress bars or warnings, only results and errors")
+    common.add_argument("--debug", action="store_true",
+                        help="show the full traceback on errors")
+    parser = argparse.ArgumentParser(
+        prog="csgs",
+        description="Codec for 3D Gaussian Splatting scenes with semantics.",
+        parents=[common],
+    )
+    parser.add_argument("--version", action="version", version=f"csgs {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for module in _command_modules():
+        p = sub.add_parser(module.NAME, help=module.HELP, description=module.HELP,
+                           parents=[common])
+        module.add_arguments(p)
+        p.set_defaults(_run=module.run)
+    return parser
+
+
+def _print_warning(message, category, filename, lineno, file=None, line=None):
+    text = str(message)
+    label = "warning" if issubclass(category, CsgsWarning) else category.__name__
+    print(f"csgs: {label}: {text}", file=sys.stderr)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``csgs`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "_run", None):
+        parser.print_help()
+        return EXIT_BAD_INPUT
+    with warnings.catch_warnings():
+        if args.quiet:
+            warnings.simplefilter("ignore")
+        else:
+            warnings.simplefilter("always", CsgsWarning)
+            warnings.showwarning = _print_warning
+        try:
+            return int(args._run(args) or EXIT_OK)
+        except CsgsError as err:
+            if args.debug:
+                traceback.print_exc()
+            print(f"csgs: error: {err}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        except KeyboardInterrupt:
+            print("csgs: interrupted", file=sys.stderr)
+            return 130
+        except BrokenPipeError:
+            return EXIT_OK
+
+
+if __name__ == "__main__":
+    sys.exit(main())
