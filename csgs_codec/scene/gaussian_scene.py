@@ -94,7 +94,7 @@ class GaussianScene:
         out = {
             "positions": self.positions,
             "sh_dc": self.sh_dc,
-            "sh_rest": self.sh_rest.reshape(n, -1),
+            "sh_rest": self.sh_rest.reshape(n, self.sh_rest.shape[1] * 3),
             "opacity": self.opacity.reshape(n, 1),
             "scales": self.scales,
             "rotations": self.rotations,

@@ -1,0 +1,89 @@
+"""Writing scenes as standard INRIA-layout binary PLY files, atomically."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from csgs_codec import __version__
+from csgs_codec.errors import InputError
+from csgs_codec.scene.gaussian_scene import GaussianScene
+
+
+def ply_bytes(scene: GaussianScene) -> bytes:
+    """The scene as a binary little-endian PLY in the INRIA property order.
+
+    Order: x y z nx ny nz f_dc_0..2 f_rest_* opacity scale_0..2 rot_0..3, then the semantic
+    channels by name (float) and ``label`` (int) when present. Normals are written as zeros.
+    """
+    scene.validate()
+    n = len(scene)
+    bands = scene.sh_rest.shape[1]
+    fields: list[tuple[str, np.ndarray]] = []
+    for i, axis in enumerate("xyz"):
+        fields.append((axis, scene.positions[:, i]))
+    zeros = np.zeros(n, np.float32)
+    fields += [("nx", zeros), ("ny", zeros), ("nz", zeros)]
+    fields += [(f"f_dc_{i}", scene.sh_dc[:, i]) for i in range(3)]
+    f_rest = scene.sh_rest.transpose(0, 2, 1).reshape(n, 3 * bands)
+    fields += [(f"f_rest_{i}", f_rest[:, i]) for i in range(3 * bands)]
+    fields.append(("opacity", scene.opacity))
+    fields += [(f"scale_{i}", scene.scales[:, i]) for i in range(3)]
+    fields += [(f"rot_{i}", scene.rotations[:, i]) for i in range(4)]
+    if scene.semantic is not None:
+        fields += [(name, scene.semantic[:, i]) for i, name in enumerate(scene.semantic_names)]
+    types = {name: "<f4" for name, _ in fields}
+    if scene.labels is not None:
+        fields.append(("label", scene.labels))
+        types["label"] = "<i4"
+    rows = np.empty(n, dtype=[(name, types[name]) for name, _ in fields])
+    for name, column in fields:
+        rows[name] = column
+    lines = ["ply", "format binary_little_endian 1.0", f"comment written by csgs {__version__}",
+             f"element vertex {n}"]
+    lines += [f"property {'int' if types[name] == '<i4' else 'float'} {name}"
+              for name, _ in fields]
+    lines.append("end_header\n")
+    return "\n".join(lines).encode("ascii") + rows.tobytes()
+
+
+def write_ply(scene: GaussianScene, path: str | Path) -> None:
+    """Write ``scene`` to ``path`` (see :func:`ply_bytes`) without ever leaving a partial file.
+
+    The bytes go to a temporary file in the same folder, which then replaces ``path``.
+
+    Raises:
+        InputError: the scene is invalid, or the folder cannot be written.
+    """
+    write_atomically(path, ply_bytes(scene))
+
+
+def write_atomically(path: str | Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file and a rename.
+
+    Raises:
+        InputError: naming ``path`` when the folder is missing or not writable.
+    """
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+    except OSError as exc:
+        raise InputError(f"cannot write here: {exc.strerror or exc}", file=path) from None
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException as exc:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        if isinstance(exc, OSError):
+            raise InputError(f"cannot write: {exc.strerror or exc}", file=path) from None
+        raise
