@@ -1,0 +1,75 @@
+"""Coding forms of Gaussian attributes: invertible re-parametrisations a codec quantizes.
+
+Everything a decoder runs here uses only correctly rounded IEEE operations (add, multiply,
+divide, sqrt) in a fixed order, so a decoded scene is bit-identical on every machine; no
+``log``/``exp``/``sigmoid`` appears on the decode side.
+
+Rotations use the "smallest three" form: a unit quaternion is sign-canonical (the largest
+component positive), the index of its largest-magnitude component is stored, and the other
+three components, each in [-1/sqrt(2), 1/sqrt(2)], are scaled by sqrt(2) into [-1, 1]. Unlike
+dropping ``w`` alone, this keeps the reconstruction error of the dropped component bounded.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+SQRT2 = np.float32(np.sqrt(2.0))
+#: Opacity logits beyond this change a render by less than 5e-5 per Gaussian.
+OPACITY_LOGIT_LIMIT = 10.0
+
+
+def normalize_quaternions(rotations: np.ndarray) -> np.ndarray:
+    """Unit quaternions (N, 4) float32 (w, x, y, z) from stored ones.
+
+    A zero (or non-finite-norm) quaternion becomes the identity (1, 0, 0, 0), which is what a
+    renderer that guards its normalisation draws.
+    """
+    q = rotations.astype(np.float64)
+    norm = np.sqrt(np.sum(q * q, axis=1, keepdims=True))
+    bad = ~(norm[:, 0] > 0) | ~np.isfinite(norm[:, 0])
+    q = np.divide(q, norm, out=np.zeros_like(q), where=~bad[:, None])
+    q[bad] = (1.0, 0.0, 0.0, 0.0)
+    return q.astype(np.float32)
+
+
+def quaternion_to_smallest_three(rotations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Split quaternions (N, 4) into (largest (N,) uint8 in 0..3, rest (N, 3) float32 in [-1, 1]).
+
+    ``rest`` holds the three other components of the normalized, sign-canonical quaternion in
+    their original order, multiplied by sqrt(2).
+    """
+    q = normalize_quaternions(rotations).astype(np.float64)
+    largest = np.argmax(np.abs(q), axis=1).astype(np.uint8)
+    rows = np.arange(len(q))
+    sign = np.where(q[rows, largest] < 0, -1.0, 1.0)
+    q *= sign[:, None]
+    keep = np.ones_like(q, dtype=bool)
+    keep[rows, largest] = False
+    rest = q[keep].reshape(-1, 3) * np.sqrt(2.0)
+    return largest, np.clip(rest, -1.0, 1.0).astype(np.float32)
+
+
+def smallest_three_to_quaternion(largest: np.ndarray, rest: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`quaternion_to_smallest_three`: (N, 4) float32 unit quaternions.
+
+    Arithmetic (float32, in this order): c = rest / sqrt(2); m = 1 - (c0*c0 + c1*c1 + c2*c2);
+    largest component = sqrt(max(m, 0)). Deterministic on every IEEE-754 machine.
+    """
+    largest = np.asarray(largest)
+    c = rest.astype(np.float32) / SQRT2
+    m = np.float32(1.0) - ((c[:, 0] * c[:, 0] + c[:, 1] * c[:, 1]) + c[:, 2] * c[:, 2])
+    big = np.sqrt(np.maximum(m, np.float32(0.0)))
+    n = len(largest)
+    out = np.empty((n, 4), np.float32)
+    rows = np.arange(n)
+    keep = np.ones((n, 4), dtype=bool)
+    keep[rows, largest] = False
+    out[keep] = c.reshape(-1)
+    out[rows, largest] = big
+    return out
+
+
+def clamp_opacity_logits(opacity: np.ndarray, limit: float = OPACITY_LOGIT_LIMIT) -> np.ndarray:
+    """Opacity logits (N,) clamped to [-limit, limit] (float32); beyond that renders agree."""
+    return np.clip(opacity, -limit, limit).astype(np.float32)
