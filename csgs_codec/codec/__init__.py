@@ -1,0 +1,1 @@
+"""Encoder and Decoder: orchestration of scene, format, entropy and model layers."""
