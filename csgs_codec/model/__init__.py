@@ -1,0 +1,1 @@
+"""Torch models: hyperprior, integer export, Scaffold-GS MLPs (encoder and training side)."""
