@@ -1,0 +1,63 @@
+"""Registry of known chunk types: code, layer, critical bit and a one-line description.
+
+A chunk type is four ASCII letters. Like PNG, the case of the first letter carries the
+critical bit: upper case = critical (a decoder that does not know it must reject the layer),
+lower case = optional (a decoder that does not know it skips it). To add a chunk type, append
+one :class:`ChunkType` row to :data:`_TABLE` and a sub-section under "Chunk payloads" in
+spec/FORMAT.md (a test checks every code here appears there).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from csgs_codec.errors import FormatError
+from csgs_codec.format.layout import Layer
+
+
+@dataclass(frozen=True)
+class ChunkType:
+    """One registered chunk type.
+
+    Attributes:
+        code: four ASCII letters, e.g. ``"fill"``.
+        layer: the layer the chunk must be in, or None when any layer may hold it.
+        description: one line saying what the payload holds.
+    """
+
+    code: str
+    layer: Layer | None
+    description: str
+
+    @property
+    def critical(self) -> bool:
+        """True when a decoder must understand the chunk to decode its layer."""
+        return is_critical(self.code)
+
+
+def is_valid_type_code(code: bytes) -> bool:
+    """True when ``code`` is four bytes, each an ASCII letter A-Z or a-z."""
+    # bytes.isalpha() is true only for the ASCII letters A-Z and a-z.
+    return len(code) == 4 and code.isalpha()
+
+
+def is_critical(code: str) -> bool:
+    """True when the first letter of ``code`` is upper case (bit 5 of byte 0 clear)."""
+    return not ord(code[0]) & 0x20
+
+
+def check_type_code(code: str) -> bytes:
+    """``code`` as 4 ASCII bytes, or FormatError when it is not four ASCII letters."""
+    raw = code.encode("ascii", "replace") if isinstance(code, str) else b""
+    if not is_valid_type_code(raw):
+        raise FormatError(f"chunk type {code!r} is not four ASCII letters")
+    return raw
+
+
+_TABLE = (
+    ChunkType("fill", None,
+              "Padding or test bytes; any layer, any content; decoders ignore the payload."),
+)
+
+#: Known chunk types by code.
+CHUNK_TYPES: dict[str, ChunkType] = {row.code: row for row in _TABLE}

@@ -1,0 +1,98 @@
+"""JSON-ready facts about a .csgs container (for ``csgs info FILE.csgs [--json]``).
+
+Reads only the header and the TOC unless asked to verify the chunk CRCs; imports no torch.
+"""
+
+from __future__ import annotations
+
+from csgs_codec.errors import FormatError
+from csgs_codec.format.chunk_types import CHUNK_TYPES
+from csgs_codec.format.layout import Layer
+from csgs_codec.format.reader import name_source, read_frame
+from csgs_codec.format.source import SourceLike, open_source
+from csgs_codec.format.toc import read_toc
+
+
+def describe(source: SourceLike, verify: bool = False) -> dict:
+    """Facts about the container in ``source``, as a JSON-ready dict.
+
+    Keys: ``kind`` ('csgs'), ``file`` (path or None), ``version`` ('major.minor'),
+    ``major_version``, ``minor_version``, ``flags``, ``bytes`` (bytes in the source),
+    ``file_bytes`` (bytes of the complete file per the TOC), ``complete`` (source holds every
+    chunk), ``header_bytes`` (header + TOC + TOC CRC), ``layers`` (name -> ``chunks``, ``bytes``
+    (frames), ``payload_bytes``, ``present``), ``chunks`` (one dict per TOC entry: ``index``,
+    ``type``, ``layer``, ``tile``, ``offset``, ``bytes`` (frame), ``payload_bytes``,
+    ``critical``, ``known``, ``description``, ``present``) and ``verified``.
+    ``header_bytes`` plus every layer's ``bytes`` equals ``file_bytes``.
+
+    Args:
+        source: bytes, a path, or a seekable binary file.
+        verify: also read every chunk present and check its frame and CRC.
+
+    Raises:
+        FormatError: the header or TOC is malformed, or (with ``verify``) a chunk is.
+        InputError: the source cannot be opened.
+    """
+    src = open_source(source)
+    try:
+        toc = read_toc(src)
+        if verify:
+            for entry in toc.entries:
+                if entry.end <= src.size:
+                    read_frame(src, entry)
+    except FormatError as err:
+        name_source(err, src)
+        raise
+    finally:
+        src.close()
+    layers = {layer.label: {"chunks": 0, "bytes": 0, "payload_bytes": 0, "present": True}
+              for layer in Layer}
+    chunks = []
+    for entry in toc.entries:
+        present = entry.end <= toc.source_size
+        known = CHUNK_TYPES.get(entry.type)
+        chunks.append({
+            "index": entry.index, "type": entry.type, "layer": entry.layer.label,
+            "tile": entry.tile, "offset": entry.offset, "bytes": entry.frame_size,
+            "payload_bytes": entry.length, "critical": entry.critical,
+            "known": known is not None,
+            "description": known.description if known is not None else None,
+            "present": present,
+        })
+        totals = layers[entry.layer.label]
+        totals["chunks"] += 1
+        totals["bytes"] += entry.frame_size
+        totals["payload_bytes"] += entry.length
+        totals["present"] = totals["present"] and present
+    return {
+        "kind": "csgs", "file": src.name,
+        "version": f"{toc.major_version}.{toc.minor_version}",
+        "major_version": toc.major_version, "minor_version": toc.minor_version,
+        "flags": toc.flags, "bytes": toc.source_size, "file_bytes": toc.file_size,
+        "complete": toc.source_size >= toc.file_size,
+        "header_bytes": toc.header_and_toc_size, "layers": layers, "chunks": chunks,
+        "verified": verify,
+    }
+
+
+def format_description(facts: dict) -> str:
+    """Human-readable text for the facts returned by :func:`describe`."""
+    name = facts["file"] or "<bytes>"
+    state = "complete" if facts["complete"] else (
+        f"cut at byte {facts['bytes']:,} of {facts['file_bytes']:,}")
+    lines = [f"{name}: csgs {facts['version']}, flags 0x{facts['flags']:04x}, "
+             f"{facts['file_bytes']:,} bytes ({state})",
+             f"  header + TOC     {facts['header_bytes']:>12,} bytes"]
+    for label, layer in facts["layers"].items():
+        missing = "" if layer["present"] else "  (not all present)"
+        lines.append(f"  {label:<16} {layer['bytes']:>12,} bytes in {layer['chunks']} chunks"
+                     + missing)
+    if facts["chunks"]:
+        lines.append("  chunks:  type layer     tile       offset        bytes  critical")
+    for chunk in facts["chunks"]:
+        line = (f"           {chunk['type']} {chunk['layer']:<9} {chunk['tile']:>4} "
+                f"{chunk['offset']:>12,} {chunk['bytes']:>12,}  "
+                f"{'yes' if chunk['critical'] else 'no':<8}"
+                + ("" if chunk["known"] else " (unknown type)"))
+        lines.append(line.rstrip())
+    return "\n".join(lines)
