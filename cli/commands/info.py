@@ -9,7 +9,7 @@ from csgs_codec.errors import InputError
 
 NAME = "info"
 HELP = "show what a scene (.ply) or bitstream (.csgs) holds"
-CSGS_MAGIC_PREFIX = b"\x89CSG"
+CSGS_MAGIC_PREFIX = b"\x89CSG\r\n\x1a\n"
 
 
 def add_arguments(parser) -> None:
@@ -22,12 +22,24 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     """Print the summary of ``args.file`` as text or JSON."""
+    if is_csgs(args.file):
+        from csgs_codec.format import describe, format_description
+
+        facts = describe(args.file, verify=True)
+        print(json.dumps(facts, indent=2) if args.json else format_description(facts))
+        return 0
     facts = describe_file(args.file, sanitize=args.sanitize)
-    if args.json:
-        print(json.dumps(facts, indent=2))
-    else:
-        print(format_ply_facts(facts))
+    print(json.dumps(facts, indent=2) if args.json else format_ply_facts(facts))
     return 0
+
+
+def is_csgs(path: str) -> bool:
+    """True when ``path`` starts with the .csgs magic (the extension is not trusted)."""
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(len(CSGS_MAGIC_PREFIX)) == CSGS_MAGIC_PREFIX
+    except OSError:
+        return False  # the PLY path reports the missing or unreadable file
 
 
 def describe_file(path: str, *, sanitize: bool = False) -> dict:

@@ -98,3 +98,29 @@ def test_quiet_silences_warnings(tmp_path, capsys):
     assert "red" not in capsys.readouterr().err
     assert main(["info", str(path)]) == 0
     assert "ignoring unknown PLY properties: red" in capsys.readouterr().err
+
+
+def test_info_on_a_csgs_file_lists_layers_and_chunks(tmp_path, capsys):
+    from csgs_codec.format import Chunk, write_container
+
+    path = tmp_path / "scene.bin"  # detected by its magic, not its extension
+    write_container([Chunk("fill", "base", b"abc"), Chunk("fill", "color", bytes(100)),
+                     Chunk("fill", "semantic", bytes(10))], path=path)
+    facts = run_json(capsys, str(path))
+    assert facts["kind"] == "csgs" and facts["version"] == "1.0"
+    assert [c["layer"] for c in facts["chunks"]] == ["base", "color", "semantic"]
+    assert facts["layers"]["color"]["payload_bytes"] == 100
+    assert main(["info", str(path)]) == 0
+    assert "semantic" in capsys.readouterr().out
+
+
+def test_info_on_a_damaged_csgs_is_a_format_error(tmp_path, capsys):
+    from csgs_codec.format import Chunk, write_container
+
+    data = bytearray(write_container([Chunk("fill", "base", b"abc")]))
+    data[12] ^= 0xFF  # the TOC size field
+    path = tmp_path / "bad.csgs"
+    path.write_bytes(bytes(data))
+    assert main(["info", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "bad.csgs" in err and "byte" in err and "Traceback" not in err
