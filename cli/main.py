@@ -28,23 +28,32 @@ def _command_modules():
             yield module
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The full ``csgs`` argument parser with every discovered sub-command."""
+def _common_options(default) -> argparse.ArgumentParser:
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--quiet", "-q", action="store_true",
+    common.add_argument("--quiet", "-q", action="store_true", default=default,
                         help="no progress bars or warnings, only results and errors")
-    common.add_argument("--debug", action="store_true",
+    common.add_argument("--debug", action="store_true", default=default,
                         help="show the full traceback on errors")
+    return common
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full ``csgs`` argument parser with every discovered sub-command.
+
+    ``--quiet`` and ``--debug`` work before or after the sub-command: the sub-command's copies
+    default to "not given" so they never overwrite the top-level ones.
+    """
     parser = argparse.ArgumentParser(
         prog="csgs",
         description="Codec for 3D Gaussian Splatting scenes with semantics.",
-        parents=[common],
+        parents=[_common_options(False)],
     )
     parser.add_argument("--version", action="version", version=f"csgs {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub_common = _common_options(argparse.SUPPRESS)
     for module in _command_modules():
         p = sub.add_parser(module.NAME, help=module.HELP, description=module.HELP,
-                           parents=[common])
+                           parents=[sub_common])
         module.add_arguments(p)
         p.set_defaults(_run=module.run)
     return parser

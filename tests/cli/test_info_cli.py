@@ -124,3 +124,11 @@ def test_info_on_a_damaged_csgs_is_a_format_error(tmp_path, capsys):
     assert main(["info", str(path)]) == 2
     err = capsys.readouterr().err
     assert "bad.csgs" in err and "byte" in err and "Traceback" not in err
+
+
+def test_quiet_works_before_the_command(tmp_path, capsys):
+    names = property_names(extra=("red",))
+    path = tmp_path / "w.ply"
+    path.write_bytes(make_ply(random_values(2, names), names))
+    assert main(["--quiet", "info", str(path)]) == 0
+    assert "red" not in capsys.readouterr().err

@@ -156,3 +156,14 @@ def test_write_never_leaves_partial_file(tmp_path, monkeypatch):
         write_ply(scene, target)
     assert not target.exists()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_written_file_has_ordinary_permissions(tmp_path):
+    import os
+    import stat
+
+    write_ply(read_ply(FIXTURES / "three_points_sh3.ply"), tmp_path / "p.ply")
+    mask = os.umask(0)
+    os.umask(mask)
+    mode = stat.S_IMODE((tmp_path / "p.ply").stat().st_mode)
+    assert mode == 0o666 & ~mask
