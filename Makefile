@@ -7,7 +7,8 @@ DEMO_OUT := demo-output
 
 .PHONY: demo test test-slow lint bench clean
 
-$(STAMP): pyproject.toml setup.py
+$(STAMP): pyproject.toml setup.py scripts/system-deps.sh
+	bash scripts/system-deps.sh
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	# torch first, pinned, so nothing later pulls a CUDA build.
