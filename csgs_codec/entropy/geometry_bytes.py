@@ -1,75 +1,52 @@
 """Byte-level pieces of the geometry payload: LEB128 varints and fixed-width raw bit fields.
 
 Varints are unsigned LEB128 (7 bits per byte, least significant group first, high bit set on
-every byte but the last), at most 9 bytes and below ``2^63``. Raw bit fields are written most
-significant bit first into bytes filled from their most significant bit.
+every byte but the last), at most ten bytes and below ``2^64`` (FORMAT §2.2). Raw bit fields
+are written most significant bit first into bytes filled from their most significant bit.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from csgs_codec.entropy.varints import encode_varints
 from csgs_codec.errors import FormatError
+from csgs_codec.format.primitives import ByteReader, encode_varint
 
-#: Longest varint accepted (9 bytes hold 63 bits).
-MAX_VARINT_BYTES = 9
+#: Longest varint accepted (FORMAT §2.2: ten bytes, values below 2^64).
+MAX_VARINT_BYTES = 10
 
 
 def write_varint(value: int) -> bytes:
-    """Unsigned LEB128 bytes of ``0 <= value < 2^63``."""
-    if not 0 <= value < 1 << 63:
-        raise ValueError(f"varint out of range: {value}")
-    out = bytearray()
-    while True:
-        low = value & 0x7F
-        value >>= 7
-        if value:
-            out.append(low | 0x80)
-        else:
-            out.append(low)
-            return bytes(out)
+    """Unsigned LEB128 bytes of ``0 <= value < 2^64`` (FORMAT §2.2)."""
+    return encode_varint(value)
 
 
 def read_varint(data: bytes, offset: int, what: str) -> tuple[int, int]:
     """Read one varint at ``offset``; returns (value, offset after it).
 
     Raises:
-        FormatError: truncated, longer than 9 bytes, or not in its shortest form.
+        FormatError: truncated, over ten bytes, above 2^64 - 1 or not in shortest form.
     """
-    value = 0
-    for i in range(MAX_VARINT_BYTES):
-        if offset + i >= len(data):
-            raise FormatError(f"geometry: truncated varint ({what})", offset=offset)
-        byte = data[offset + i]
-        value |= (byte & 0x7F) << (7 * i)
-        if not byte & 0x80:
-            if byte == 0 and i > 0:
-                raise FormatError(f"geometry: varint not in shortest form ({what})", offset=offset)
-            return value, offset + i + 1
-    raise FormatError(f"geometry: varint longer than 9 bytes ({what})", offset=offset)
+    reader = ByteReader(memoryview(data)[offset:], base_offset=offset)
+    try:
+        value = reader.varint(what)
+    except FormatError as err:
+        raise FormatError(f"geometry: {err.message}", offset=err.offset) from None
+    return value, reader.offset
 
 
 def write_varints(values: np.ndarray) -> bytes:
-    """Concatenated varints of (K,) non-negative integers below ``2^63`` (vectorised)."""
-    v = np.asarray(values, dtype=np.uint64)
-    if v.size == 0:
-        return b""
-    groups = np.ones(v.size, np.int64)
-    for i in range(1, MAX_VARINT_BYTES):
-        groups += (v >> np.uint64(7 * i)) > 0
-    owner = np.repeat(np.arange(v.size), groups)
-    first = np.cumsum(groups) - groups
-    position = np.arange(owner.size) - first[owner]
-    out = ((v[owner] >> (7 * position).astype(np.uint64)) & np.uint64(0x7F)).astype(np.uint8)
-    out[position < groups[owner] - 1] |= 0x80
-    return out.tobytes()
+    """Concatenated varints of (K,) non-negative integers below ``2^64`` (vectorised)."""
+    return encode_varints(values)
 
 
 def read_varints(data: bytes, offset: int, count: int, what: str) -> tuple[np.ndarray, int]:
     """Read ``count`` consecutive varints (vectorised); returns ((count,) uint64, new offset).
 
     Raises:
-        FormatError: truncated, a varint over 9 bytes, or one not in its shortest form.
+        FormatError: truncated, a varint over ten bytes or above 2^64 - 1, or one not in its
+            shortest form.
     """
     if count == 0:
         return np.zeros(0, np.uint64), offset
@@ -81,7 +58,9 @@ def read_varints(data: bytes, offset: int, count: int, what: str) -> tuple[np.nd
     ends = ends[:count]
     lengths = np.diff(np.concatenate(([-1], ends)))
     if lengths.max() > MAX_VARINT_BYTES:
-        raise FormatError(f"geometry: varint longer than 9 bytes ({what})", offset=offset)
+        raise FormatError(f"geometry: varint longer than 10 bytes ({what})", offset=offset)
+    if np.any((lengths == MAX_VARINT_BYTES) & (window[ends] > 1)):
+        raise FormatError(f"geometry: varint above 2^64 - 1 ({what})", offset=offset)
     if np.any((lengths > 1) & (window[ends] == 0)):
         raise FormatError(f"geometry: varint not in shortest form ({what})", offset=offset)
     used = window[: ends[-1] + 1]

@@ -57,6 +57,20 @@ def check_type_code(code: str) -> bytes:
 _TABLE = (
     ChunkType("fill", None,
               "Padding or test bytes; any layer, any content; decoders ignore the payload."),
+    ChunkType("SCNE", Layer.BASE,
+              "Scene header: Gaussian count, SH degrees, position grid, far-outlier count."),
+    ChunkType("GEOM", Layer.BASE, "Quantized positions: the octree geometry stream."),
+    ChunkType("OUTL", Layer.BASE, "Far outliers: exact float32 positions outside the grid."),
+    ChunkType("SHDC", Layer.COLOR, "SH degree-0 colour coefficients (float stream, 3 ch)."),
+    ChunkType("SHBA", Layer.COLOR, "SH band 1 coefficients (float stream, 9 ch)."),
+    ChunkType("SHBB", Layer.COLOR, "SH band 2 coefficients (float stream, 15 ch)."),
+    ChunkType("SHBC", Layer.COLOR, "SH band 3 coefficients (float stream, 21 ch)."),
+    ChunkType("OPAC", Layer.COLOR, "Opacity logits (float stream, 1 ch)."),
+    ChunkType("SCAL", Layer.COLOR, "Natural-log scales (float stream, 3 ch)."),
+    ChunkType("ROTN", Layer.COLOR,
+              "Rotations: dropped-component categorical stream, smallest three (3 ch)."),
+    ChunkType("SEMF", Layer.SEMANTIC, "Semantic features: channel names and a float stream."),
+    ChunkType("SEML", Layer.SEMANTIC, "Integer labels: a lossless residual stream."),
 )
 
 #: Known chunk types by code.

@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import contextlib
 import os
 import struct
-import tempfile
 from collections.abc import Iterable
-from pathlib import Path
 
-from csgs_codec.errors import FormatError, InputError
+from csgs_codec.atomic_write import write_atomically
+from csgs_codec.errors import FormatError
 from csgs_codec.format.chunk import Chunk
 from csgs_codec.format.layout import (
     FRAME_OVERHEAD,
@@ -109,25 +107,5 @@ def write_container(chunks: Iterable[Chunk], flags: int = 0,
     """
     data = container_bytes(chunks, flags)
     if path is not None:
-        _write_atomically(Path(path), data)
+        write_atomically(path, data)
     return data
-
-
-def _write_atomically(path: Path, data: bytes) -> None:
-    folder = path.parent if str(path.parent) else Path(".")
-    tmp_name = None
-    try:
-        with tempfile.NamedTemporaryFile(dir=folder, prefix=f".{path.name}.", suffix=".tmp",
-                                         delete=False) as tmp:
-            tmp_name = tmp.name
-            tmp.write(data)
-            tmp.flush()
-            os.fsync(tmp.fileno())
-        os.replace(tmp_name, path)
-        tmp_name = None
-    except OSError as exc:
-        raise InputError(f"cannot write: {exc.strerror or exc}", file=path) from None
-    finally:
-        if tmp_name is not None:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp_name)

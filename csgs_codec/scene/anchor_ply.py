@@ -22,10 +22,10 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec import __version__
+from csgs_codec.atomic_write import write_atomically
 from csgs_codec.errors import CsgsWarning, InputError
 from csgs_codec.scene.anchor_scene import AnchorScene
 from csgs_codec.scene.ply_header import MAX_HEADER_BYTES, PlyElement, PlyHeader, parse_header
-from csgs_codec.scene.ply_writer import write_atomically
 
 #: Placeholder values the official trainer writes for the unused anchor opacity and rotation.
 PLACEHOLDER_OPACITY = np.float32(np.log(0.1 / 0.9))

@@ -2,21 +2,18 @@
 
 from __future__ import annotations
 
-import contextlib
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from csgs_codec import __version__
-from csgs_codec.errors import InputError
+from csgs_codec.atomic_write import write_atomically
 from csgs_codec.scene.gaussian_scene import GaussianScene
 
 
 def ply_bytes(scene: GaussianScene) -> bytes:
     """The scene as a binary little-endian PLY in the INRIA property order.
 
+    The bytes are canonical: the same scene always gives the same bytes.
     Order: x y z nx ny nz f_dc_0..2 f_rest_* opacity scale_0..2 rot_0..3, then the semantic
     channels by name (float) and ``label`` (int) when present. Normals are written as zeros.
     """
@@ -43,8 +40,9 @@ def ply_bytes(scene: GaussianScene) -> bytes:
     rows = np.empty(n, dtype=[(name, types[name]) for name, _ in fields])
     for name, column in fields:
         rows[name] = column
-    lines = ["ply", "format binary_little_endian 1.0", f"comment written by csgs {__version__}",
-             f"element vertex {n}"]
+    # No comment line (e.g. a version): the bytes are a canonical function of the scene, so
+    # conformance vectors can pin the SHA-256 of a decoded scene.
+    lines = ["ply", "format binary_little_endian 1.0", f"element vertex {n}"]
     lines += [f"property {'int' if types[name] == '<i4' else 'float'} {name}"
               for name, _ in fields]
     lines.append("end_header\n")
@@ -60,36 +58,3 @@ def write_ply(scene: GaussianScene, path: str | Path) -> None:
         InputError: the scene is invalid, or the folder cannot be written.
     """
     write_atomically(path, ply_bytes(scene))
-
-
-def write_atomically(path: str | Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file and a rename.
-
-    Raises:
-        InputError: naming ``path`` when the folder is missing or not writable.
-    """
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-    except OSError as exc:
-        raise InputError(f"cannot write here: {exc.strerror or exc}", file=path) from None
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get normal modes
-        os.replace(tmp, path)
-    except BaseException as exc:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        if isinstance(exc, OSError):
-            raise InputError(f"cannot write: {exc.strerror or exc}", file=path) from None
-        raise
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask

@@ -78,7 +78,8 @@ class PositionGrid:
     def dequantize(self, cells: np.ndarray) -> np.ndarray:
         """World positions (N, 3) float32 of ``cells`` (N, 3) integers."""
         c = np.asarray(cells, dtype=np.float64)
-        return (np.asarray(self.origin, dtype=np.float64) + c * self.cell).astype(np.float32)
+        with np.errstate(over="ignore"):  # callers check finiteness (a damaged header)
+            return (np.asarray(self.origin, dtype=np.float64) + c * self.cell).astype(np.float32)
 
     @property
     def max_error(self) -> float:

@@ -17,10 +17,10 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+from csgs_codec.atomic_write import write_atomically
 from csgs_codec.errors import InputError
 from csgs_codec.scene.anchor_ply import anchor_ply_bytes, parse_anchor_ply, read_anchor_ply
 from csgs_codec.scene.anchor_scene import AnchorScene
-from csgs_codec.scene.ply_writer import write_atomically
 from csgs_codec.scene.scaffold_mlp_files import (
     APPEARANCE_FILE,
     HEAD_FILES,

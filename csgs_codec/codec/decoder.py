@@ -1,0 +1,184 @@
+"""Decoder: .csgs bytes -> GaussianScene, reading only the layers asked for.
+
+Imports numpy and constriction only (never torch), so decoding starts fast and runs where
+torch is not installed.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from csgs_codec.codec.payloads import (
+    CHUNK_STREAMS,
+    MAX_SEMANTIC_CHANNELS,
+    STREAM_CHANNELS,
+    STREAM_CHUNKS,
+    SceneHeader,
+    check_finite,
+    read_float_stream,
+)
+from csgs_codec.codec.streams import SceneStreams, join_streams
+from csgs_codec.entropy.categorical import decode_categorical
+from csgs_codec.entropy.geometry import decode_positions
+from csgs_codec.entropy.residual import decode_symbols
+from csgs_codec.errors import FormatError
+from csgs_codec.format import read_layers
+from csgs_codec.format.primitives import ByteReader
+from csgs_codec.scene.gaussian_scene import GaussianScene
+from csgs_codec.scene.position_grid import PositionGrid
+
+LAYER_CHOICES = ("color", "color,semantic")
+
+
+def parse_layers(layers) -> set[str]:
+    """Normalise a layers argument ("color", "color,semantic", or an iterable) to a set.
+
+    Raises:
+        FormatError: an unknown layer name (the colour layer is always decoded).
+    """
+    names = set(layers.split(",")) if isinstance(layers, str) else set(layers)
+    names = {n.strip() for n in names if n.strip()}
+    unknown = names - {"color", "semantic", "base"}
+    if unknown:
+        raise FormatError(f"unknown layer(s) {sorted(unknown)}; choose from color, semantic")
+    return (names | {"color"}) - {"base"}
+
+
+class Decoder:
+    """Decodes .csgs bitstreams written by :class:`csgs_codec.codec.encoder.Encoder`."""
+
+    def decode(self, source, layers="color") -> GaussianScene:
+        """Decode ``source`` (bytes, a path or a seekable binary file).
+
+        Args:
+            layers: "color" (geometry + colour; never reads semantic bytes) or
+                "color,semantic".
+
+        Returns:
+            The decoded scene in canonical (geometry) order.
+
+        Raises:
+            FormatError: any malformed, missing or inconsistent chunk, naming it and the
+                byte offset.
+        """
+        wanted = parse_layers(layers)
+        try:
+            container = read_layers(source, layers=wanted)
+            header = SceneHeader.from_bytes(*_payload(container, "SCNE"))
+            positions = self._positions(container, header)
+            streams = self._colour_streams(container, header)
+            scene = join_streams(streams, positions)
+            if "semantic" in wanted:
+                self._semantic(container, header, scene)
+        except FormatError as err:
+            if err.file is None and isinstance(source, (str, os.PathLike)):
+                err.file = str(source)
+            raise
+        return scene
+
+    # ------------------------------------------------------------------ base layer
+    def _positions(self, container, header: SceneHeader) -> np.ndarray:
+        grid_count = header.count - header.far_count
+        data, offset = _payload(container, "GEOM")
+        try:
+            cells = decode_positions(data, max_points=grid_count)
+        except FormatError as err:
+            err.chunk, err.offset = "GEOM", offset + (err.offset or 0)
+            raise
+        if len(cells) != grid_count:
+            raise FormatError(f"geometry holds {len(cells)} points, the header says "
+                              f"{grid_count}", chunk="GEOM", offset=offset)
+        if header.grid_bits < 21 and len(cells) and cells.max() >= 1 << max(header.grid_bits, 1):
+            raise FormatError("a point lies outside the header's grid", chunk="GEOM",
+                              offset=offset)
+        grid = PositionGrid(header.grid_origin, header.grid_cell, max(header.grid_bits, 1))
+        positions = grid.dequantize(cells)
+        if header.far_count:
+            data, offset = _payload(container, "OUTL")
+            r = ByteReader(data, base_offset=offset, chunk="OUTL")
+            n = r.varint("far_count", maximum=header.far_count)
+            if n != header.far_count:
+                raise r.error(f"{n} outliers, the header says {header.far_count}")
+            far = r.array(n * 3, "<f4", "positions").reshape(n, 3).astype(np.float32)
+            r.expect_end("the outlier list")
+            check_finite(far, "OUTL")
+            positions = np.concatenate([positions, far])
+        check_finite(positions, "GEOM")
+        return positions
+
+    # ------------------------------------------------------------------ colour layer
+    def _colour_streams(self, container, header: SceneHeader) -> SceneStreams:
+        names = ["dc"] + [f"rest{b}" for b in range(1, header.sh_degree_coded + 1)]
+        names += ["opacity", "scale", "rot"]
+        present = {e.type for e in container.toc}
+        extra = present & set(CHUNK_STREAMS) - {STREAM_CHUNKS[n] for n in names}
+        if extra:
+            raise FormatError(f"unexpected colour chunk(s) {sorted(extra)} for SH degree "
+                              f"{header.sh_degree_coded}", chunk=sorted(extra)[0])
+        decoded = {}
+        rot_axis = None
+        for name in names:
+            code = STREAM_CHUNKS[name]
+            data, offset = _payload(container, code)
+            r = ByteReader(data, base_offset=offset, chunk=code)
+            if name == "rot":
+                axis_stream = r.byte_string("axis_stream")
+                rot_axis = decode_categorical(axis_stream, header.count, chunk=code,
+                                              base_offset=r.offset - len(axis_stream))
+                if rot_axis.size and rot_axis.max() > 3:
+                    raise r.error("dropped-component index above 3")
+            values = read_float_stream(r, header.count, STREAM_CHANNELS[name])
+            r.expect_end(f"the {name} stream")
+            check_finite(values, code)
+            decoded[name] = values
+        return SceneStreams(decoded, rot_axis.astype(np.uint8), header.sh_degree_stored)
+
+    # ------------------------------------------------------------------ semantic layer
+    def _semantic(self, container, header: SceneHeader, scene: GaussianScene) -> None:
+        present = {e.type for e in container.toc}
+        if "SEMF" in present:
+            data, offset = _payload(container, "SEMF")
+            r = ByteReader(data, base_offset=offset, chunk="SEMF")
+            s = r.varint("channel_count", maximum=MAX_SEMANTIC_CHANNELS)
+            names = []
+            for _ in range(s):
+                raw = r.byte_string("channel_name", maximum=256)
+                try:
+                    names.append(raw.decode("utf-8"))
+                except UnicodeDecodeError:
+                    raise r.error("channel name is not UTF-8") from None
+            values = read_float_stream(r, header.count, s)
+            r.expect_end("the semantic feature stream")
+            check_finite(values, "SEMF")
+            scene.semantic, scene.semantic_names = values, tuple(names)
+        if "SEML" in present:
+            data, offset = _payload(container, "SEML")
+            r = ByteReader(data, base_offset=offset, chunk="SEML")
+            base = r.svarint("label_base")
+            table = r.fixed("u8", "scale_index")
+            stream = r.byte_string("label_stream")
+            r.expect_end("the label stream")
+            if table >= 64:
+                raise r.error(f"scale index {table} out of range")
+            labels = decode_symbols(stream, np.full(header.count, table, np.int64),
+                                    chunk="SEML", base_offset=r.offset - len(stream)) + base
+            if labels.size and (labels.min() < -(1 << 31) or labels.max() >= 1 << 31):
+                raise r.error("label outside the int32 range")
+            scene.labels = labels.astype(np.int32)
+
+
+def _payload(container, code: str) -> tuple[bytes, int]:
+    """(payload, absolute offset of the payload) of the one chunk of type ``code``."""
+    entries = [e for e in container.toc if e.type == code]
+    if not entries:
+        raise FormatError(f"required chunk {code} is missing", chunk=code)
+    if len(entries) > 1:
+        raise FormatError(f"chunk {code} appears {len(entries)} times", chunk=code,
+                          offset=entries[1].offset)
+    entry = entries[0]
+    if entry.index not in container.payloads:
+        raise FormatError(f"chunk {code} is cut off (stream truncated)", chunk=code,
+                          offset=entry.offset)
+    return bytes(container.payloads[entry.index]), entry.offset + 8

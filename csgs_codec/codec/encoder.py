@@ -1,0 +1,179 @@
+"""Encoder: a GaussianScene -> a layered .csgs bitstream (orchestration only).
+
+Pipeline: validate -> optional pruning -> position grid -> geometry (canonical order) ->
+attribute streams in that order -> chunks -> container. The encoder computes its own
+reconstruction with exactly the integer arithmetic the decoder runs, so
+``Decoder().decode(Encoder().encode(s))`` equals ``EncodeResult.reconstruction`` bit for bit.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from csgs_codec.codec.payloads import (
+    STREAM_CHUNKS,
+    SceneHeader,
+    write_float_stream,
+)
+from csgs_codec.codec.presets import DEFAULT_QUALITY, Preset, preset
+from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
+from csgs_codec.entropy.categorical import encode_categorical
+from csgs_codec.entropy.geometry import canonical_order, encode_positions
+from csgs_codec.entropy.residual import encode_symbols
+from csgs_codec.entropy.table_choice import best_table
+from csgs_codec.errors import InputError
+from csgs_codec.format import Chunk, write_container
+from csgs_codec.format.primitives import ByteWriter
+from csgs_codec.scene.gaussian_scene import GaussianScene
+from csgs_codec.scene.position_grid import PositionGrid
+
+SEMANTIC_MODES = ("auto", "none")
+#: Step of semantic features (their units are whatever the trainer used; 1/256 keeps cosine
+#: similarities of unit-scale features within about 1%).
+SEMANTIC_STEP = 1.0 / 256
+
+
+@dataclass
+class EncodeResult:
+    """What :meth:`Encoder.encode_with_report` returns.
+
+    Attributes:
+        data: the .csgs bytes.
+        reconstruction: the scene the decoder will output (all layers written), in the
+            decoder's order.
+        order: (N,) int64 index of each decoded Gaussian in the (pruned) input scene.
+        pruned: Gaussians removed by ``prune_opacity``.
+        stream_bytes: chunk type -> payload bytes.
+        seconds: encode wall time.
+    """
+
+    data: bytes
+    reconstruction: GaussianScene
+    order: np.ndarray
+    pruned: int = 0
+    stream_bytes: dict[str, int] = field(default_factory=dict)
+    seconds: float = 0.0
+
+
+class Encoder:
+    """Encodes standard 3DGS scenes to .csgs.
+
+    Args:
+        quality: preset 1 (smallest) .. 9 (near-lossless); see csgs_codec/codec/presets.py.
+        semantic: "auto" writes the semantic layer when the scene has semantic channels or
+            labels; "none" never writes it.
+        prune_opacity: drop Gaussians whose opacity sigmoid(logit) is below this (lossy,
+            opt-in); None keeps every Gaussian.
+        progress: a callable ``progress(step_name)`` told of each stage, or None.
+    """
+
+    def __init__(self, quality: int = DEFAULT_QUALITY, *, semantic: str = "auto",
+                 prune_opacity: float | None = None, progress=None) -> None:
+        self.preset: Preset = preset(quality)
+        if semantic not in SEMANTIC_MODES:
+            raise InputError(f"semantic must be one of {SEMANTIC_MODES}, got {semantic!r}")
+        if prune_opacity is not None and not 0.0 <= prune_opacity < 1.0:
+            raise InputError(f"prune_opacity must be in [0, 1), got {prune_opacity}")
+        self.semantic = semantic
+        self.prune_opacity = prune_opacity
+        self.progress = progress or (lambda step: None)
+
+    def encode(self, scene: GaussianScene) -> bytes:
+        """The .csgs bytes of ``scene``."""
+        return self.encode_with_report(scene).data
+
+    def encode_with_report(self, scene: GaussianScene) -> EncodeResult:
+        """Encode ``scene`` and report the reconstruction, order and bytes per chunk."""
+        start = time.perf_counter()
+        scene.validate()
+        pruned = 0
+        if self.prune_opacity is not None and len(scene):
+            alpha = 1.0 / (1.0 + np.exp(-scene.opacity.astype(np.float64)))
+            keep = alpha >= self.prune_opacity
+            pruned = int((~keep).sum())
+            scene = scene.subset(keep)
+
+        self.progress("geometry")
+        grid = PositionGrid.fit(scene.positions, self.preset.position_bits)
+        cells, inside = grid.quantize(scene.positions)
+        inside_idx = np.flatnonzero(inside)
+        far_idx = np.flatnonzero(~inside)
+        perm = canonical_order(cells[inside_idx], grid.bits)
+        order = np.concatenate([inside_idx[perm], far_idx]).astype(np.int64)
+        geometry = encode_positions(cells[inside_idx], grid.bits)
+        positions = np.concatenate([grid.dequantize(cells[inside_idx][perm]),
+                                    scene.positions[far_idx]]).astype(np.float32)
+        ordered = scene.subset(order)
+
+        streams = split_streams(ordered)
+        header = SceneHeader(
+            count=len(ordered), sh_degree_stored=streams.sh_degree_stored,
+            sh_degree_coded=sum(1 for k in streams.float_streams if k.startswith("rest")),
+            quality=self.preset.quality, grid_origin=grid.origin, grid_cell=grid.cell,
+            grid_bits=grid.bits, far_count=len(far_idx))
+        chunks = [Chunk("SCNE", "base", header.to_bytes()), Chunk("GEOM", "base", geometry)]
+        if len(far_idx):
+            chunks.append(Chunk("OUTL", "base", _outliers_payload(scene.positions[far_idx])))
+
+        self.progress("colour")
+        decoded_streams = self._colour_chunks(streams, chunks)
+        reconstruction = join_streams(decoded_streams, positions)
+
+        if self.semantic == "auto" and (ordered.semantic is not None or
+                                        ordered.labels is not None):
+            self.progress("semantic")
+            self._semantic_chunks(ordered, reconstruction, chunks)
+
+        self.progress("container")
+        data = write_container(chunks)
+        return EncodeResult(
+            data=data, reconstruction=reconstruction, order=order, pruned=pruned,
+            stream_bytes={c.type: len(c.payload) for c in chunks},
+            seconds=time.perf_counter() - start)
+
+    # ------------------------------------------------------------------ layers
+    def _colour_chunks(self, streams: SceneStreams, chunks: list[Chunk]) -> SceneStreams:
+        p = self.preset
+        steps = {"dc": p.dc_step, "rest1": p.rest_step, "rest2": p.rest_step,
+                 "rest3": p.rest_step, "opacity": p.opacity_step, "scale": p.scale_step,
+                 "rot": p.rotation_step}
+        decoded = {}
+        for name, values in streams.float_streams.items():
+            out = ByteWriter()
+            if name == "rot":
+                out.byte_string(encode_categorical(streams.rot_axis, 4))
+            decoded[name] = write_float_stream(out, values, steps[name])
+            chunks.append(Chunk(STREAM_CHUNKS[name], "color", out.getvalue()))
+        return SceneStreams(decoded, streams.rot_axis.copy(), streams.sh_degree_stored)
+
+    def _semantic_chunks(self, ordered: GaussianScene, reconstruction: GaussianScene,
+                         chunks: list[Chunk]) -> None:
+        if ordered.semantic is not None:
+            out = ByteWriter()
+            out.varint(len(ordered.semantic_names))
+            for name in ordered.semantic_names:
+                out.byte_string(name.encode("utf-8"))
+            reconstruction.semantic = write_float_stream(out, ordered.semantic, SEMANTIC_STEP)
+            reconstruction.semantic_names = ordered.semantic_names
+            chunks.append(Chunk("SEMF", "semantic", out.getvalue()))
+        if ordered.labels is not None:
+            labels = ordered.labels.astype(np.int64)
+            base = int(np.median(labels)) if labels.size else 0
+            residuals = labels - base
+            table = best_table(residuals)
+            out = ByteWriter()
+            out.svarint(base)
+            out.fixed("u8", table)
+            out.byte_string(encode_symbols(residuals, np.full(labels.size, table, np.int64)))
+            reconstruction.labels = ordered.labels.copy()
+            chunks.append(Chunk("SEML", "semantic", out.getvalue()))
+
+
+def _outliers_payload(positions: np.ndarray) -> bytes:
+    out = ByteWriter()
+    out.varint(len(positions))
+    out.array(positions.astype(np.float32), "<f4")
+    return out.getvalue()

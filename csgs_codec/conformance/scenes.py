@@ -1,0 +1,113 @@
+"""Scene conformance vectors: .csgs files with their expected decodes (spec/FORMAT.md §14).
+
+Valid vectors carry the SHA-256 of the canonical PLY (csgs_codec.scene.ply_io.ply_bytes) of
+each read, plus the decoded arrays for the small ones; invalid vectors carry the error class
+and the chunk it names.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+from csgs_codec.codec.decoder import Decoder
+from csgs_codec.codec.encoder import Encoder
+from csgs_codec.errors import CsgsError
+from csgs_codec.format import Chunk, read_layers, write_container
+from csgs_codec.scene.gaussian_scene import GaussianScene
+from csgs_codec.scene.ply_io import ply_bytes, read_ply
+
+REPO = Path(__file__).resolve().parents[2]
+DONUT = REPO / "samples" / "donut.ply"
+THREE_POINTS = REPO.parent / "shared" / "data" / "fixtures" / "three_points_sh3.ply"
+READS = ("color", "color,semantic")
+
+
+def small_semantic_scene() -> GaussianScene:
+    """A 40-Gaussian SH-1 scene with 3 semantic channels and labels, fixed integers only."""
+    i = np.arange(40, dtype=np.float32)
+    col = lambda k, scale: np.stack([np.sin(i * (k + j + 1)) * scale  # noqa: E731
+                                     for j in range(k)], axis=1).astype(np.float32)
+    return GaussianScene(
+        positions=np.stack([i % 4, (i // 4) % 5, i // 20], axis=1).astype(np.float32) * 0.25,
+        sh_dc=col(3, 1.5), sh_rest=col(9, 0.2).reshape(40, 3, 3),
+        opacity=(np.cos(i) * 4).astype(np.float32), scales=col(3, 0.5) - 3,
+        rotations=col(4, 1.0) + np.float32(0.1), semantic=col(3, 0.8),
+        semantic_names=("ins_feat_0", "ins_feat_1", "ins_feat_2"),
+        labels=(i // 8).astype(np.int32))
+
+
+def _reads(data: bytes) -> list[dict]:
+    """The outcome of decoding ``data`` with each layer choice."""
+    reads = []
+    for layers in READS:
+        try:
+            scene = Decoder().decode(data, layers=layers)
+        except CsgsError as err:
+            reads.append({"layers": layers, "outcome": "error",
+                          "error": type(err).__name__, "chunk": err.chunk})
+            continue
+        reads.append({"layers": layers, "outcome": "ok", "gaussians": len(scene),
+                      "ply_sha256": hashlib.sha256(ply_bytes(scene)).hexdigest()})
+    return reads
+
+
+def _write(out_dir: Path, name: str, data: bytes, description: str, reads: list[dict],
+           arrays: GaussianScene | None = None) -> None:
+    (out_dir / f"{name}.csgs").write_bytes(data)
+    doc = {"schema": "csgs-vector/1", "name": name, "description": description,
+           "bytes": len(data), "sha256": hashlib.sha256(data).hexdigest(),
+           "valid": all(r["outcome"] == "ok" for r in reads), "reads": reads}
+    if arrays is not None:
+        np.savez(out_dir / f"{name}.npz", **{k: v for k, v in vars(arrays).items()
+                                             if isinstance(v, np.ndarray)})
+        doc["arrays"] = f"{name}.npz"
+    (out_dir / f"{name}.json").write_text(json.dumps(doc, indent=2) + "\n")
+
+
+def _invalid(data: bytes, drop: str | None = None, cut: str | None = None) -> bytes:
+    container = read_layers(data, layers={"color", "semantic"})
+    chunks = []
+    for e in container.toc:
+        payload = bytes(container.payloads[e.index])
+        if e.type == drop:
+            continue
+        if e.type == cut:
+            payload = payload[: len(payload) // 2]
+        chunks.append(Chunk(e.type, e.layer, payload, e.tile))
+    return write_container(chunks)
+
+
+def generate(out_dir: Path) -> None:
+    """Write the scene vectors into ``out_dir``."""
+    donut = read_ply(DONUT)
+    for quality in (3, 7):
+        data = Encoder(quality=quality).encode(donut)
+        _write(out_dir, f"donut_q{quality}", data,
+               f"samples/donut.ply (45,624 Gaussians, SH 0) at quality {quality}",
+               _reads(data))
+    three = read_ply(THREE_POINTS)
+    data = Encoder(quality=9).encode(three)
+    _write(out_dir, "three_points_sh3_q9", data,
+           "fixtures/three_points_sh3.ply (3 Gaussians, SH 3) at quality 9",
+           _reads(data), arrays=Decoder().decode(data))
+    small = small_semantic_scene()
+    data = Encoder(quality=6).encode(small)
+    _write(out_dir, "semantic_small", data,
+           "40 Gaussians, SH 1, 3 semantic channels and labels, quality 6",
+           _reads(data),
+           arrays=Decoder().decode(data, layers="color,semantic"))
+    bad = _invalid(data, drop="OPAC")
+    _write(out_dir, "missing_opacity_chunk", bad, "semantic_small without its OPAC chunk",
+           _reads(bad))
+    bad = _invalid(data, cut="SHDC")
+    _write(out_dir, "truncated_dc_payload", bad,
+           "semantic_small with the SHDC payload cut in half (frame and CRC rewritten)",
+           _reads(bad))
+    bad = _invalid(data, cut="SEML")
+    _write(out_dir, "truncated_label_payload", bad,
+           "semantic_small with the SEML payload cut in half: colour decodes, semantic fails",
+           _reads(bad))

@@ -1,0 +1,25 @@
+"""Small scenes for codec tests."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from csgs_codec.scene import GaussianScene
+
+
+def random_scene(n: int, *, sh_degree: int = 1, seed: int = 0, semantic: int = 0,
+                 labels: bool = False) -> GaussianScene:
+    """A random but plausible scene: positions in a unit cube, typical attribute ranges."""
+    rng = np.random.default_rng(seed)
+    bands = {0: 0, 1: 3, 2: 8, 3: 15}[sh_degree]
+    f = lambda *shape, s=1.0: (rng.normal(size=shape) * s).astype(np.float32)  # noqa: E731
+    scene = GaussianScene(
+        positions=rng.uniform(-1, 1, size=(n, 3)).astype(np.float32),
+        sh_dc=f(n, 3), sh_rest=f(n, bands, 3, s=0.1), opacity=f(n, s=3.0),
+        scales=(f(n, 3, s=0.5) - 4).astype(np.float32), rotations=f(n, 4))
+    if semantic:
+        scene.semantic = f(n, semantic)
+        scene.semantic_names = tuple(f"ins_feat_{i}" for i in range(semantic))
+    if labels:
+        scene.labels = rng.integers(0, 7, size=n).astype(np.int32)
+    return scene

@@ -1,0 +1,171 @@
+"""Encoder/Decoder round trips: decode equals the encoder's reconstruction, errors are bounded."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from csgs_codec.codec.decoder import Decoder
+from csgs_codec.codec.encoder import Encoder
+from csgs_codec.codec.presets import preset
+from csgs_codec.format import read_layers
+from csgs_codec.scene.attribute_forms import normalize_quaternions
+from csgs_codec.scene.ply_io import read_ply
+from csgs_codec.scene.position_grid import PositionGrid
+from tests.codec.helpers import random_scene
+from tests.conftest import FIXTURES, SAMPLE, SCENES
+
+ALL_FILES = sorted(SCENES.glob("*.ply")) + sorted(FIXTURES.glob("*.ply"))
+
+
+def round_trip(scene, quality=6, **kw):
+    result = Encoder(quality=quality, **kw).encode_with_report(scene)
+    decoded = Decoder().decode(result.data, layers="color,semantic")
+    assert decoded.equals(result.reconstruction)
+    return result, decoded
+
+
+@pytest.mark.parametrize("path", ALL_FILES, ids=lambda p: p.name)
+def test_every_shared_scene_round_trips_exactly(path):
+    scene = read_ply(path)
+    result, decoded = round_trip(scene, quality=5)
+    assert len(decoded) == len(scene)
+    assert decoded.sh_degree_stored == scene.sh_degree_stored
+
+
+@pytest.mark.parametrize("quality", [2, 8])
+def test_errors_stay_within_the_preset_bounds(quality):
+    scene = read_ply(SAMPLE)
+    result, decoded = round_trip(scene, quality=quality)
+    p = preset(quality)
+    ref = scene.subset(result.order)
+    # Steps snap to a 1/8-octave grid (within 4.5%), so half a step is at most 0.523 * step.
+    bound = lambda step: 0.523 * step + 1e-6  # noqa: E731
+    assert np.abs(decoded.sh_dc - ref.sh_dc).max() <= bound(p.dc_step)
+    assert np.abs(decoded.scales - ref.scales).max() <= bound(p.scale_step)
+    assert np.abs(decoded.opacity - np.clip(ref.opacity, -10, 10)).max() <= bound(p.opacity_step)
+    grid = PositionGrid.fit(scene.positions, p.position_bits)
+    assert np.abs(decoded.positions - ref.positions).max() <= grid.max_error
+    dots = np.abs(np.sum(normalize_quaternions(decoded.rotations) *
+                         normalize_quaternions(ref.rotations), axis=1))
+    # smallest-three components err by <= step/2 / sqrt(2) each: the rotations stay close.
+    assert dots.min() > 1 - 2 * p.rotation_step
+
+
+def test_higher_quality_means_more_bytes_and_smaller_errors():
+    scene = read_ply(SAMPLE)
+    sizes, errors = [], []
+    for q in (1, 5, 9):
+        result, decoded = round_trip(scene, quality=q)
+        sizes.append(len(result.data))
+        errors.append(np.abs(decoded.sh_dc - scene.subset(result.order).sh_dc).max())
+    assert sizes == sorted(sizes) and errors == sorted(errors, reverse=True)
+
+
+def test_zero_sh_tile_spends_no_bytes_on_sh():
+    scene = read_ply(FIXTURES / "flat_tile_zero_sh.ply")
+    result, decoded = round_trip(scene)
+    assert not {"SHBA", "SHBB", "SHBC"} & set(result.stream_bytes)
+    assert decoded.sh_rest.shape == (len(scene), 15, 3) and not decoded.sh_rest.any()
+
+
+def test_three_point_sh3_fixture_codes_every_band():
+    scene = read_ply(FIXTURES / "three_points_sh3.ply")
+    result, decoded = round_trip(scene, quality=9)
+    assert {"SHBA", "SHBB", "SHBC"} <= set(result.stream_bytes)
+    ref = scene.subset(result.order)
+    assert np.abs(decoded.sh_rest - ref.sh_rest).max() <= 0.523 * preset(9).rest_step + 1e-6
+
+
+def test_constant_channels_cost_no_residual_bytes():
+    scene = random_scene(2000, sh_degree=0)
+    varied = len(Encoder().encode(scene))
+    scene.scales[:] = -5.0
+    scene.opacity[:] = 2.0
+    result, decoded = round_trip(scene)
+    assert np.all(decoded.scales == -5.0) and np.all(decoded.opacity == 2.0)
+    assert result.stream_bytes["SCAL"] < 40 and result.stream_bytes["OPAC"] < 20
+    assert len(result.data) < varied
+
+
+def test_semantic_layer_round_trips_and_is_optional():
+    scene = random_scene(1500, semantic=6, labels=True)
+    result, decoded = round_trip(scene)
+    ref = scene.subset(result.order)
+    np.testing.assert_array_equal(decoded.labels, ref.labels)
+    assert decoded.semantic_names == ref.semantic_names
+    assert np.abs(decoded.semantic - ref.semantic).max() <= 0.523 / 256 + 1e-6
+    layers = {e.layer.label for e in read_layers(result.data, layers={"semantic"}).toc}
+    assert "semantic" in layers
+    colour_only = Decoder().decode(result.data, layers="color")
+    assert colour_only.semantic is None and colour_only.labels is None
+    without = Encoder(semantic="none").encode(scene)
+    assert len(without) < len(result.data)
+    assert {e.layer.label for e in read_layers(without, layers={"color"}).toc} == {"base",
+                                                                                   "color"}
+
+
+def test_colour_only_decode_never_reads_semantic_bytes(tmp_path):
+    scene = random_scene(1000, semantic=6, labels=True)
+    data = Encoder().encode(scene)
+    colour_end = read_layers(data, layers={"color"}).layer_end("color")
+
+    class Guarded:
+        """A file object that fails on any read past the colour layer's end."""
+
+        def __init__(self, raw):
+            self.raw, self.pos = raw, 0
+
+        def read(self, n=-1):
+            end = len(self.raw) if n < 0 else self.pos + n
+            if end > colour_end:
+                raise AssertionError(f"read up to byte {end} past the colour layer {colour_end}")
+            out = self.raw[self.pos:end]
+            self.pos = end
+            return out
+
+        def seek(self, pos, whence=0):
+            self.pos = {0: pos, 1: self.pos + pos, 2: len(self.raw) + pos}[whence]
+            return self.pos
+
+        def tell(self):
+            return self.pos
+
+    guarded = Decoder().decode(Guarded(data), layers="color")
+    full = Decoder().decode(data, layers="color,semantic")
+    assert guarded.positions.tobytes() == full.positions.tobytes()
+    assert guarded.sh_dc.tobytes() == full.sh_dc.tobytes()
+    assert guarded.rotations.tobytes() == full.rotations.tobytes()
+    cut = Decoder().decode(data[:colour_end], layers="color")
+    assert cut.scales.tobytes() == full.scales.tobytes()
+
+
+@pytest.mark.parametrize("n", [0, 1, 2])
+def test_tiny_scenes_round_trip(n):
+    scene = random_scene(n, sh_degree=2)
+    result, decoded = round_trip(scene)
+    assert len(decoded) == n
+
+
+def test_far_floater_is_kept_exactly():
+    scene = random_scene(3000)
+    scene.positions[17] = (3e7, -1e7, 5.5)
+    result, decoded = round_trip(scene)
+    assert "OUTL" in result.stream_bytes
+    assert decoded.positions[-1].tolist() == [3e7, -1e7, 5.5]
+
+
+def test_prune_opacity_drops_and_reports():
+    scene = random_scene(1000)
+    alpha = 1 / (1 + np.exp(-scene.opacity.astype(np.float64)))
+    result, decoded = round_trip(scene, prune_opacity=0.2)
+    assert result.pruned == int((alpha < 0.2).sum()) > 0
+    assert len(decoded) == 1000 - result.pruned
+
+
+def test_duplicate_positions_keep_their_own_attributes():
+    scene = random_scene(500)
+    scene.positions[250:] = scene.positions[:250]
+    result, decoded = round_trip(scene, quality=9)
+    ref = scene.subset(result.order)
+    assert np.abs(decoded.sh_dc - ref.sh_dc).max() <= 0.523 * preset(9).dc_step + 1e-6
