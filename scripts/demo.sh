@@ -1,12 +1,35 @@
 #!/usr/bin/env bash
-# The main job on the bundled sample scene. Grows with the codec: each step uses only what
-# exists end to end. Usage: scripts/demo.sh VENV OUTDIR
+# The main job on the bundled sample scene: encode -> info -> decode -> compare, with
+# before/after renders. Usage: scripts/demo.sh VENV OUTDIR
 set -euo pipefail
 venv=${1:-.venv}
 out=${2:-demo-output}
 csgs="$venv/bin/csgs"
 scene=samples/donut.ply
+quality=${QUALITY:-6}
 mkdir -p "$out"
 
-echo "== csgs info $scene"
+echo "== the input: $scene"
 "$csgs" info "$scene"
+
+echo
+echo "== encode at quality $quality"
+"$csgs" encode "$scene" -o "$out/donut.csgs" --quality "$quality"
+
+echo
+echo "== what the bitstream holds"
+"$csgs" info "$out/donut.csgs"
+
+echo
+echo "== decode the colour layer"
+"$csgs" decode "$out/donut.csgs" -o "$out/donut_decoded.ply"
+
+echo
+echo "== compare decoded with original (8 orbit views, 400x300, black background)"
+"$csgs" compare "$scene" "$out/donut.csgs" --orbit 8 --size 400x300
+
+echo
+echo "== render before/after pictures"
+"$csgs" render "$scene" --orbit 4 --size 400x300 -o "$out/original" --quiet
+"$csgs" render "$out/donut.csgs" --orbit 4 --size 400x300 -o "$out/decoded" --quiet
+echo "wrote $out/original/*.png and $out/decoded/*.png"

@@ -2,15 +2,21 @@
 
 Steps are in each attribute's coding form: SH coefficients (colour = 0.5 + 0.2821 * dc, so a
 dc step of 0.01 is about 0.7/255 of colour), opacity logits, natural-log scales, and the
-smallest-three rotation components scaled to [-1, 1]. Quality 1 is the smallest file, 9 is
-near-lossless. ``lambda_`` weights distortion against rate in the hyperprior's fit.
+smallest-three rotation components scaled to [-1, 1]. Position bits are per axis over the
+scene's robust extent. Quality 1 is the smallest file, 9 near-lossless.
+
+Calibration (samples/donut.ply, 4 orbit views at 400x300, foreground PSNR of the decoded
+against the original render): about 26 dB at 1, 31 at 2, 40 at 4, 47 at 6, 53 at 8.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 from csgs_codec.errors import InputError
+
+#: Steps at multiplier 1 (quality 8), in coding-form units.
+_BASE = {"dc": 0.025, "rest": 0.05, "opacity": 0.12, "scale": 0.05, "rotation": 0.025}
 
 
 @dataclass(frozen=True)
@@ -24,29 +30,24 @@ class Preset:
     opacity_step: float
     scale_step: float
     rotation_step: float
-    lambda_: float
-
-    def with_lambda(self, lambda_: float) -> Preset:
-        """The same preset with another rate-distortion weight."""
-        if not lambda_ > 0:
-            raise InputError(f"lambda must be positive, got {lambda_}")
-        return replace(self, lambda_=float(lambda_))
 
 
-_TABLE = [
-    # q  bits  dc      rest    opac   scale   rot     lambda
-    (1, 12, 0.100, 0.200, 0.50, 0.200, 0.100, 0.5),
-    (2, 13, 0.070, 0.140, 0.35, 0.140, 0.070, 1.0),
-    (3, 14, 0.050, 0.100, 0.25, 0.100, 0.050, 2.0),
-    (4, 14, 0.035, 0.070, 0.18, 0.070, 0.035, 4.0),
-    (5, 15, 0.025, 0.050, 0.12, 0.050, 0.025, 8.0),
-    (6, 16, 0.016, 0.032, 0.08, 0.032, 0.016, 16.0),
-    (7, 16, 0.010, 0.020, 0.05, 0.020, 0.010, 32.0),
-    (8, 17, 0.005, 0.010, 0.025, 0.010, 0.005, 64.0),
-    (9, 18, 0.002, 0.004, 0.010, 0.004, 0.002, 128.0),
-]
-PRESETS = {row[0]: Preset(*row) for row in _TABLE}
-DEFAULT_QUALITY = 6
+def _row(quality: int, bits: int, multiplier: float) -> Preset:
+    return Preset(quality, bits, *(v * multiplier for v in _BASE.values()))
+
+
+PRESETS = {p.quality: p for p in (
+    _row(1, 10, 12.0),
+    _row(2, 11, 8.0),
+    _row(3, 11, 6.0),
+    _row(4, 12, 4.0),
+    _row(5, 12, 3.0),
+    _row(6, 13, 2.0),
+    _row(7, 14, 1.4),
+    _row(8, 14, 1.0),
+    _row(9, 16, 0.4),
+)}
+DEFAULT_QUALITY = 5
 
 
 def preset(quality: int) -> Preset:

@@ -56,5 +56,3 @@ def test_presets_get_finer_with_quality():
     assert bits == sorted(bits)
     with pytest.raises(InputError):
         preset(0)
-    with pytest.raises(InputError):
-        preset(5).with_lambda(-1)
