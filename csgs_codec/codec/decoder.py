@@ -10,6 +10,7 @@ import os
 
 import numpy as np
 
+from csgs_codec.codec.float_stream import read_float_stream
 from csgs_codec.codec.payloads import (
     CHUNK_STREAMS,
     MAX_SEMANTIC_CHANNELS,
@@ -17,7 +18,6 @@ from csgs_codec.codec.payloads import (
     STREAM_CHUNKS,
     SceneHeader,
     check_finite,
-    read_float_stream,
 )
 from csgs_codec.codec.streams import SceneStreams, join_streams
 from csgs_codec.entropy.categorical import decode_categorical

@@ -13,10 +13,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from csgs_codec.codec.float_stream import write_float_stream
 from csgs_codec.codec.payloads import (
     STREAM_CHUNKS,
     SceneHeader,
-    write_float_stream,
 )
 from csgs_codec.codec.presets import DEFAULT_QUALITY, Preset, preset
 from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams

@@ -90,3 +90,24 @@ def test_invalid_scene_is_refused_before_encoding():
     scene.scales[3, 1] = float("nan")
     with pytest.raises(InputError, match="index 3"):
         Encoder().encode(scene)
+
+
+def test_out_of_range_prediction_coefficient_is_refused():
+    from csgs_codec.codec.float_stream import MODE_PREDICTED, read_float_stream
+    from csgs_codec.format.primitives import ByteReader, ByteWriter
+
+    out = ByteWriter()
+    out.varint(2)
+    out.fixed("u8", 2)
+    out.fixed("u8", 10)
+    out.fixed("u8", 0)
+    out.fixed("f32", 1.0)
+    out.fixed("u8", MODE_PREDICTED)
+    out.svarint(0)
+    out.fixed("u8", 10)
+    out.fixed("u8", 3)
+    out.varint(1)
+    out.svarint(1 << 20)  # |A| >= 2^15
+    out.svarint(0)
+    with pytest.raises(FormatError, match="coefficient out of range"):
+        read_float_stream(ByteReader(out.getvalue(), chunk="SCAL"), 2, 2)

@@ -1,0 +1,187 @@
+"""Float streams: N x C attribute values quantized per channel and range coded (FORMAT §12.8).
+
+Each channel c is one of:
+
+- constant (mode 0): one float32 for every Gaussian, no bits per Gaussian;
+- factorized (mode 1): quantization indices k = round((a - mu) / q) on the value grid, coded
+  with one frozen Gaussian table;
+- predicted (mode 2): k is predicted from the indices of the channels before it (a
+  channel-wise autoregressive model, linear with integer coefficients):
+  ``P = floor((sum_j A_j * k_j + B) / 2^12)`` in exact int64, and ``k - P`` is coded.
+
+The value decodes as ``float32((mu + q * k) * 2^-F)``. The encoder picks, per channel, the mode
+that codes smallest (counting the coefficients), so prediction is used only where it pays.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from csgs_codec.entropy.residual import (
+    STEP_COUNT,
+    decode_symbols,
+    encode_symbols,
+    from_grid,
+    quantize,
+    reconstruct,
+    step_index,
+    step_size,
+    to_grid,
+)
+from csgs_codec.entropy.table_choice import table_costs
+from csgs_codec.entropy.tables import gaussian_family
+from csgs_codec.format.primitives import ByteReader, ByteWriter
+
+MODE_CONSTANT = 0
+MODE_FACTORIZED = 1
+MODE_PREDICTED = 2
+#: Fractional bits of prediction coefficients and bias.
+COEF_FRAC_BITS = 12
+#: |A_j| must stay below this; |B| below BIAS_LIMIT.
+COEF_LIMIT = 1 << 15
+BIAS_LIMIT = 1 << 40
+#: Indices that feed a prediction must stay below this in magnitude (keeps sums in int64).
+INDEX_LIMIT = 1 << 31
+#: Finest value grid: values are coded as integers in units of 2^-frac_bits.
+MAX_FRAC_BITS = 24
+MAX_COUNT = 1 << 28
+
+
+def frac_bits_for(values: np.ndarray) -> int:
+    """Finest value grid (<= 24 fractional bits) on which ``values`` stay below 2^52."""
+    top = float(np.max(np.abs(values))) if values.size else 0.0
+    room = 52 - int(np.ceil(np.log2(top + 1.0)))
+    return int(np.clip(room, 0, MAX_FRAC_BITS))
+
+
+def predict(previous: np.ndarray, coefs: np.ndarray, bias: int) -> np.ndarray:
+    """Predicted indices (N,) int64: floor((previous @ coefs + bias) / 2^12), exact.
+
+    Args:
+        previous: (N, m) int64 indices of the earlier channels, each |k| < 2^31.
+        coefs: (m,) int64, each |A| < 2^15.
+    """
+    total = previous.astype(np.int64) @ coefs.astype(np.int64) + np.int64(bias)
+    return total >> COEF_FRAC_BITS
+
+
+def write_float_stream(out: ByteWriter, values: np.ndarray, step: float) -> np.ndarray:
+    """Append a float stream body for ``values`` (N, C) quantized with ``step`` (value units).
+
+    Returns the (N, C) float32 values the decoder will reconstruct.
+    """
+    n, channels = values.shape
+    f = frac_bits_for(values)
+    out.varint(n)
+    out.fixed("u8", channels)
+    out.fixed("u8", f)
+    recon = np.empty((n, channels), np.float32)
+    indices = np.zeros((n, channels), np.int64)
+    step_idx = int(step_index(np.array([step * 2.0**f]))[0])
+    steps = np.full(n, step_idx, np.int64)
+    for c in range(channels):
+        column = values[:, c].astype(np.float32)
+        if n == 0 or np.all(column == column[0]):
+            value = float(column[0]) if n else 0.0
+            out.fixed("u8", MODE_CONSTANT)
+            out.fixed("f32", value)
+            recon[:, c] = np.float32(value)
+            continue
+        grid = to_grid(column.astype(np.float64), f)
+        mean = int(np.rint(np.median(grid)))
+        mean_arr = np.full(n, mean, np.int64)
+        k = quantize(grid, mean_arr, steps)
+        indices[:, c] = k
+        costs = table_costs(k)
+        mode, table, residuals, coefs, bias = MODE_FACTORIZED, int(np.argmin(costs)), k, None, 0
+        best = float(costs.min())
+        fitted = _fit_prediction(indices[:, :c], k)
+        if fitted is not None:
+            coefs, bias = fitted
+            r = k - predict(indices[:, :c], coefs, bias)
+            pred_costs = table_costs(r)
+            overhead = 8 * (3 * c + 6)  # coefficient bytes, at most
+            if pred_costs.min() + overhead < best:
+                mode, table, residuals = MODE_PREDICTED, int(np.argmin(pred_costs)), r
+        out.fixed("u8", mode)
+        out.svarint(mean)
+        out.fixed("u8", table)
+        out.fixed("u8", step_idx)
+        if mode == MODE_PREDICTED:
+            out.varint(c)
+            for a in coefs:
+                out.svarint(int(a))
+            out.svarint(int(bias))
+        out.byte_string(encode_symbols(residuals, np.full(n, table, np.int64)))
+        recon[:, c] = from_grid(reconstruct(mean_arr, k, steps), f).astype(np.float32)
+    return recon
+
+
+def _fit_prediction(previous: np.ndarray, k: np.ndarray):
+    """Least-squares integer coefficients predicting ``k`` from ``previous``, or None."""
+    if previous.shape[1] == 0 or not np.any(previous):
+        return None
+    if np.abs(previous).max() >= INDEX_LIMIT or np.abs(k).max() >= INDEX_LIMIT:
+        return None
+    x = np.column_stack([previous.astype(np.float64), np.ones(len(k))])
+    solution, *_ = np.linalg.lstsq(x, k.astype(np.float64), rcond=None)
+    scale = float(1 << COEF_FRAC_BITS)
+    coefs = np.clip(np.rint(solution[:-1] * scale), -COEF_LIMIT + 1, COEF_LIMIT - 1)
+    bias = int(np.clip(np.rint(solution[-1] * scale + scale / 2), -BIAS_LIMIT + 1,
+                       BIAS_LIMIT - 1))  # + 1/2 turns the floor into rounding
+    return coefs.astype(np.int64), bias
+
+
+def read_float_stream(r: ByteReader, count: int, channels: int | None = None) -> np.ndarray:
+    """Read a float stream body written by :func:`write_float_stream`: (count, C) float32.
+
+    Raises:
+        FormatError: count or channel mismatch, a bad mode, table, step or coefficient, an
+            index or value outside its range, or a bad residual stream.
+    """
+    n = r.varint("count", maximum=MAX_COUNT)
+    if n != count:
+        raise r.error(f"stream holds {n} values, the scene has {count} Gaussians")
+    c_count = r.fixed("u8", "channel_count")
+    if channels is not None and c_count != channels:
+        raise r.error(f"stream has {c_count} channels, expected {channels}")
+    f = r.fixed("u8", "frac_bits")
+    if f > MAX_FRAC_BITS:
+        raise r.error(f"frac_bits {f} exceeds {MAX_FRAC_BITS}")
+    out = np.empty((n, c_count), np.float32)
+    indices = np.zeros((n, c_count), np.int64)
+    tables = gaussian_family().count
+    for c in range(c_count):
+        mode = r.fixed("u8", "mode")
+        if mode == MODE_CONSTANT:
+            out[:, c] = np.float32(r.fixed("f32", "constant_value"))
+            continue
+        if mode not in (MODE_FACTORIZED, MODE_PREDICTED):
+            raise r.error(f"channel {c} has unknown mode {mode}")
+        mean = r.svarint("mean")
+        table = r.fixed("u8", "scale_index")
+        step = r.fixed("u8", "step_index")
+        if abs(mean) > 1 << 53 or table >= tables or step >= STEP_COUNT:
+            raise r.error(f"channel {c}: mean, scale index or step index out of range")
+        prediction = 0
+        if mode == MODE_PREDICTED:
+            m = r.varint("coefficient_count", maximum=c_count)
+            if m != c:
+                raise r.error(f"channel {c} has {m} coefficients, expected {c}")
+            coefs = np.array([r.svarint("coefficient") for _ in range(m)], np.int64)
+            bias = r.svarint("bias")
+            if (m and np.abs(coefs).max() >= COEF_LIMIT) or abs(bias) >= BIAS_LIMIT:
+                raise r.error(f"channel {c}: prediction coefficient out of range")
+            if np.abs(indices[:, :c]).max(initial=0) >= INDEX_LIMIT:
+                raise r.error(f"channel {c}: earlier indices too large to predict from")
+            prediction = predict(indices[:, :c], coefs, bias)
+        stream = r.byte_string("residual_stream")
+        k = decode_symbols(stream, np.full(n, table, np.int64), chunk=r.chunk,
+                           base_offset=r.offset - len(stream)) + prediction
+        q = int(step_size(np.array([step]))[0])
+        if n and np.abs(k).max() > ((1 << 53) - abs(mean)) // q:
+            raise r.error(f"channel {c}: decoded value exceeds 2^53 on its grid")
+        indices[:, c] = k
+        values = reconstruct(np.full(n, mean, np.int64), k, np.full(n, step, np.int64))
+        out[:, c] = from_grid(values, f).astype(np.float32)
+    return out
