@@ -1,0 +1,43 @@
+"""Opening the scene a command is given: the one place that knows which file types are scenes."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from csgs_codec.errors import InputError, UnsupportedError
+from csgs_codec.scene.gaussian_scene import GaussianScene
+
+#: File suffixes accepted as scene input by render, compare and view.
+SCENE_SUFFIXES = (".ply", ".csgs")
+CSGS_MAGIC = b"\x89CSG\r\n\x1a\n"
+
+
+def load_scene(path: str | Path, *, command: str, layers: str = "color,semantic"
+               ) -> GaussianScene:
+    """Read the scene in ``path`` for ``csgs <command>``: a 3DGS PLY, or a .csgs bitstream
+    (recognised by its magic or its suffix) decoded with ``layers``.
+
+    Raises:
+        InputError: missing file, a folder, or a malformed PLY.
+        FormatError: a malformed .csgs.
+        UnsupportedError: a file type that is not a scene input of this command.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise InputError("no such file", file=path)
+    if path.is_dir():
+        raise InputError("is a directory", file=path)
+    with open(path, "rb") as fh:
+        is_csgs = fh.read(len(CSGS_MAGIC)) == CSGS_MAGIC
+    suffix = path.suffix.lower()
+    if is_csgs or suffix == ".csgs":
+        from csgs_codec.codec.decoder import Decoder
+
+        return Decoder().decode(path, layers=layers)
+    if suffix not in SCENE_SUFFIXES:
+        raise UnsupportedError(f"'{suffix or path.name}' files are not supported as input to "
+                               f"'csgs {command}' (supported: {', '.join(SCENE_SUFFIXES)})",
+                               file=path)
+    from csgs_codec.scene.ply_io import read_ply
+
+    return read_ply(path)

@@ -1,0 +1,127 @@
+"""Scoring a candidate scene against a reference by rendering both from the same cameras.
+
+Per view: PSNR and SSIM over the whole frame, and foreground PSNR over the pixels where the
+reference render's accumulated opacity exceeds 0.05 (DESIGN.md section 5; the headline figure,
+since objects often cover a small part of an orbit frame). Images are clipped to [0, 1] before
+scoring, as they would be when saved.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from csgs_codec.render.camera import Camera
+from csgs_codec.render.metrics import foreground_mask, foreground_psnr, psnr, ssim
+from csgs_codec.scene.gaussian_scene import GaussianScene
+
+
+@dataclass(frozen=True)
+class ViewScore:
+    """Scores of one view; PSNRs in dB (inf when equal, foreground nan when no foreground)."""
+
+    name: str
+    psnr: float
+    ssim: float
+    foreground_psnr: float
+    foreground_fraction: float
+
+
+@dataclass
+class ComparisonReport:
+    """Per-view scores, their means and (optionally) the per-attribute errors.
+
+    Means are over views. Views rendered identically (infinite PSNR) are left out of a PSNR
+    mean unless every view is, in which case the mean is inf; the foreground mean also skips
+    views with no foreground.
+    """
+
+    views: list[ViewScore]
+    attribute_errors: dict[str, dict[str, float]] | None = None
+    matching: dict[str, object] | None = None
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def mean_psnr(self) -> float:
+        """Mean of the per-view PSNRs, dB."""
+        return _mean([v.psnr for v in self.views])
+
+    @property
+    def mean_ssim(self) -> float:
+        """Mean of the per-view SSIMs."""
+        return _mean([v.ssim for v in self.views])
+
+    @property
+    def mean_foreground_psnr(self) -> float:
+        """Mean of the per-view foreground PSNRs over views that have foreground, dB."""
+        return _mean([v.foreground_psnr for v in self.views if not math.isnan(v.foreground_psnr)])
+
+    def to_dict(self) -> dict:
+        """Plain-Python form; inf stays float('inf'), nan stays float('nan')."""
+        return {
+            "views": [asdict(v) for v in self.views],
+            "mean": {"psnr": self.mean_psnr, "ssim": self.mean_ssim,
+                     "foreground_psnr": self.mean_foreground_psnr},
+            "attribute_errors": self.attribute_errors,
+            "matching": self.matching,
+            "notes": list(self.notes),
+        }
+
+
+def score_views(reference: GaussianScene, candidate: GaussianScene, cameras: Sequence[Camera],
+                *, backend: str = "auto",
+                progress: Callable[[Iterable], Iterable] | None = None) -> list[ViewScore]:
+    """Render both scenes from every camera (black background) and score each view."""
+    from csgs_codec.render.rasterizer import render
+
+    scores = []
+    for camera in (progress or iter)(list(cameras)):
+        ref = render(reference, camera, backend=backend)
+        cand = render(candidate, camera, backend=backend)
+        ref_image, cand_image = to_unit_range(ref.image), to_unit_range(cand.image)
+        mask = foreground_mask(ref.alpha)
+        scores.append(ViewScore(
+            name=camera.name,
+            psnr=psnr(ref_image, cand_image),
+            ssim=ssim(ref_image, cand_image),
+            foreground_psnr=foreground_psnr(ref_image, cand_image, mask),
+            foreground_fraction=float(mask.mean()),
+        ))
+    return scores
+
+
+def compare_scenes(reference: GaussianScene, candidate: GaussianScene,
+                   cameras: Sequence[Camera], *, attributes: bool = True, backend: str = "auto",
+                   progress: Callable[[Iterable], Iterable] | None = None) -> ComparisonReport:
+    """Render scores over ``cameras`` plus, if ``attributes``, per-attribute errors."""
+    report = ComparisonReport(views=score_views(reference, candidate, cameras, backend=backend,
+                                                progress=progress))
+    if attributes:
+        from csgs_codec.render.attribute_errors import attribute_errors
+
+        errors, matching = attribute_errors(reference, candidate)
+        report.attribute_errors = errors
+        report.matching = {"method": matching.method, "max_distance": matching.max_distance,
+                           "unpicked_candidates": matching.unpicked_candidates,
+                           "reference_gaussians": len(reference),
+                           "candidate_gaussians": len(candidate)}
+        if len(reference) != len(candidate):
+            report.notes.append(f"Gaussian counts differ ({len(reference)} vs "
+                                f"{len(candidate)}): attribute errors pair each reference "
+                                "Gaussian with its nearest candidate")
+    return report
+
+
+def to_unit_range(image: np.ndarray) -> np.ndarray:
+    """The image clipped to [0, 1], float32 (what a saved PNG holds, before 8-bit rounding)."""
+    return np.clip(np.asarray(image, dtype=np.float32), 0.0, 1.0)
+
+
+def _mean(values: list[float]) -> float:
+    if not values:
+        return float("nan")
+    finite = [v for v in values if not math.isinf(v)]
+    return float(np.mean(finite)) if finite else math.inf

@@ -1,0 +1,113 @@
+"""numba kernels of the fast forward rasterizer; importing this module needs numba.
+
+The compositing rule is the one in :mod:`csgs_codec.render.composite_torch`, evaluated in
+float32 pixel by pixel with an early exit per pixel. Tiles run in parallel.
+
+Unless the user chose a numba threading layer (NUMBA_THREADING_LAYER), this module selects
+numba's own "workqueue" pool: the OpenMP layer's workers keep spinning after a kernel and
+measurably slow the torch operations that run next in the same process.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numba
+import numpy as np
+
+if "NUMBA_THREADING_LAYER" not in os.environ:
+    numba.config.THREADING_LAYER = "workqueue"
+
+from csgs_codec.render.composite_torch import MAX_ALPHA, TRANSMITTANCE_STOP
+from csgs_codec.render.projection import ALPHA_THRESHOLD
+
+# Typed constants keep the kernel arithmetic in float32, like the torch reference.
+_HALF = np.float32(0.5)
+_ONE = np.float32(1.0)
+_MAX_ALPHA = np.float32(MAX_ALPHA)
+_ALPHA_THRESHOLD = np.float32(ALPHA_THRESHOLD)
+_T_STOP = np.float32(TRANSMITTANCE_STOP)
+#: A pair whose exponent is this far below log(threshold / opacity) is skipped without exp();
+#: the margin dwarfs float32 rounding, so the exact alpha test still decides every close case.
+_POWER_MARGIN = np.float32(1e-3)
+
+
+@numba.njit(cache=True)
+def bin_tiles(rects: np.ndarray, order: np.ndarray, n_tiles: int,
+              tiles_x: int) -> tuple[np.ndarray, np.ndarray]:
+    """Counting-sort binning: (offsets [T + 1] int64, gaussian ids [I] int64), near to far.
+
+    ``rects`` is [N, 4] int64 (tx0, tx1, ty0, ty1); ``order`` is [M] int64, near to far.
+    """
+    offsets = np.zeros(n_tiles + 1, np.int64)
+    for g in order:
+        for ty in range(rects[g, 2], rects[g, 3]):
+            for tx in range(rects[g, 0], rects[g, 1]):
+                offsets[ty * tiles_x + tx + 1] += 1
+    for t in range(n_tiles):
+        offsets[t + 1] += offsets[t]
+    cursor = offsets[:-1].copy()
+    ids = np.empty(offsets[n_tiles], np.int64)
+    for g in order:
+        for ty in range(rects[g, 2], rects[g, 3]):
+            for tx in range(rects[g, 0], rects[g, 1]):
+                t = ty * tiles_x + tx
+                ids[cursor[t]] = g
+                cursor[t] += 1
+    return offsets, ids
+
+
+@numba.njit(parallel=True, cache=True)
+def composite_tiles(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
+                    conics: np.ndarray, opacities: np.ndarray, values: np.ndarray,
+                    width: int, height: int, tile_size: int, tiles_x: int,
+                    out: np.ndarray, transmittance: np.ndarray) -> None:
+    """Composite every tile into ``out`` [H, W, C] and ``transmittance`` [H, W] (float32).
+
+    ``out`` must start at zero; per-Gaussian inputs are float32: means2d [N, 2], conics
+    [N, 3], opacities [N], values [N, C].
+    """
+    n_tiles = offsets.shape[0] - 1
+    channels = values.shape[1]
+    for t in numba.prange(n_tiles):
+        start = offsets[t]
+        count = offsets[t + 1] - start
+        if count == 0:
+            continue
+        # The tile's Gaussians, packed contiguously so the per-pixel loop stays in cache.
+        packed = np.empty((count, 7), np.float32)
+        for k in range(count):
+            g = ids[start + k]
+            packed[k, 0] = means2d[g, 0]
+            packed[k, 1] = means2d[g, 1]
+            packed[k, 2] = conics[g, 0]
+            packed[k, 3] = conics[g, 1]
+            packed[k, 4] = conics[g, 2]
+            packed[k, 5] = opacities[g]
+            packed[k, 6] = np.log(_ALPHA_THRESHOLD / opacities[g]) - _POWER_MARGIN
+        x0 = (t % tiles_x) * tile_size
+        y0 = (t // tiles_x) * tile_size
+        for py in range(y0, min(y0 + tile_size, height)):
+            pyc = np.float32(py) + _HALF
+            for px in range(x0, min(x0 + tile_size, width)):
+                pxc = np.float32(px) + _HALF
+                trans = _ONE
+                for k in range(count):
+                    dx = pxc - packed[k, 0]
+                    dy = pyc - packed[k, 1]
+                    power = (-_HALF * (packed[k, 2] * dx * dx + packed[k, 4] * dy * dy)
+                             - packed[k, 3] * dx * dy)
+                    if power < packed[k, 6]:
+                        continue
+                    alpha = min(_MAX_ALPHA, packed[k, 5] * np.exp(power))
+                    if alpha < _ALPHA_THRESHOLD:
+                        continue
+                    after = trans * (_ONE - alpha)
+                    if after < _T_STOP:
+                        break
+                    weight = alpha * trans
+                    g = ids[start + k]
+                    for ch in range(channels):
+                        out[py, px, ch] += weight * values[g, ch]
+                    trans = after
+                transmittance[py, px] = trans

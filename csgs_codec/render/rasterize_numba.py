@@ -1,0 +1,91 @@
+"""Fast forward rasterizer on the CPU with numba (optional: ``pip install csgs[fast]``).
+
+Projection and colours come from the torch reference (:func:`prepare_gaussians`, vectorised and
+cheap); binning and compositing, the expensive part, run in compiled parallel loops
+(:mod:`csgs_codec.render.numba_kernels`). Forward only, no gradients.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+
+from csgs_codec.errors import UnsupportedError
+from csgs_codec.render.camera import Camera
+from csgs_codec.render.rasterize_torch import PreparedGaussians
+from csgs_codec.render.render_output import RenderOutput
+from csgs_codec.render.tiles import depth_order, tile_rectangles
+
+#: Tile side in pixels of the numba kernels (speed only: the result does not depend on it).
+TILE_SIZE = 8
+
+
+def numba_available() -> bool:
+    """True when numba can be imported (the fast CPU path is usable)."""
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _kernels():
+    try:
+        from csgs_codec.render import numba_kernels
+    except ImportError as exc:
+        raise UnsupportedError("the numba backend needs numba: pip install 'csgs[fast]' "
+                               f"({exc})") from exc
+    return numba_kernels
+
+
+def rasterize_numba(prepared: PreparedGaussians, camera: Camera, *,
+                    features: np.ndarray | None = None,
+                    background: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                    tile_size: int = TILE_SIZE) -> RenderOutput:
+    """Composite prepared Gaussians with the numba kernels.
+
+    Args:
+        prepared: projected Gaussians and colours from
+            :func:`csgs_codec.render.rasterize_torch.prepare_gaussians` (any float dtype;
+            compositing runs in float32).
+        camera: the view (its size sets H, W).
+        features: optional (N, F) per-Gaussian features to render.
+        background: RGB behind the scene.
+        tile_size: tile side in pixels.
+
+    Returns:
+        :class:`RenderOutput` with backend "numba".
+
+    Raises:
+        UnsupportedError: numba is not installed.
+    """
+    kernels = _kernels()
+    width, height = camera.width, camera.height
+    tiles_x = math.ceil(width / tile_size)
+    tiles_y = math.ceil(height / tile_size)
+    with torch.no_grad():
+        proj = prepared.projected
+        rects = tile_rectangles(proj, width, height, tile_size).numpy()
+        order = depth_order(proj.depths, proj.visible).numpy()
+
+        def f32(t: torch.Tensor) -> np.ndarray:
+            return np.ascontiguousarray(t.detach().to(torch.float32).numpy())
+
+        means2d, conics, opacities = f32(proj.means2d), f32(proj.conics), f32(proj.opacities)
+        parts = [f32(prepared.colors), f32(proj.depths)[:, None]]
+    if features is not None:
+        parts.append(np.asarray(features, dtype=np.float32))
+    values = np.ascontiguousarray(np.concatenate(parts, axis=1))
+    offsets, ids = kernels.bin_tiles(rects, order, tiles_x * tiles_y, tiles_x)
+    out = np.zeros((height, width, values.shape[1]), np.float32)
+    transmittance = np.ones((height, width), np.float32)
+    kernels.composite_tiles(offsets, ids, means2d, conics, opacities, values, width, height,
+                            tile_size, tiles_x, out, transmittance)
+    bg = np.asarray(background, dtype=np.float32)
+    image = out[..., :3] + transmittance[..., None] * bg
+    alpha = np.float32(1.0) - transmittance
+    depth = np.where(alpha > 0, out[..., 3] / np.where(alpha > 0, alpha, 1), 0)
+    feats = out[..., 4:] if features is not None else None
+    return RenderOutput(image, alpha, depth.astype(np.float32), feats, "numba")
