@@ -1,7 +1,35 @@
 """csgs: a codec for 3D Gaussian Splatting scenes with semantics (CSGaussian, WACV 2026).
 
-The decode path (format, entropy, integer networks) imports numpy and constriction only;
-torch is imported by the encoder's fitting and the training code alone.
+Public API (imported on first use, so ``import csgs_codec`` stays light)::
+
+    from csgs_codec import Encoder, Decoder, read_ply, write_ply
+    data = Encoder(quality=5).encode(read_ply("scene.ply"))      # -> bytes
+    scene = Decoder().decode(data, layers="color")               # -> GaussianScene
+
+The decode path (format, entropy, codec.decoder) imports numpy and constriction only;
+torch is imported by the model and training code alone.
 """
 
+from __future__ import annotations
+
+import importlib
+
 __version__ = "0.1.0"
+
+_LAZY = {
+    "Encoder": "csgs_codec.codec.encoder",
+    "EncodeResult": "csgs_codec.codec.encoder",
+    "Decoder": "csgs_codec.codec.decoder",
+    "encode_file": "csgs_codec.codec.files",
+    "decode_file": "csgs_codec.codec.files",
+    "GaussianScene": "csgs_codec.scene.gaussian_scene",
+    "read_ply": "csgs_codec.scene.ply_io",
+    "write_ply": "csgs_codec.scene.ply_io",
+}
+__all__ = ["__version__", *_LAZY]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'csgs_codec' has no attribute {name!r}")
