@@ -80,17 +80,33 @@ def score_views(reference: GaussianScene, candidate: GaussianScene, cameras: Seq
     scores = []
     for camera in (progress or iter)(list(cameras)):
         ref = render(reference, camera, backend=backend)
-        cand = render(candidate, camera, backend=backend)
-        ref_image, cand_image = to_unit_range(ref.image), to_unit_range(cand.image)
-        mask = foreground_mask(ref.alpha)
-        scores.append(ViewScore(
-            name=camera.name,
-            psnr=psnr(ref_image, cand_image),
-            ssim=ssim(ref_image, cand_image),
-            foreground_psnr=foreground_psnr(ref_image, cand_image, mask),
-            foreground_fraction=float(mask.mean()),
-        ))
+        scores.append(score_view(ref, candidate, camera, backend=backend))
     return scores
+
+
+def render_references(reference: GaussianScene, cameras: Sequence[Camera], *,
+                      backend: str = "auto") -> list:
+    """The reference renders (RenderOutput) of every camera, to score many candidates."""
+    from csgs_codec.render.rasterizer import render
+
+    return [render(reference, camera, backend=backend) for camera in cameras]
+
+
+def score_view(reference_render, candidate: GaussianScene, camera: Camera, *,
+               backend: str = "auto") -> ViewScore:
+    """Score ``candidate`` rendered from ``camera`` against an existing reference render."""
+    from csgs_codec.render.rasterizer import render
+
+    cand = render(candidate, camera, backend=backend)
+    ref_image, cand_image = to_unit_range(reference_render.image), to_unit_range(cand.image)
+    mask = foreground_mask(reference_render.alpha)
+    return ViewScore(
+        name=camera.name,
+        psnr=psnr(ref_image, cand_image),
+        ssim=ssim(ref_image, cand_image),
+        foreground_psnr=foreground_psnr(ref_image, cand_image, mask),
+        foreground_fraction=float(mask.mean()),
+    )
 
 
 def compare_scenes(reference: GaussianScene, candidate: GaussianScene,

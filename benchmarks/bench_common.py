@@ -1,0 +1,45 @@
+"""What every benchmark script shares: the machine description and the JSON document."""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import sys
+from pathlib import Path
+
+SCHEMA = "csgs-bench/1"
+REPO = Path(__file__).resolve().parents[1]
+SCENES = REPO.parent / "shared" / "data" / "scenes"
+#: Scenes that are full-precision training outputs; the others were decoded from a
+#: compressed format (see ../shared/data/README.md), which flatters that format's re-encode.
+FULL_PRECISION = {"donut"}
+
+
+def machine() -> dict:
+    """CPU count, platform and interpreter of this machine."""
+    return {"cpus": os.cpu_count(), "platform": platform.platform(),
+            "python": sys.version.split()[0], "processor": platform.processor()}
+
+
+def document(benchmark: str, results: list[dict], **extra) -> dict:
+    """A csgs-bench/1 document."""
+    return {"schema": SCHEMA, "benchmark": benchmark, "machine": machine(), **extra,
+            "results": results}
+
+
+def emit(doc: dict, out: str | None) -> None:
+    """Print ``doc`` as JSON, or write it to ``out``."""
+    text = json.dumps(doc, indent=2, default=_plain)
+    if out:
+        Path(out).write_text(text + "\n")
+    else:
+        print(text)
+
+
+def _plain(value):
+    if hasattr(value, "item"):
+        return value.item()
+    if hasattr(value, "tolist"):
+        return value.tolist()
+    return str(value)
