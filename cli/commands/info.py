@@ -23,9 +23,10 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     """Print the summary of ``args.file`` as text or JSON."""
     if is_csgs(args.file):
-        from csgs_codec.format import describe, format_description
+        from csgs_codec.codec.describe import describe_bitstream
+        from csgs_codec.format import format_description
 
-        facts = describe(args.file, verify=True)
+        facts = describe_bitstream(args.file, verify=True)
         print(json.dumps(facts, indent=2) if args.json else format_description(facts))
         return 0
     facts = describe_file(args.file, sanitize=args.sanitize)

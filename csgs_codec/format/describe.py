@@ -80,19 +80,29 @@ def format_description(facts: dict) -> str:
     name = facts["file"] or "<bytes>"
     state = "complete" if facts["complete"] else (
         f"cut at byte {facts['bytes']:,} of {facts['file_bytes']:,}")
+    per_g = "bits_per_gaussian" in facts
+    bits = lambda entry: (f"{entry['bits_per_gaussian']:>9.2f}"  # noqa: E731
+                          if per_g else "")
     lines = [f"{name}: csgs {facts['version']}, flags 0x{facts['flags']:04x}, "
-             f"{facts['file_bytes']:,} bytes ({state})",
-             f"  header + TOC     {facts['header_bytes']:>12,} bytes"]
+             f"{facts['file_bytes']:,} bytes ({state})"]
+    if per_g:
+        lines.append(f"  scene            {facts['gaussians']:,} Gaussians, SH degree "
+                     f"{facts['sh_degree_stored']} ({facts['sh_degree_coded']} coded), "
+                     f"quality {facts['quality']}, {facts['bits_per_gaussian']:.2f} "
+                     "bits/Gaussian")
+    lines.append(f"  header + TOC     {facts['header_bytes']:>12,} bytes")
     for label, layer in facts["layers"].items():
         missing = "" if layer["present"] else "  (not all present)"
+        share = f" {bits(layer)} bits/G" if per_g else ""
         lines.append(f"  {label:<16} {layer['bytes']:>12,} bytes in {layer['chunks']} chunks"
-                     + missing)
+                     + share + missing)
     if facts["chunks"]:
-        lines.append("  chunks:  type layer     tile       offset        bytes  critical")
+        lines.append("  chunks:  type layer     tile       offset        bytes  critical"
+                     + ("   bits/G" if per_g else ""))
     for chunk in facts["chunks"]:
         line = (f"           {chunk['type']} {chunk['layer']:<9} {chunk['tile']:>4} "
                 f"{chunk['offset']:>12,} {chunk['bytes']:>12,}  "
-                f"{'yes' if chunk['critical'] else 'no':<8}"
+                f"{'yes' if chunk['critical'] else 'no':<8}" + bits(chunk)
                 + ("" if chunk["known"] else " (unknown type)"))
         lines.append(line.rstrip())
     return "\n".join(lines)

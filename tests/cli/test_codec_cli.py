@@ -70,3 +70,17 @@ def test_damaged_csgs_gives_exit_2_and_no_output(tmp_path, capsys):
 def test_decode_of_a_ply_is_a_clear_error(tmp_path, capsys):
     assert main(["decode", str(SAMPLE), "-o", str(tmp_path / "x.ply")]) == 2
     assert "donut.ply" in capsys.readouterr().err
+
+
+def test_info_reports_bits_per_gaussian_per_chunk(tmp_path, capsys):
+    out = tmp_path / "three.csgs"
+    assert main(["encode", str(FIXTURES / "three_points_sh3.ply"), "-o", str(out), "-q"]) == 0
+    capsys.readouterr()
+    assert main(["info", str(out), "--json"]) == 0
+    facts = json.loads(capsys.readouterr().out)
+    assert facts["gaussians"] == 3 and facts["sh_degree_coded"] == 3
+    shbc = next(c for c in facts["chunks"] if c["type"] == "SHBC")
+    assert shbc["bits_per_gaussian"] == 8 * shbc["bytes"] / 3
+    assert facts["bits_per_gaussian"] == 8 * out.stat().st_size / 3
+    assert main(["info", str(out)]) == 0
+    assert "bits/G" in capsys.readouterr().out

@@ -1,0 +1,32 @@
+"""Facts about a .csgs file for ``csgs info``: the container's, plus what the scene header says."""
+
+from __future__ import annotations
+
+from csgs_codec.codec.payloads import SceneHeader
+from csgs_codec.format import describe, read_layers
+
+
+def describe_bitstream(source, *, verify: bool = True) -> dict:
+    """:func:`csgs_codec.format.describe` facts, plus, when the file holds a scene header:
+    ``gaussians``, ``sh_degree_stored`` / ``sh_degree_coded``, ``quality``, ``grid_bits`` and
+    ``bits_per_gaussian`` for the file, each layer and each chunk (bytes * 8 / N).
+
+    Reads only the base layer's payloads besides the header and TOC.
+    """
+    facts = describe(source, verify=verify)
+    if not any(c["type"] == "SCNE" for c in facts["chunks"]):
+        return facts
+    container = read_layers(source, layers=set())
+    entry = next(e for e in container.toc if e.type == "SCNE")
+    header = SceneHeader.from_bytes(bytes(container.payloads[entry.index]), entry.offset + 8)
+    n = header.count
+    facts.update(gaussians=n, sh_degree_stored=header.sh_degree_stored,
+                 sh_degree_coded=header.sh_degree_coded, quality=header.quality,
+                 grid_bits=header.grid_bits, far_outliers=header.far_count)
+    if n:
+        facts["bits_per_gaussian"] = 8 * facts["file_bytes"] / n
+        for layer in facts["layers"].values():
+            layer["bits_per_gaussian"] = 8 * layer["bytes"] / n
+        for chunk in facts["chunks"]:
+            chunk["bits_per_gaussian"] = 8 * chunk["bytes"] / n
+    return facts
