@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 DEMO_OUT := demo-output
 
-.PHONY: demo test test-slow lint bench clean
+.PHONY: demo test test-slow lint bench bench-deps clean
 
 $(STAMP): pyproject.toml setup.py scripts/system-deps.sh
 	bash scripts/system-deps.sh
@@ -24,6 +24,16 @@ test: $(STAMP)
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -q -m slow
+
+# Peer codecs for benchmarks/ (npm splat-transform, PyPI DracoPy); not needed to test.
+bench-deps: $(STAMP)
+	cd benchmarks && npm ci --no-audit --no-fund
+	$(PY) -m pip install --quiet -e '.[bench]'
+
+# The rate-distortion comparison with the peers (writes bench-output/rd.json and rd.png).
+bench: bench-deps
+	mkdir -p bench-output
+	cd benchmarks && ../$(PY) rd.py --out ../bench-output/rd.json --plot ../bench-output/rd.png
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .

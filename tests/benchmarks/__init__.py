@@ -1,0 +1,1 @@
+"""Tests of the benchmark helpers (peer codec wrappers)."""
