@@ -25,7 +25,8 @@ from csgs_codec import __version__
 from csgs_codec.atomic_write import write_atomically
 from csgs_codec.errors import CsgsWarning, InputError
 from csgs_codec.scene.anchor_scene import AnchorScene
-from csgs_codec.scene.ply_header import MAX_HEADER_BYTES, PlyElement, PlyHeader, parse_header
+from csgs_codec.scene.ply_reader import read_vertex_columns
+from csgs_codec.scene.ply_writer import vertex_ply_bytes
 
 #: Placeholder values the official trainer writes for the unused anchor opacity and rotation.
 PLACEHOLDER_OPACITY = np.float32(np.log(0.1 / 0.9))
@@ -53,57 +54,8 @@ def read_anchor_ply(path: str | Path) -> AnchorScene:
 
 def parse_anchor_ply(data: bytes, *, source: str | None = None) -> AnchorScene:
     """Parse the bytes of an anchor PLY; see :func:`read_anchor_ply`."""
-    header = parse_header(data[:MAX_HEADER_BYTES], source)
-    vertex = header.element("vertex")
-    if vertex is None:
-        raise InputError("no 'vertex' element", file=source)
-    for prop in vertex.properties:
-        if prop.type_code == "list":
-            raise InputError("list properties are not supported", file=source,
-                             property=prop.name)
-    columns = _vertex_columns(data, header, vertex, source)
+    _, vertex, columns = read_vertex_columns(data, source)
     return _columns_to_anchors(columns, [p.name for p in vertex.properties], source)
-
-
-def _vertex_columns(data: bytes, header: PlyHeader, vertex: PlyElement,
-                    source: str | None) -> dict[str, np.ndarray]:
-    offset = header.header_bytes
-    if header.byte_order is None:
-        skip = 0
-        for el in header.elements:
-            if el is vertex:
-                break
-            skip += el.count
-        n_props = len(vertex.properties)
-        body = data[offset:]
-        if (skip + vertex.count * n_props) * 2 > len(body) + 1:
-            raise InputError(f"element 'vertex' declares {vertex.count} rows but the body "
-                             f"has only {len(body)} bytes", file=source, offset=offset)
-        rows = body.split(b"\n", skip + vertex.count)[skip:skip + vertex.count]
-        tokens = b" ".join(rows).split()
-        if len(rows) < vertex.count or len(tokens) != vertex.count * n_props:
-            raise InputError(f"vertex rows do not hold {vertex.count} x {n_props} values",
-                             file=source, offset=offset)
-        try:
-            values = np.array(tokens, dtype=np.float64).reshape(vertex.count, n_props)
-        except ValueError as exc:
-            raise InputError(f"non-numeric value in vertex data ({exc})", file=source) from None
-        return {p.name: values[:, i] for i, p in enumerate(vertex.properties)}
-    for el in header.elements:
-        if el.has_list:
-            raise InputError(f"element '{el.name}' has list properties", file=source,
-                             offset=offset)
-        needed = el.count * el.row_bytes
-        if needed > len(data) - offset:
-            raise InputError(f"element '{el.name}' declares {el.count} rows ({needed} bytes) "
-                             f"but only {len(data) - offset} bytes remain (truncated body or "
-                             "wrong count)", file=source, offset=offset)
-        if el is vertex:
-            rows = np.frombuffer(data, dtype=el.dtype(header.byte_order), count=el.count,
-                                 offset=offset)
-            return {p.name: rows[p.name] for p in el.properties}
-        offset += needed
-    raise AssertionError("vertex element vanished")  # pragma: no cover
 
 
 def _numbered(names: list[str], prefix: str, source: str | None) -> list[str]:
@@ -229,18 +181,8 @@ def anchor_ply_bytes(scene: AnchorScene) -> bytes:
                 raise InputError("semantic channel names must be sem_* or ins_feat_* and "
                                  "unique", property=name)
             fields.append((name, scene.semantic[:, j]))
-    types = {name: "<f4" for name, _ in fields}
-    if scene.labels is not None:
-        fields.append(("label", scene.labels))
-        types["label"] = "<i4"
-    rows = np.empty(m, dtype=[(name, types[name]) for name, _ in fields])
-    for name, column in fields:
-        rows[name] = column
-    lines = ["ply", "format binary_little_endian 1.0",
-             f"comment written by csgs {__version__} (Scaffold-GS anchors)", f"element vertex {m}"]
-    lines += [f"property {'int' if types[n] == '<i4' else 'float'} {n}" for n, _ in fields]
-    lines.append("end_header\n")
-    return "\n".join(lines).encode("ascii") + rows.tobytes()
+    return vertex_ply_bytes(m, fields, labels=scene.labels,
+                            comment=f"written by csgs {__version__} (Scaffold-GS anchors)")
 
 
 def write_anchor_ply(scene: AnchorScene, path: str | Path) -> None:

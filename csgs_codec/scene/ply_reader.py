@@ -73,15 +73,7 @@ def read_ply_with_report(path: str | Path, *, sanitize: bool = False
 def parse_ply_bytes(data: bytes, *, source: str | None = None, sanitize: bool = False
                     ) -> tuple[GaussianScene, PlyReport]:
     """Parse a whole PLY file held in ``data``; see :func:`read_ply` for the rules."""
-    header = parse_header(data[:MAX_HEADER_BYTES], source)
-    vertex = header.element("vertex")
-    if vertex is None:
-        raise InputError("no 'vertex' element", file=source)
-    for prop in vertex.properties:
-        if prop.type_code == "list":
-            raise InputError("list properties are not supported in the vertex element",
-                             file=source, property=prop.name)
-    columns = _read_vertex_columns(data, header, vertex, source)
+    header, vertex, columns = read_vertex_columns(data, source)
     scene, report = _columns_to_scene(columns, vertex, header.format, source)
     bad = scene.nonfinite_rows()
     if bad.any():
@@ -108,6 +100,28 @@ def _read_file(path: str | Path) -> bytes:
 
 
 # --------------------------------------------------------------------------- body
+def read_vertex_columns(data: bytes, source: str | None = None
+                        ) -> tuple[PlyHeader, PlyElement, dict[str, np.ndarray]]:
+    """Parse a PLY held in ``data`` down to its vertex element's columns.
+
+    Returns:
+        (header, vertex element, {property name: (N,) array in the file's type}).
+
+    Raises:
+        InputError: malformed header, no vertex element, list properties in it, or a body
+            shorter than the header declares (checked before anything is allocated).
+    """
+    header = parse_header(data[:MAX_HEADER_BYTES], source)
+    vertex = header.element("vertex")
+    if vertex is None:
+        raise InputError("no 'vertex' element", file=source)
+    for prop in vertex.properties:
+        if prop.type_code == "list":
+            raise InputError("list properties are not supported in the vertex element",
+                             file=source, property=prop.name)
+    return header, vertex, _read_vertex_columns(data, header, vertex, source)
+
+
 def _read_vertex_columns(data: bytes, header: PlyHeader, vertex: PlyElement,
                          source: str | None) -> dict[str, np.ndarray]:
     if header.byte_order is None:

@@ -33,16 +33,31 @@ def ply_bytes(scene: GaussianScene) -> bytes:
     fields += [(f"rot_{i}", scene.rotations[:, i]) for i in range(4)]
     if scene.semantic is not None:
         fields += [(name, scene.semantic[:, i]) for i, name in enumerate(scene.semantic_names)]
+    # No comment line (e.g. a version): the bytes are a canonical function of the scene, so
+    # conformance vectors can pin the SHA-256 of a decoded scene.
+    return vertex_ply_bytes(n, fields, labels=scene.labels)
+
+
+def vertex_ply_bytes(n: int, fields: list[tuple[str, np.ndarray]], *,
+                     labels: np.ndarray | None = None, comment: str | None = None) -> bytes:
+    """A binary little-endian PLY with one vertex element of ``n`` rows.
+
+    Args:
+        fields: (name, (n,) values) written as float properties, in this order.
+        labels: optional (n,) integers written last as ``property int label``.
+        comment: an optional header comment line.
+    """
+    fields = list(fields)
     types = {name: "<f4" for name, _ in fields}
-    if scene.labels is not None:
-        fields.append(("label", scene.labels))
+    if labels is not None:
+        fields.append(("label", labels))
         types["label"] = "<i4"
     rows = np.empty(n, dtype=[(name, types[name]) for name, _ in fields])
     for name, column in fields:
         rows[name] = column
-    # No comment line (e.g. a version): the bytes are a canonical function of the scene, so
-    # conformance vectors can pin the SHA-256 of a decoded scene.
-    lines = ["ply", "format binary_little_endian 1.0", f"element vertex {n}"]
+    lines = ["ply", "format binary_little_endian 1.0"]
+    lines += [f"comment {comment}"] if comment else []
+    lines.append(f"element vertex {n}")
     lines += [f"property {'int' if types[name] == '<i4' else 'float'} {name}"
               for name, _ in fields]
     lines.append("end_header\n")
