@@ -65,7 +65,8 @@ def test_transforms_json_warns_about_distortion(tmp_path):
     path = tmp_path / "transforms.json"
     path.write_text(json.dumps(doc))
     with pytest.warns(CsgsWarning, match="distortion"):
-        load_cameras(path)
+        cameras = load_cameras(path)
+    assert len(cameras) == len(doc["frames"])  # still loaded, distortion ignored
 
 
 def test_colmap_text_model_gives_known_projections():

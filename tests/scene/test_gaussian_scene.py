@@ -16,7 +16,7 @@ def tiny_scene(n: int = 4, bands: int = 3) -> GaussianScene:
 
 
 def test_valid_scene_passes_validation():
-    tiny_scene().validate()
+    assert tiny_scene().validate() is None  # raises InputError when anything is wrong
 
 
 def test_validate_names_property_and_first_bad_index():

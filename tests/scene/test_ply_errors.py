@@ -13,7 +13,7 @@ NAMES = property_names()
 GOOD = make_ply(random_values(4, NAMES), NAMES)
 
 
-def expect_error(data: bytes, match: str, **context) -> InputError:
+def assert_input_error(data: bytes, match: str, **context) -> InputError:
     with pytest.raises(InputError, match=match) as info:
         parse_ply_bytes(data, source="scene.ply")
     assert "scene.ply" in str(info.value)
@@ -29,78 +29,78 @@ def test_missing_file_names_the_file(tmp_path):
 
 
 def test_empty_file():
-    expect_error(b"", "empty file")
+    assert_input_error(b"", "empty file")
 
 
 def test_non_ply_bytes():
-    expect_error(b"\x89PNG\r\n\x1a\n" + bytes(100), "not a PLY", offset=0)
+    assert_input_error(b"\x89PNG\r\n\x1a\n" + bytes(100), "not a PLY", offset=0)
 
 
 def test_truncated_header():
-    expect_error(GOOD[:40], "truncated header")
+    assert_input_error(GOOD[:40], "truncated header")
 
 
 def test_truncated_body():
-    expect_error(GOOD[:-5], "truncated body")
+    assert_input_error(GOOD[:-5], "truncated body")
 
 
 def test_element_count_larger_than_body():
     data = make_ply(random_values(4, NAMES), NAMES, count=10**12)
-    err = expect_error(data, "declares 1000000000000 rows")
+    err = assert_input_error(data, "declares 1000000000000 rows")
     assert err.offset == data.index(b"end_header\n") + len(b"end_header\n")
 
 
 def test_ascii_count_larger_than_body():
     data = make_ply(random_values(4, NAMES), NAMES, fmt="ascii", count=10**9)
-    expect_error(data, "declares 1000000000 rows")
+    assert_input_error(data, "declares 1000000000 rows")
 
 
 @pytest.mark.parametrize("missing", ["x", "opacity", "rot_3", "f_dc_1", "scale_0"])
 def test_missing_required_property_is_named(missing):
     names = [n for n in NAMES if n != missing]
-    expect_error(make_ply(random_values(2, names), names), "required property missing",
+    assert_input_error(make_ply(random_values(2, names), names), "required property missing",
                  property=missing)
 
 
 @pytest.mark.parametrize("count", [1, 3, 10, 44, 48])
 def test_wrong_f_rest_count_names_the_count(count):
     names = property_names(count)
-    expect_error(make_ply(random_values(2, names), names), f"{count} f_rest properties")
+    assert_input_error(make_ply(random_values(2, names), names), f"{count} f_rest properties")
 
 
 def test_f_rest_with_a_gap_names_the_missing_property():
     names = [n if n != "f_rest_4" else "f_rest_9" for n in property_names(9)]
-    expect_error(make_ply(random_values(2, names), names), "not numbered", property="f_rest_4")
+    assert_input_error(make_ply(random_values(2, names), names), "not numbered", property="f_rest_4")
 
 
 def test_list_property_is_refused():
     data = GOOD.replace(b"property float rot_3\n",
                         b"property float rot_3\nproperty list uchar int vertex_indices\n")
-    expect_error(data, "list properties", property="vertex_indices")
+    assert_input_error(data, "list properties", property="vertex_indices")
 
 
 def test_bad_format_line():
-    expect_error(GOOD.replace(b"binary_little_endian", b"binary_middle_endian"),
+    assert_input_error(GOOD.replace(b"binary_little_endian", b"binary_middle_endian"),
                  "unsupported format")
 
 
 def test_non_numeric_ascii_value():
     data = make_ply(random_values(2, NAMES), NAMES, fmt="ascii")
     head, body = data.split(b"end_header\n")
-    expect_error(head + b"end_header\n" + body.replace(b"0", b"z", 1), "non-numeric")
+    assert_input_error(head + b"end_header\n" + body.replace(b"0", b"z", 1), "non-numeric")
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
 def test_nonfinite_values_are_an_error_naming_property_and_index(bad):
     values = random_values(5, NAMES)
     values[3, NAMES.index("scale_1")] = bad
-    expect_error(make_ply(values, NAMES), "non-finite", property="scales", index=3)
+    assert_input_error(make_ply(values, NAMES), "non-finite", property="scales", index=3)
 
 
 def test_float64_overflowing_float32_is_nonfinite():
     values = random_values(3, NAMES).astype(np.float64)
     values[1, 0] = 1e300
-    expect_error(make_ply(values, NAMES, types={"x": "double"}), "non-finite",
+    assert_input_error(make_ply(values, NAMES, types={"x": "double"}), "non-finite",
                  property="positions", index=1)
 
 
@@ -120,7 +120,7 @@ def test_non_integer_label_is_refused():
     names = property_names(extra=("label",))
     values = random_values(3, names)
     values[:, -1] = [0, 1, 1.5]
-    expect_error(make_ply(values, names), "not a 32-bit integer", property="label", index=2)
+    assert_input_error(make_ply(values, names), "not a 32-bit integer", property="label", index=2)
 
 
 def test_directory_is_an_input_error(tmp_path):
