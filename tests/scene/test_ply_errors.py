@@ -70,7 +70,8 @@ def test_wrong_f_rest_count_names_the_count(count):
 
 def test_f_rest_with_a_gap_names_the_missing_property():
     names = [n if n != "f_rest_4" else "f_rest_9" for n in property_names(9)]
-    assert_input_error(make_ply(random_values(2, names), names), "not numbered", property="f_rest_4")
+    assert_input_error(make_ply(random_values(2, names), names), "not numbered",
+                       property="f_rest_4")
 
 
 def test_list_property_is_refused():
