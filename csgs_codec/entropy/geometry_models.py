@@ -12,6 +12,7 @@ from __future__ import annotations
 import constriction
 import numpy as np
 
+from csgs_codec.entropy.grouping import groups_by_key
 from csgs_codec.errors import FormatError
 
 #: Frequencies of every table sum to ``2^PRECISION_BITS``.
@@ -87,19 +88,6 @@ def _model(freqs: np.ndarray):
     return constriction.stream.model.Categorical(freqs / float(TOTAL), perfect=False)
 
 
-def _groups(contexts: np.ndarray):
-    """Yield (context, indices) for each context present, in increasing context order."""
-    if contexts.size == 0:
-        return
-    order = np.argsort(contexts.astype(np.uint16), kind="stable")
-    ordered = contexts[order]
-    cuts = np.flatnonzero(ordered[1:] != ordered[:-1]) + 1
-    starts = np.concatenate(([0], cuts))
-    ends = np.concatenate((cuts, [ordered.size]))
-    for a, b in zip(starts.tolist(), ends.tolist()):
-        yield int(ordered[a]), order[a:b]
-
-
 def encode_grouped(encoder, symbols: np.ndarray, contexts: np.ndarray,
                    stats: AdaptiveCounts) -> None:
     """Append ``symbols`` to a constriction ``RangeEncoder`` in blocks, one call per context.
@@ -114,7 +102,7 @@ def encode_grouped(encoder, symbols: np.ndarray, contexts: np.ndarray,
     for end in block_bounds(symbols.shape[0]):
         freqs = stats.frequencies()
         ctx, sym = contexts[start:end], symbols[start:end]
-        for c, idx in _groups(ctx):
+        for c, idx in groups_by_key(ctx):
             encoder.encode(sym[idx].astype(np.int32), _model(freqs[c]))
         stats.observe(ctx, sym)
         start = end
@@ -128,7 +116,7 @@ def decode_grouped(decoder, contexts: np.ndarray, stats: AdaptiveCounts) -> np.n
         freqs = stats.frequencies()
         ctx = contexts[start:end]
         block = out[start:end]
-        for c, idx in _groups(ctx):
+        for c, idx in groups_by_key(ctx):
             try:
                 block[idx] = decoder.decode(_model(freqs[c]), idx.size)
             except (AssertionError, ValueError, RuntimeError, OverflowError) as exc:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import constriction
 import numpy as np
 
+from csgs_codec.entropy.grouping import groups_by_key
 from csgs_codec.entropy.tables import gaussian_family, table_model
 from csgs_codec.entropy.varints import decode_varints, encode_varints
 from csgs_codec.errors import FormatError, InputError
@@ -135,20 +136,6 @@ def reconstructed_values(values: np.ndarray, mean: np.ndarray,
     return reconstruct(mean, quantize(values, mean, step_idx), step_idx)
 
 
-def _groups(scale_idx: np.ndarray):
-    """(table, positions) in increasing table order, positions increasing within a table."""
-    if scale_idx.size == 0:
-        return
-    # Table indices are < 64: a stable sort of uint8 keys is numpy's linear-time radix sort.
-    order = np.argsort(scale_idx.astype(np.uint8), kind="stable")
-    ordered = scale_idx[order]
-    cuts = np.flatnonzero(ordered[1:] != ordered[:-1]) + 1
-    starts = np.concatenate(([0], cuts)).tolist()
-    ends = np.concatenate((cuts, [ordered.size])).tolist()
-    for a, b in zip(starts, ends):
-        yield int(ordered[a]), order[a:b]
-
-
 def encode_symbols(residuals: np.ndarray, scale_idx: np.ndarray) -> bytes:
     """Code integer residuals with the frozen Gaussian tables; any |r| <= 2^62 round-trips.
 
@@ -167,7 +154,7 @@ def encode_symbols(residuals: np.ndarray, scale_idx: np.ndarray) -> bytes:
     scale = _check_index("scale_idx", scale_idx, family.count, n, InputError)
     encoder = constriction.stream.queue.RangeEncoder()
     escapes = []
-    for table, pos in _groups(scale):
+    for table, pos in groups_by_key(scale):
         half = int(family.half_widths[table])
         vals = r[pos]
         outside = np.abs(vals) > half
@@ -207,7 +194,7 @@ def decode_symbols(data: bytes, scale_idx: np.ndarray, *, chunk: str | None = No
     decoder = constriction.stream.queue.RangeDecoder(words)
     residuals = np.empty(n, dtype=np.int64)
     escaped_pos, escaped_half = [], []
-    for table, pos in _groups(scale):
+    for table, pos in groups_by_key(scale):
         half = int(family.half_widths[table])
         try:
             symbols = decoder.decode(table_model(table), pos.size).astype(np.int64)
