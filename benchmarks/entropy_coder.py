@@ -16,23 +16,18 @@ Rows:
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
-import platform
 import sys
 import time
 
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_common import document, emit  # noqa: E402
+
 from csgs_codec.entropy.residual import decode_symbols, encode_symbols
 from csgs_codec.entropy.tables import gaussian_family, scale_index
-
-
-def machine() -> dict:
-    """The machine block of the csgs-bench/1 schema."""
-    return {"cpus": os.cpu_count(), "platform": platform.platform(),
-            "python": sys.version.split()[0], "processor": platform.processor()}
 
 
 def best_time(fn, repeat: int) -> float:
@@ -110,13 +105,7 @@ def main(argv: list[str] | None = None) -> int:
              "encode_s": enc, "decode_s": dec,
              "encode_msym_per_s": args.n / enc / 1e6, "decode_msym_per_s": args.n / dec / 1e6}]
     rows += [data_row(kind, args.n, rng) for kind in ("gaussian", "laplacian")]
-    doc = {"schema": "csgs-bench/1", "benchmark": "entropy_coder", "machine": machine(),
-           "results": rows}
-    text = json.dumps(doc, indent=2)
-    if args.out:
-        with open(args.out, "w") as fh:
-            fh.write(text + "\n")
-    print(text)
+    emit(document("entropy_coder", rows), args.out)
     return 0
 
 

@@ -13,24 +13,17 @@ whatever numpy's BLAS uses (set OMP_NUM_THREADS / OPENBLAS_NUM_THREADS to pin it
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
-import platform
 import sys
 import time
 
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from bench_common import document, emit  # noqa: E402
+
 from csgs_codec.entropy.intnet import IntLayer, IntMLP
-
-
-def machine() -> dict:
-    """The machine block of the csgs-bench/1 schema."""
-    return {"cpus": os.cpu_count(), "platform": platform.platform(),
-            "python": sys.version.split()[0], "processor": platform.processor(),
-            "blas_threads": os.environ.get("OPENBLAS_NUM_THREADS")
-            or os.environ.get("OMP_NUM_THREADS") or "default"}
 
 
 def benchmark_network(seed: int = 0) -> IntMLP:
@@ -88,13 +81,7 @@ def main(argv: list[str] | None = None) -> int:
         {"case": "mlp3_w64_int64", "anchors": small.shape[0], "layers": [24, 64, 64, 3],
          "forward_s": ref, "manchors_per_s": small.shape[0] / ref / 1e6},
     ]
-    doc = {"schema": "csgs-bench/1", "benchmark": "intnet", "machine": machine(),
-           "results": rows}
-    text = json.dumps(doc, indent=2)
-    if args.out:
-        with open(args.out, "w") as fh:
-            fh.write(text + "\n")
-    print(text)
+    emit(document("intnet", rows, blas_threads=os.environ.get("OPENBLAS_NUM_THREADS")), args.out)
     return 0
 
 
