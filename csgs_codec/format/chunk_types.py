@@ -71,6 +71,18 @@ _TABLE = (
               "Rotations: dropped-component categorical stream, smallest three (3 ch)."),
     ChunkType("SEMF", Layer.SEMANTIC, "Semantic features: channel names and a float stream."),
     ChunkType("SEML", Layer.SEMANTIC, "Integer labels: a lossless residual stream."),
+    ChunkType("ANCH", Layer.BASE,
+              "Anchor scene header: anchor count, F, K, voxel grid, CARM groups, flags."),
+    ChunkType("AHYP", Layer.BASE, "Anchor hyperprior: integer network on the anchor cells."),
+    ChunkType("ACRM", Layer.BASE, "CARM: integer networks over the decoded feature groups."),
+    ChunkType("AMSK", Layer.BASE, "Offset masks: context-coded kept/masked bits."),
+    ChunkType("AMLP", Layer.BASE, "Scaffold-GS MLP weights (float16)."),
+    ChunkType("AFEA", Layer.COLOR, "Anchor features f: one residual stream per CARM group."),
+    ChunkType("AOFF", Layer.COLOR, "Kept anchor offsets: a residual stream."),
+    ChunkType("ASCL", Layer.COLOR, "Anchor scaling (6 per anchor): a residual stream."),
+    ChunkType("SHYP", Layer.SEMANTIC, "Semantic hyperprior: integer network on the cells."),
+    ChunkType("ASEM", Layer.SEMANTIC,
+              "Anchor semantic features: channel names and a residual stream."),
 )
 
 #: Known chunk types by code.

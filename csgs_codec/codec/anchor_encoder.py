@@ -1,0 +1,226 @@
+"""AnchorEncoder: a Scaffold-GS AnchorScene -> a layered .csgs bitstream (orchestration).
+
+Base layer: ``ANCH`` header, ``GEOM`` anchor cells (lossless, canonical order), ``AHYP``
+hyperprior, ``ACRM`` CARM networks, ``AMSK`` offset masks, ``AMLP`` Scaffold MLPs (float16).
+Colour layer: ``AFEA`` features (one residual stream per CARM group), ``AOFF`` kept offsets,
+``ASCL`` scaling. Semantic layer: ``SHYP`` semantic hyperprior, ``ASEM`` semantic features,
+``SEML`` labels. Everything after the cells is in the decoded (canonical) order, and the
+encoder reconstructs with the integer networks the decoder runs, so
+``AnchorDecoder().decode(data, "color,semantic")`` equals ``reconstruction`` bit for bit.
+
+Error bounds: anchor positions are exact cells (within float32 rounding of origin + cell *
+voxel) when the anchors lie on a voxel grid, else within half a cell of a 2^16-cell grid;
+every other coded value is within q / 2 + 2^-13 of its input, q the anchor's step for that
+attribute type (``AnchorEncodeResult.steps``, at most 4x the quality's base step); masked
+offsets decode as 0; MLP weights are rounded to float16.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from csgs_codec.codec.anchor_grid import anchor_grid
+from csgs_codec.codec.anchor_payloads import AnchorHeader, mlps_to_bytes, names_to_bytes
+from csgs_codec.entropy.anchor_attributes import (
+    FRAC_BITS,
+    encode_block,
+    encode_features,
+    hyper_params,
+    masked_params,
+    step_values,
+)
+from csgs_codec.entropy.geometry import canonical_order, encode_positions
+from csgs_codec.entropy.offset_masks import encode_masks
+from csgs_codec.entropy.residual import encode_symbols, from_grid, to_grid
+from csgs_codec.entropy.table_choice import best_table
+from csgs_codec.errors import InputError
+from csgs_codec.format import Chunk, write_container
+from csgs_codec.format.primitives import ByteWriter
+from csgs_codec.model.anchor_hyperprior import AttributeTarget, FitSettings, fit_prior
+from csgs_codec.scene.anchor_scene import AnchorScene
+
+#: Steps at quality 8 (multiplier 1) in coding units: features, offsets (units of
+#: exp(scaling[:3])), natural-log scaling, semantic features. Semantic features are compared
+#: by cosine similarity, so a step of 1/64 (3/64 at the default quality, errors <= 0.024 per
+#: channel of a unit-scale feature) keeps selections intact at a few bits per channel.
+BASE_STEPS = {"f": 0.02, "offsets": 0.01, "scaling": 0.005, "semantic": 1.0 / 64}
+MULTIPLIERS = {1: 12.0, 2: 8.0, 3: 6.0, 4: 4.0, 5: 3.0, 6: 2.0, 7: 1.4, 8: 1.0, 9: 0.4}
+DEFAULT_QUALITY = 5
+DEFAULT_CARM_GROUPS = 5
+SEMANTIC_MODES = ("auto", "none")
+
+
+@dataclass
+class AnchorEncodeResult:
+    """What :meth:`AnchorEncoder.encode_with_report` returns.
+
+    Attributes:
+        data: the .csgs bytes.
+        reconstruction: the scene the decoder returns for layers "color,semantic" (masked
+            offsets are zero), anchors in decoded order.
+        order: (M,) int64 input index of each decoded anchor.
+        steps: attribute type -> (M,) float64 quantization step of each anchor, value units.
+        chunk_bytes: chunk type -> payload bytes.
+        seconds: encode wall time; fit_seconds: of which fitting the networks.
+    """
+
+    data: bytes
+    reconstruction: AnchorScene
+    order: np.ndarray
+    steps: dict[str, np.ndarray] = field(default_factory=dict)
+    chunk_bytes: dict[str, int] = field(default_factory=dict)
+    seconds: float = 0.0
+    fit_seconds: float = 0.0
+
+
+class AnchorEncoder:
+    """Encodes Scaffold-GS anchor scenes to .csgs.
+
+    Args:
+        quality: 1 (smallest) .. 9 (finest): the base steps are ``BASE_STEPS`` times
+            ``MULTIPLIERS[quality]``.
+        carm_groups: feature channel groups for the CARM (1 disables it).
+        semantic: "auto" writes the semantic layer when the scene has semantic features or
+            labels, "none" never does.
+        voxel_size: anchor grid cell (None: inferred, see :func:`anchor_grid`).
+        fit: training settings of the hyperprior networks.
+    """
+
+    def __init__(self, quality: int = DEFAULT_QUALITY, *,
+                 carm_groups: int = DEFAULT_CARM_GROUPS, semantic: str = "auto",
+                 voxel_size: float | None = None, fit: FitSettings | None = None) -> None:
+        if quality not in MULTIPLIERS:
+            raise InputError(f"quality must be 1..9, got {quality}")
+        if not isinstance(carm_groups, int) or not 1 <= carm_groups <= 64:
+            raise InputError(f"carm_groups must be 1..64, got {carm_groups}")
+        if semantic not in SEMANTIC_MODES:
+            raise InputError(f"semantic must be one of {SEMANTIC_MODES}, got {semantic!r}")
+        self.quality = quality
+        self.carm_groups = carm_groups
+        self.semantic = semantic
+        self.voxel_size = voxel_size
+        self.fit = fit or FitSettings()
+
+    def step(self, kind: str) -> float:
+        """Base step of attribute type ``kind`` at this quality, value units."""
+        return BASE_STEPS[kind] * MULTIPLIERS[self.quality]
+
+    def encode(self, scene: AnchorScene) -> bytes:
+        """The .csgs bytes of ``scene``."""
+        return self.encode_with_report(scene).data
+
+    def encode_with_report(self, scene: AnchorScene) -> AnchorEncodeResult:
+        """Encode ``scene``; report the reconstruction, order, steps and bytes per chunk."""
+        start = time.perf_counter()
+        scene.validate()
+        if len(scene) == 0:
+            raise InputError("an anchor scene needs at least one anchor", property="positions")
+        if scene.n_offsets > 64:
+            raise InputError(f"{scene.n_offsets} offsets per anchor exceed 64",
+                             property="offsets")
+        grid = anchor_grid(scene.positions, self.voxel_size)
+        order = canonical_order(grid.cells, grid.bits)
+        cells = grid.cells[order]
+        s = scene.subset(order)
+        m, f, k = len(s), s.feat_dim, s.n_offsets
+        groups = min(self.carm_groups, f)
+        pos_bits = max(grid.bits, 1)
+        mask = s.offset_mask
+        header = AnchorHeader(m, f, k, grid.bits, grid.voxel_size,
+                              tuple(float(v) for v in grid.origin), groups, self.quality,
+                              s.mlps is not None)
+        chunks = [Chunk("ANCH", "base", header.to_bytes()),
+                  Chunk("GEOM", "base", encode_positions(cells, grid.bits))]
+
+        fit_start = time.perf_counter()
+        targets = [
+            AttributeTarget(s.features.astype(np.float64), np.ones((m, f)), self.step("f")),
+            AttributeTarget(s.offsets.reshape(m, 3 * k).astype(np.float64),
+                            np.repeat(mask, 3, axis=1).astype(np.float64),
+                            self.step("offsets")),
+            AttributeTarget(s.scaling.astype(np.float64), np.ones((m, 6)),
+                            self.step("scaling")),
+        ]
+        hyper, carm = fit_prior(cells, pos_bits, targets, carm_groups=groups,
+                                settings=self.fit)
+        fit_seconds = time.perf_counter() - fit_start
+        chunks.append(Chunk("AHYP", "base", hyper.to_bytes()))
+        out = ByteWriter()
+        out.varint(len(carm))
+        for net in carm:
+            out.byte_string(net.to_bytes())
+        chunks.append(Chunk("ACRM", "base", out.getvalue()))
+        chunks.append(Chunk("AMSK", "base", encode_masks(mask)))
+        mlps = None
+        if s.mlps is not None:
+            payload, mlps = mlps_to_bytes(s.mlps)
+            chunks.append(Chunk("AMLP", "base", payload))
+
+        p_f, p_off, p_scl = hyper_params(hyper, cells, [f, 3 * k, 6])
+        streams, rec_f = encode_features(to_grid(s.features, FRAC_BITS).reshape(m, f), p_f,
+                                         carm)
+        out = ByteWriter()
+        out.varint(len(streams))
+        for stream in streams:
+            out.byte_string(stream)
+        chunks.append(Chunk("AFEA", "color", out.getvalue()))
+        kept = to_grid(s.offsets[mask].reshape(-1), FRAC_BITS).reshape(-1, 3)
+        stream, rec_kept = encode_block(kept, masked_params(p_off, mask))
+        chunks.append(Chunk("AOFF", "color", stream))
+        stream, rec_scl = encode_block(to_grid(s.scaling.reshape(-1), FRAC_BITS)
+                                       .reshape(m, 6), p_scl)
+        chunks.append(Chunk("ASCL", "color", stream))
+
+        offsets = np.zeros((m, k, 3), dtype=np.float32)
+        offsets[mask] = _floats(rec_kept)
+        recon = AnchorScene(grid.positions(cells), _floats(rec_f), offsets, _floats(rec_scl),
+                            mask.copy(), mlps=mlps)
+        steps = {"f": step_values(p_f.step), "offsets": step_values(p_off.step),
+                 "scaling": step_values(p_scl.step)}
+        if self.semantic == "auto" and (s.semantic is not None or s.labels is not None):
+            fit_start = time.perf_counter()
+            steps.update(self._semantic(s, cells, pos_bits, recon, chunks))
+            fit_seconds += time.perf_counter() - fit_start
+        data = write_container(chunks)
+        return AnchorEncodeResult(data, recon, order.astype(np.int64), steps,
+                                  {c.type: len(c.payload) for c in chunks},
+                                  time.perf_counter() - start, fit_seconds)
+
+    def _semantic(self, s: AnchorScene, cells: np.ndarray, pos_bits: int,
+                  recon: AnchorScene, chunks: list[Chunk]) -> dict[str, np.ndarray]:
+        steps = {}
+        if s.semantic is not None and s.semantic.shape[1]:
+            m, width = s.semantic.shape
+            target = AttributeTarget(s.semantic.astype(np.float64), np.ones((m, width)),
+                                     self.step("semantic"))
+            hyper, _ = fit_prior(cells, pos_bits, [target], settings=self.fit)
+            (params,) = hyper_params(hyper, cells, [width])
+            stream, rec = encode_block(to_grid(s.semantic.reshape(-1), FRAC_BITS)
+                                       .reshape(m, width), params)
+            out = ByteWriter()
+            names_to_bytes(out, s.semantic_names)
+            out.byte_string(stream)
+            chunks.append(Chunk("SHYP", "semantic", hyper.to_bytes()))
+            chunks.append(Chunk("ASEM", "semantic", out.getvalue()))
+            recon.semantic, recon.semantic_names = _floats(rec), s.semantic_names
+            steps["semantic"] = step_values(params.step)
+        if s.labels is not None:
+            labels = s.labels.astype(np.int64)
+            base = int(np.median(labels)) if labels.size else 0
+            table = best_table(labels - base)
+            out = ByteWriter()
+            out.svarint(base)
+            out.fixed("u8", table)
+            out.byte_string(encode_symbols(labels - base, np.full(labels.size, table)))
+            chunks.append(Chunk("SEML", "semantic", out.getvalue()))
+            recon.labels = s.labels.copy()
+        return steps
+
+
+def _floats(grid_values: np.ndarray) -> np.ndarray:
+    """Grid integers -> float32 values (what the decoder outputs)."""
+    return from_grid(grid_values.reshape(-1), FRAC_BITS).astype(np.float32).reshape(
+        grid_values.shape)

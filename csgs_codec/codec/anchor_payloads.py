@@ -1,0 +1,201 @@
+"""Byte layouts of the anchor-scene chunks that are not entropy streams: the ``ANCH`` header
+and the ``AMLP`` Scaffold-GS MLP weights (spec/FORMAT.md §17). Numpy only."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from csgs_codec.entropy.anchor_attributes import FRAC_BITS, MEAN_BITS
+from csgs_codec.entropy.morton import MAX_BITS
+from csgs_codec.errors import FormatError, InputError
+from csgs_codec.format.primitives import ByteReader, ByteWriter
+from csgs_codec.scene.anchor_scene import MLPWeights, ScaffoldMLPWeights
+
+ANCHOR_VERSION = 1
+MLP_VERSION = 1
+#: Decoder limits.
+MAX_ANCHORS = 1 << 26
+#: Most coded values (anchors x (F + 3K + 6)) a decoder accepts.
+MAX_VALUES = 1 << 31
+MAX_FEATURES = 4096
+MAX_OFFSETS = 64
+MAX_MLP_WIDTH = 4096
+MAX_APPEARANCE_CAMERAS = 1 << 20
+FLAG_MLPS = 0x01
+
+
+@dataclass(frozen=True)
+class AnchorHeader:
+    """The ``ANCH`` payload: what every other anchor chunk is read against.
+
+    Attributes:
+        count: anchors M (0..2^26).
+        feat_dim: F (1..4096); n_offsets: K (1..64).
+        grid_bits: bits per axis of the anchor cells (0..21).
+        voxel_size: cell edge, world units (finite, > 0); origin: (3,) world position of
+            cell (0, 0, 0) (finite). Anchor i is at origin + cell_i * voxel_size (float64,
+            then rounded to float32).
+        carm_groups: feature channel groups (1 = no CARM, else 2..min(F, 64)).
+        quality: the encoder's quality preset (1..9; informative).
+        has_mlps: an ``AMLP`` chunk follows in the base layer.
+    """
+
+    count: int
+    feat_dim: int
+    n_offsets: int
+    grid_bits: int
+    voxel_size: float
+    origin: tuple[float, float, float]
+    carm_groups: int
+    quality: int
+    has_mlps: bool
+
+    def to_bytes(self) -> bytes:
+        """The ``ANCH`` payload bytes."""
+        out = ByteWriter()
+        out.fixed("u8", ANCHOR_VERSION)
+        out.varint(self.count)
+        out.varint(self.feat_dim)
+        out.fixed("u8", self.n_offsets)
+        out.fixed("u8", self.grid_bits)
+        out.fixed("f64", self.voxel_size)
+        for v in self.origin:
+            out.fixed("f64", v)
+        out.fixed("u8", FRAC_BITS)
+        out.fixed("u8", MEAN_BITS)
+        out.fixed("u8", self.carm_groups)
+        out.fixed("u8", self.quality)
+        out.fixed("u8", FLAG_MLPS if self.has_mlps else 0)
+        return out.getvalue()
+
+    @classmethod
+    def from_bytes(cls, data: bytes, base_offset: int = 0) -> AnchorHeader:
+        """Parse and check an ``ANCH`` payload; FormatError naming the field and offset."""
+        r = ByteReader(data, base_offset=base_offset, chunk="ANCH")
+
+        def u8(name: str, low: int, high: int) -> int:
+            at = r.offset
+            value = r.fixed("u8", name)
+            if not low <= value <= high:
+                raise r.error(f"field '{name}' = {value} outside [{low}, {high}]", at=at)
+            return value
+
+        u8("version", ANCHOR_VERSION, ANCHOR_VERSION)
+        count = r.varint("anchor_count", maximum=MAX_ANCHORS)
+        at = r.offset
+        feat_dim = r.varint("feat_dim", maximum=MAX_FEATURES)
+        if feat_dim == 0:
+            raise r.error("feat_dim is 0", at=at)
+        n_offsets = u8("n_offsets", 1, MAX_OFFSETS)
+        grid_bits = u8("grid_bits", 0, MAX_BITS)
+        at = r.offset
+        voxel = r.fixed("f64", "voxel_size")
+        origin = tuple(r.fixed("f64", "origin") for _ in range(3))
+        if not (math.isfinite(voxel) and voxel > 0 and all(map(math.isfinite, origin))):
+            raise r.error("voxel_size must be finite and > 0, origin finite", at=at)
+        u8("frac_bits", FRAC_BITS, FRAC_BITS)
+        u8("mean_bits", MEAN_BITS, MEAN_BITS)
+        carm_groups = u8("carm_groups", 1, min(feat_dim, 64))
+        quality = u8("quality", 1, 9)
+        flags = u8("flags", 0, FLAG_MLPS)
+        r.expect_end("the anchor header")
+        if count * (feat_dim + 3 * n_offsets + 6) > MAX_VALUES:
+            raise r.error(f"{count} anchors x {feat_dim + 3 * n_offsets + 6} values exceed "
+                          f"the limit {MAX_VALUES}", at=base_offset)
+        return cls(count, feat_dim, n_offsets, grid_bits, voxel, origin, carm_groups,
+                   quality, bool(flags & FLAG_MLPS))
+
+
+def _f16(values: np.ndarray, name: str) -> np.ndarray:
+    half = values.astype(np.float16)
+    if not np.all(np.isfinite(half)):
+        raise InputError("weight does not fit float16 (|w| > 65504)", property=name)
+    return half
+
+
+def mlps_to_bytes(mlps: ScaffoldMLPWeights) -> tuple[bytes, ScaffoldMLPWeights]:
+    """The ``AMLP`` payload (float16 weights) and the weights the decoder will return."""
+    out = ByteWriter()
+    out.fixed("u8", MLP_VERSION)
+    out.fixed("u8", 0 if mlps.appearance is None else 1)
+    rounded = {}
+    for name, head in mlps.heads().items():
+        out.varint(head.w1.shape[0])
+        out.varint(head.w1.shape[1])
+        out.varint(head.w2.shape[0])
+        parts = {}
+        for key, arr in head.arrays().items():
+            half = _f16(arr, f"{name}.{key}")
+            out.array(half, "<f2")
+            parts[key] = half.astype(np.float32)
+        rounded[name] = MLPWeights(**parts)
+    appearance = None
+    if mlps.appearance is not None:
+        out.varint(mlps.appearance.shape[0])
+        out.varint(mlps.appearance.shape[1])
+        half = _f16(mlps.appearance, "appearance")
+        out.array(half, "<f2")
+        appearance = half.astype(np.float32)
+    return out.getvalue(), ScaffoldMLPWeights(appearance=appearance, **rounded)
+
+
+def mlps_from_bytes(data: bytes, feat_dim: int, n_offsets: int,
+                    base_offset: int = 0) -> ScaffoldMLPWeights:
+    """Parse an ``AMLP`` payload and check the heads against F and K (FormatError if not)."""
+    r = ByteReader(data, base_offset=base_offset, chunk="AMLP")
+    at = r.offset
+    if r.fixed("u8", "version") != MLP_VERSION:
+        raise r.error(f"MLP payload version is not {MLP_VERSION}", at=at)
+    at = r.offset
+    flags = r.fixed("u8", "flags")
+    if flags > 1:
+        raise r.error(f"reserved flag bits set ({flags})", at=at)
+    heads = {}
+    for name in ("opacity", "cov", "color"):
+        hidden, inputs, outputs = (r.varint(f"{name} {f}", maximum=MAX_MLP_WIDTH)
+                                   for f in ("hidden", "inputs", "outputs"))
+
+        def arr(count: int, key: str, shape: tuple[int, ...], name: str = name) -> np.ndarray:
+            return r.array(count, "<f2", f"{name}.{key}").astype(np.float32).reshape(shape)
+
+        heads[name] = MLPWeights(arr(hidden * inputs, "w1", (hidden, inputs)),
+                                 arr(hidden, "b1", (hidden,)),
+                                 arr(outputs * hidden, "w2", (outputs, hidden)),
+                                 arr(outputs, "b2", (outputs,)))
+    appearance = None
+    if flags:
+        cams = r.varint("appearance cameras", maximum=MAX_APPEARANCE_CAMERAS)
+        width = r.varint("appearance width", maximum=MAX_MLP_WIDTH)
+        appearance = r.array(cams * width, "<f2", "appearance").astype(np.float32)
+        appearance = appearance.reshape(cams, width)
+    r.expect_end("the MLP weights")
+    mlps = ScaffoldMLPWeights(appearance=appearance, **heads)
+    try:
+        mlps.validate(feat_dim, n_offsets)
+    except InputError as err:
+        raise FormatError(f"MLP weights do not fit the anchors: {err}", chunk="AMLP",
+                          offset=base_offset) from None
+    return mlps
+
+
+def names_to_bytes(out: ByteWriter, names: tuple[str, ...]) -> None:
+    """Append varint S and S UTF-8 byte strings."""
+    out.varint(len(names))
+    for name in names:
+        out.byte_string(name.encode("utf-8"))
+
+
+def names_from_bytes(r: ByteReader, maximum: int) -> tuple[str, ...]:
+    """Read what :func:`names_to_bytes` wrote (at most ``maximum`` names of <= 256 bytes)."""
+    count = r.varint("channel_count", maximum=maximum)
+    names = []
+    for _ in range(count):
+        raw = r.byte_string("channel_name", maximum=256)
+        try:
+            names.append(raw.decode("utf-8"))
+        except UnicodeDecodeError:
+            raise r.error("channel name is not UTF-8") from None
+    return tuple(names)

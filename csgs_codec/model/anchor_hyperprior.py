@@ -1,0 +1,288 @@
+"""Fit the INR hyperprior (and the CARM for the feature groups) of one anchor scene in torch.
+
+The hyperprior is an MLP on the positional embedding of each anchor's integer cell. For each
+attribute type (e.g. f, offsets, scaling; or the semantic feature) it predicts a per-channel
+mean, a per-channel scale-table index and one step index per anchor. The CARM is one small
+MLP per feature group g >= 1 over the decoded groups < g that adds to the group's mean and
+scale index. Training minimises the estimated rate (Gaussian mass over the quantization bin
+with the uniform-noise relaxation, in bits) + lambda * squared error, with lambda chosen so
+that a step of ``base_step`` is the rate-distortion optimum at high rate
+(lambda = 6 / (ln 2 * q^2)). The fitted networks are exported to exact integer networks;
+the codec then codes with the integer networks only (decode == encoder reconstruction).
+
+Fitting runs on the CPU with one torch thread and a fixed seed, so the same scene and
+settings give the same networks (and bytes) on this machine whatever OMP_NUM_THREADS says.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from csgs_codec.entropy.anchor_attributes import (
+    CARM_INPUT_BITS,
+    CARM_INPUT_SHIFT,
+    FRAC_BITS,
+    MEAN_BITS,
+    SCALE_MAX,
+    group_bounds,
+)
+from csgs_codec.entropy.intnet import IntMLP
+from csgs_codec.entropy.intnet_dense import IntDenseMLP
+from csgs_codec.entropy.residual import STEP_COUNT, step_index
+from csgs_codec.entropy.tables import SIGMA_MAX, SIGMA_MIN
+from csgs_codec.errors import ModelError
+from csgs_codec.model.dense_export import export_dense_mlp, export_position_mlp
+from csgs_codec.model.intnet_export import float_embedding
+
+#: Scale and step outputs are trained in units of 1/8 index (so Adam moves them gently).
+INDEX_UNIT = 8.0
+#: The step index may move this far from the base step's index (a factor 4 either way).
+STEP_RANGE = 16
+MEAN_LIMIT = 1 << 40
+#: Signed weight bits per layer of the exported hyperprior and CARM networks.
+HYPER_WEIGHT_BITS = (8, 8, 10)
+CARM_WEIGHT_BITS = (8, 10)
+CARM_DELTA_LIMIT = 1 << 30
+
+
+@dataclass
+class AttributeTarget:
+    """One attribute type to model.
+
+    Attributes:
+        values: (M, C) float64 values in their coding units.
+        weights: (M, C) float64 in {0, 1}: 0 for values that are not coded (masked offsets).
+        base_step: the quantization step (value units) the quality asks for.
+    """
+
+    values: np.ndarray
+    weights: np.ndarray
+    base_step: float
+
+    @property
+    def channels(self) -> int:
+        """C."""
+        return int(self.values.shape[1])
+
+
+@dataclass
+class FitSettings:
+    """Training settings (defaults: a few seconds for 10k anchors on one core)."""
+
+    hidden: int = 32
+    carm_hidden: int = 16
+    steps: int = 300
+    batch: int = 1024
+    learning_rate: float = 5e-3
+    seed: int = 0
+
+
+def step_index_of(step: float) -> int:
+    """Step index whose step is nearest to ``step`` value units (log scale)."""
+    return int(step_index(np.array([step * 2.0 ** FRAC_BITS]))[0])
+
+
+def num_freqs_for(pos_bits: int) -> int:
+    """Embedding octaves for cells of ``pos_bits`` bits: periods from the whole grid down to
+    2^(pos_bits - L) cells, at most 10 octaves and never below a period of 2 cells."""
+    return max(1, min(10, pos_bits - 1))
+
+
+def _mlp(sizes: list[int]) -> torch.nn.Sequential:
+    layers: list[torch.nn.Module] = []
+    for i in range(len(sizes) - 1):
+        layers.append(torch.nn.Linear(sizes[i], sizes[i + 1]))
+        if i < len(sizes) - 2:
+            layers.append(torch.nn.ReLU())
+    return torch.nn.Sequential(*layers)
+
+
+def _step_value(j: torch.Tensor) -> torch.Tensor:
+    """Smooth step (value units) of a continuous step index (exact on the 1/8-octave grid)."""
+    return torch.pow(2.0, (j + 17.0) / 8.0 - FRAC_BITS)
+
+
+def _bits(values, mean, scale_idx, step, noise) -> torch.Tensor:
+    """Estimated bits of each value: -log2 of the Gaussian mass over its noisy bin."""
+    ratio = math.log(SIGMA_MAX / SIGMA_MIN) / SCALE_MAX
+    s = SIGMA_MIN * torch.exp(torch.clamp(scale_idx, 0.0, float(SCALE_MAX)) * ratio)
+    y = (values - mean) / step + noise
+    mass = torch.special.ndtr((y + 0.5) / s) - torch.special.ndtr((y - 0.5) / s)
+    return -torch.log2(torch.clamp(mass, min=1e-9))
+
+
+class _Prior(torch.nn.Module):
+    def __init__(self, in_width: int, targets: list[AttributeTarget], groups: int,
+                 settings: FitSettings) -> None:
+        super().__init__()
+        self.targets = targets
+        widths = [2 * t.channels + 1 for t in targets]
+        self.hyper = _mlp([in_width, settings.hidden, settings.hidden, sum(widths)])
+        self.bounds = group_bounds(targets[0].channels, groups) if groups > 1 else []
+        self.carm = torch.nn.ModuleList(
+            _mlp([lo, settings.carm_hidden, 2 * (hi - lo)]) for lo, hi in self.bounds[1:])
+        last = self.hyper[-1]
+        with torch.no_grad():
+            last.weight.mul_(0.1)
+            col = 0
+            for t in targets:
+                c, w = t.channels, t.weights
+                count = np.maximum(w.sum(axis=0), 1.0)
+                mean = (t.values * w).sum(axis=0) / count
+                std = np.sqrt(((t.values - mean) ** 2 * w).sum(axis=0) / count) + 1e-6
+                j0 = step_index_of(t.base_step)
+                q0 = float(_step_value(torch.tensor(float(j0))))
+                idx = np.clip(np.log(std / q0 / SIGMA_MIN)
+                              / (math.log(SIGMA_MAX / SIGMA_MIN) / SCALE_MAX), 0, SCALE_MAX)
+                last.bias[col:col + c] = torch.from_numpy(mean)
+                last.bias[col + c:col + 2 * c] = torch.from_numpy(idx / INDEX_UNIT)
+                last.bias[col + 2 * c] = j0 / INDEX_UNIT
+                col += 2 * c + 1
+            for net in self.carm:
+                net[-1].weight.zero_()
+                net[-1].bias.zero_()
+
+    def loss(self, emb, values, weights, lams, gen) -> torch.Tensor:
+        out = self.hyper(emb)
+        total, col = 0.0, 0
+        recon_f = None
+        for i, t in enumerate(self.targets):
+            c = t.channels
+            mean = out[:, col:col + c]
+            scale = out[:, col + c:col + 2 * c] * INDEX_UNIT
+            j0 = step_index_of(t.base_step)
+            j = torch.clamp(out[:, col + 2 * c] * INDEX_UNIT, max(0, j0 - STEP_RANGE),
+                            min(STEP_COUNT - 1, j0 + STEP_RANGE))
+            q = _step_value(j)[:, None]
+            noise = torch.rand(values[i].shape, generator=gen) - 0.5
+            if i == 0 and self.carm:
+                recon_f = values[i] + noise * q
+                means, scales = [mean[:, :self.bounds[0][1]]], [scale[:, :self.bounds[0][1]]]
+                for net, (lo, hi) in zip(self.carm, self.bounds[1:]):
+                    delta = net(recon_f[:, :lo].detach())
+                    means.append(mean[:, lo:hi] + delta[:, :hi - lo])
+                    scales.append(scale[:, lo:hi] + delta[:, hi - lo:] * INDEX_UNIT)
+                mean, scale = torch.cat(means, dim=1), torch.cat(scales, dim=1)
+            bits = _bits(values[i], mean, scale, q, noise)
+            total = total + (weights[i] * (bits + lams[i] * q * q / 12.0)).sum()
+            col += 2 * c + 1
+        return total / emb.shape[0]
+
+
+class _Adam:
+    """Adam (Kingma & Ba) in plain tensor ops: torch.optim imports torch._dynamo on first
+    use, which costs seconds of encoder start-up for nothing here."""
+
+    def __init__(self, params, lr: float, betas=(0.9, 0.999), eps: float = 1e-8) -> None:
+        self.params = list(params)
+        self.lr, self.betas, self.eps, self.t = lr, betas, eps, 0
+        self.m = [torch.zeros_like(p) for p in self.params]
+        self.v = [torch.zeros_like(p) for p in self.params]
+
+    def zero_grad(self) -> None:
+        for p in self.params:
+            p.grad = None
+
+    def step(self) -> None:
+        b1, b2 = self.betas
+        self.t += 1
+        c1, c2 = 1 - b1 ** self.t, 1 - b2 ** self.t
+        with torch.no_grad():
+            for p, m, v in zip(self.params, self.m, self.v):
+                if p.grad is None:
+                    continue
+                m.mul_(b1).add_(p.grad, alpha=1 - b1)
+                v.mul_(b2).addcmul_(p.grad, p.grad, value=1 - b2)
+                p.addcdiv_(m / c1, (v / c2).sqrt_().add_(self.eps), value=-self.lr)
+
+
+def _folded(net: torch.nn.Sequential, row_scale: np.ndarray) -> torch.nn.Sequential:
+    """A copy whose last layer outputs ``row_scale`` times the original outputs."""
+    out = copy.deepcopy(net)
+    scale = torch.from_numpy(row_scale).float()
+    with torch.no_grad():
+        out[-1].weight.mul_(scale[:, None])
+        out[-1].bias.mul_(scale)
+    return out
+
+
+def _hyper_export(prior: _Prior, cells: np.ndarray, pos_bits: int, num_freqs: int) -> IntMLP:
+    scales, lo, hi = [], [], []
+    for t in prior.targets:
+        c = t.channels
+        j0 = step_index_of(t.base_step)
+        scales += [2.0 ** MEAN_BITS] * c + [INDEX_UNIT] * (c + 1)
+        lo += [-MEAN_LIMIT] * c + [0] * c + [max(0, j0 - STEP_RANGE)]
+        hi += [MEAN_LIMIT] * c + [SCALE_MAX] * c + [min(STEP_COUNT - 1, j0 + STEP_RANGE)]
+    return export_position_mlp(_folded(prior.hyper, np.array(scales)), pos_bits=pos_bits,
+                               num_freqs=num_freqs, calibration_positions=cells,
+                               out_lo=np.array(lo), out_hi=np.array(hi),
+                               weight_bits=HYPER_WEIGHT_BITS)
+
+
+def _carm_export(prior: _Prior, feature_grid: np.ndarray) -> list[IntDenseMLP]:
+    nets = []
+    for net, (lo, hi) in zip(prior.carm, prior.bounds[1:]):
+        c = hi - lo
+        scales = np.array([2.0 ** MEAN_BITS] * c + [INDEX_UNIT] * c)
+        limits = np.array([CARM_DELTA_LIMIT] * c + [SCALE_MAX] * c)
+        nets.append(export_dense_mlp(
+            _folded(net, scales), input_shift=CARM_INPUT_SHIFT, input_bits=CARM_INPUT_BITS,
+            input_frac_bits=MEAN_BITS, calibration_inputs=feature_grid[:, :lo],
+            out_lo=-limits, out_hi=limits, weight_bits=CARM_WEIGHT_BITS))
+    return nets
+
+
+def fit_prior(cells: np.ndarray, pos_bits: int, targets: list[AttributeTarget], *,
+              carm_groups: int = 1, settings: FitSettings | None = None
+              ) -> tuple[IntMLP, list[IntDenseMLP]]:
+    """Fit and export the hyperprior (and CARM over ``targets[0]`` when carm_groups > 1).
+
+    Args:
+        cells: (M, 3) integer anchor cells in [0, 2^pos_bits).
+        pos_bits: bits per cell coordinate.
+        targets: the attribute types in layout order.
+        carm_groups: channel groups of targets[0]; 1 = no CARM.
+        settings: training settings.
+
+    Returns:
+        (hyperprior IntMLP with sum(2C + 1) outputs, carm_groups - 1 CARM networks).
+    """
+    settings = settings or FitSettings()
+    num_freqs = num_freqs_for(pos_bits)
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(settings.seed)
+            gen = torch.Generator().manual_seed(settings.seed)
+            emb = float_embedding(cells, pos_bits, num_freqs)
+            prior = _Prior(emb.shape[1], targets, carm_groups, settings)
+            values = [torch.from_numpy(t.values).float() for t in targets]
+            weights = [torch.from_numpy(t.weights).float() for t in targets]
+            lams = [6.0 / (math.log(2.0) * t.base_step ** 2) for t in targets]
+            optimizer = _Adam(prior.parameters(), lr=settings.learning_rate)
+            m = emb.shape[0]
+            for step in range(settings.steps):
+                if step == settings.steps * 3 // 4:
+                    optimizer.lr = settings.learning_rate / 4
+                rows = torch.randint(0, m, (min(settings.batch, m),), generator=gen)
+                optimizer.zero_grad()
+                loss = prior.loss(emb[rows], [v[rows] for v in values],
+                                  [w[rows] for w in weights], lams, gen)
+                loss.backward()
+                optimizer.step()
+            if not all(torch.isfinite(p).all() for p in prior.parameters()):
+                raise ModelError("the hyperprior fit diverged (non-finite weights); check "
+                                 "the scene's value ranges")
+            hyper = _hyper_export(prior, cells, pos_bits, num_freqs)
+            grid = np.rint(np.ldexp(targets[0].values, FRAC_BITS)).astype(np.int64)
+            carm = _carm_export(prior, grid)
+    finally:
+        torch.set_num_threads(threads)
+    return hyper, carm

@@ -1,0 +1,43 @@
+"""Every anchor conformance vector decodes to its recorded result (spec/FORMAT.md §17)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+
+import numpy as np
+import pytest
+
+from csgs_codec.codec.anchor_decoder import AnchorDecoder
+from csgs_codec.conformance import VECTORS_DIR
+from csgs_codec.conformance.anchors import anchor_digest
+from csgs_codec.errors import CsgsError
+
+VECTORS = sorted((VECTORS_DIR / "anchors").glob("*.json"))
+
+
+def test_the_anchor_vector_set_is_present():
+    assert {p.stem for p in VECTORS} >= {"anchors_semantic_q5", "anchors_colour_q8",
+                                         "anchors_missing_features"}
+
+
+@pytest.mark.parametrize("meta_path", VECTORS, ids=lambda p: p.stem)
+def test_vector_decodes_as_recorded(meta_path):
+    meta = json.loads(meta_path.read_text())
+    data = meta_path.with_suffix(".csgs").read_bytes()
+    assert hashlib.sha256(data).hexdigest() == meta["sha256"]
+    for read in meta["reads"]:
+        if read["outcome"] == "error":
+            with pytest.raises(CsgsError) as info:
+                AnchorDecoder().decode(data, layers=read["layers"])
+            assert type(info.value).__name__ == read["error"]
+            assert info.value.chunk == read["chunk"]
+            continue
+        scene = AnchorDecoder().decode(data, layers=read["layers"])
+        assert len(scene) == read["anchors"]
+        assert anchor_digest(scene) == read["digest"]
+    if "arrays" in meta:
+        expected = np.load(meta_path.parent / meta["arrays"])
+        scene = AnchorDecoder().decode(data, layers="color,semantic")
+        for name in expected.files:
+            np.testing.assert_array_equal(getattr(scene, name), expected[name])

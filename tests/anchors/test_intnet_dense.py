@@ -1,0 +1,67 @@
+"""Integer networks over plain integer inputs: exact paths, ranges, bytes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from csgs_codec.entropy.intnet import IntLayer
+from csgs_codec.entropy.intnet_dense import IntDenseMLP
+from csgs_codec.errors import FormatError, InputError, ModelError
+from csgs_codec.model.dense_export import export_dense_mlp
+
+
+def random_dense(seed: int, in_width: int = 20, weight_bits: int = 12) -> IntDenseMLP:
+    rng = np.random.default_rng(seed)
+    top = 1 << (weight_bits - 1)
+    layers = (IntLayer(rng.integers(-top, top, (16, in_width)), rng.integers(-999, 999, 16),
+                       9, weight_bits),
+              IntLayer(rng.integers(-top, top, (6, 16)), rng.integers(-999, 999, 6), 12,
+                       weight_bits))
+    return IntDenseMLP(in_width, 3, 14, 14, layers, np.full(6, -500), np.full(6, 500))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_float64_and_int64_paths_agree(seed):
+    net = random_dense(seed)
+    x = np.random.default_rng(seed).integers(-(1 << 20), 1 << 20, (5000, 20))
+    assert np.array_equal(net.forward(x, "float64"), net.forward(x, "int64"))
+
+
+def test_payload_round_trips():
+    net = random_dense(3)
+    back = IntDenseMLP.from_bytes(net.to_bytes())
+    x = np.random.default_rng(0).integers(-9999, 9999, (100, 20))
+    assert np.array_equal(back.forward(x), net.forward(x))
+    assert back.to_bytes() == net.to_bytes()
+
+
+def test_a_network_that_could_leave_the_exact_range_is_refused():
+    top = (1 << 23) - 1
+    layer = IntLayer(np.full((4, 4096), top), np.zeros(4, np.int64), 0, 24)
+    with pytest.raises(ModelError):
+        IntDenseMLP(4096, 0, 30, 14, (layer,), np.zeros(4), np.zeros(4))
+
+
+@pytest.mark.parametrize("cut", [1, 5, 40, -3])
+def test_truncated_payload_is_a_format_error(cut):
+    with pytest.raises(FormatError):
+        IntDenseMLP.from_bytes(random_dense(1).to_bytes()[:cut])
+
+
+def test_inputs_of_the_wrong_width_are_an_input_error():
+    with pytest.raises(InputError):
+        random_dense(0).forward(np.zeros((3, 7), np.int64))
+
+
+def test_export_outputs_follow_the_torch_network():
+    torch.manual_seed(0)
+    mlp = torch.nn.Sequential(torch.nn.Linear(8, 16), torch.nn.ReLU(), torch.nn.Linear(16, 4))
+    x = np.random.default_rng(0).integers(-4096, 4096, (2000, 8))
+    net = export_dense_mlp(mlp, input_shift=6, input_bits=12, input_frac_bits=6,
+                           calibration_inputs=x, out_lo=np.full(4, -1 << 20),
+                           out_hi=np.full(4, 1 << 20), weight_bits=(12, 12))
+    with torch.no_grad():
+        expected = mlp(torch.from_numpy(np.ldexp((x >> 6).astype(np.float64), -6)).float())
+    assert np.abs(net.forward(x) - expected.numpy()).max() <= 1.5
