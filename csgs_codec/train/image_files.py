@@ -1,0 +1,127 @@
+"""Reading training images and instance masks from files, and resizing them.
+
+Images: any format Pillow reads; 8-bit channels are divided by 255, 16-bit grey by 65535.
+Transparent images (RGBA, LA, palette with transparency) are composited over a background
+colour, as Blender-style datasets expect. Masks: one integer instance id per pixel, from
+8/16/32-bit grey (alpha ignored) or palette PNGs (the palette index is the id) or RGB(A)
+images (the id is ``r << 16 | g << 8 | b``, alpha ignored), as SAM exporters write them.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from csgs_codec.errors import InputError
+
+#: Suffixes tried, in order, when an image is named without one.
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".JPG", ".JPEG", ".PNG", ".tif", ".tiff", ".webp",
+                  ".bmp")
+_GREY_16_MODES = ("I;16", "I;16B", "I;16L", "I;16N")
+
+
+def find_image(folder: Path, name: str) -> Path:
+    """The file ``name`` under ``folder``, trying :data:`IMAGE_SUFFIXES` when it lacks one or
+    when the named file is missing (COLMAP and INRIA files often drop the suffix).
+
+    Raises:
+        InputError: naming the expected path when no candidate exists.
+    """
+    path = folder / name
+    if path.is_file():
+        return path
+    for suffix in IMAGE_SUFFIXES:
+        candidate = path.with_name(path.name + suffix)
+        if candidate.is_file():
+            return candidate
+        candidate = path.with_suffix(suffix) if path.suffix else None
+        if candidate is not None and candidate.is_file():
+            return candidate
+    raise InputError("image file not found", file=path)
+
+
+def _open(path: Path):
+    from PIL import Image
+
+    try:
+        handle = Image.open(path)
+        handle.load()
+    except (OSError, ValueError, Image.DecompressionBombError) as exc:
+        raise InputError(f"cannot read image: {exc}", file=path) from None
+    return handle
+
+
+def read_image(path: str | Path, background: tuple[float, float, float] = (0.0, 0.0, 0.0)
+               ) -> np.ndarray:
+    """(H, W, 3) float32 RGB in [0, 1] from an image file.
+
+    Args:
+        path: the image file.
+        background: RGB in [0, 1] behind transparent pixels.
+
+    Raises:
+        InputError: naming the file when it cannot be read.
+    """
+    path = Path(path)
+    with _open(path) as handle:
+        if handle.mode in _GREY_16_MODES or handle.mode == "I":
+            grey = np.asarray(handle, dtype=np.float32) / 65535.0
+            return np.repeat(np.clip(grey, 0.0, 1.0)[..., None], 3, axis=2)
+        transparent = handle.mode in ("RGBA", "LA", "PA") or "transparency" in handle.info
+        pixels = np.asarray(handle.convert("RGBA" if transparent else "RGB"), dtype=np.float32)
+    pixels /= 255.0
+    if not transparent:
+        return np.ascontiguousarray(pixels)
+    alpha = pixels[..., 3:4]
+    bg = np.asarray(background, dtype=np.float32)
+    return np.ascontiguousarray(pixels[..., :3] * alpha + bg * (1.0 - alpha))
+
+
+def read_mask(path: str | Path) -> np.ndarray:
+    """(H, W) int32 instance ids from a mask image (see the module notes for the encodings).
+
+    Raises:
+        InputError: naming the file when it cannot be read or holds no integer ids.
+    """
+    path = Path(path)
+    with _open(path) as handle:
+        mode = handle.mode
+        if mode in ("1", "L", "P", "I") or mode in _GREY_16_MODES:
+            ids = np.asarray(handle).astype(np.int64)
+        elif mode == "LA":  # grey + alpha: the grey value is the id
+            ids = np.asarray(handle)[..., 0].astype(np.int64)
+        elif mode in ("RGB", "RGBA"):
+            rgb = np.asarray(handle.convert("RGB")).astype(np.int64)
+            ids = (rgb[..., 0] << 16) | (rgb[..., 1] << 8) | rgb[..., 2]
+        else:
+            raise InputError(f"mask image mode {mode!r} holds no integer ids (use 8/16-bit "
+                             "grey, palette or RGB PNG)", file=path)
+    if ids.ndim != 2:
+        raise InputError(f"mask must be one channel, got shape {ids.shape}", file=path)
+    if ids.size and (ids.min() < np.iinfo(np.int32).min or ids.max() > np.iinfo(np.int32).max):
+        raise InputError("mask ids exceed the int32 range", file=path)
+    return ids.astype(np.int32)
+
+
+def resize_image(image: np.ndarray, width: int, height: int) -> np.ndarray:
+    """``image`` (H, W, 3) float32 resized to (height, width, 3) with area averaging (box)."""
+    from PIL import Image
+
+    if (image.shape[1], image.shape[0]) == (width, height):
+        return image
+    channels = [np.asarray(Image.fromarray(np.ascontiguousarray(image[..., c], dtype=np.float32))
+                           .resize((width, height), Image.Resampling.BOX))
+                for c in range(image.shape[2])]
+    return np.stack(channels, axis=2).astype(np.float32)
+
+
+def resize_mask(mask: np.ndarray, width: int, height: int) -> np.ndarray:
+    """``mask`` (H, W) int32 resized to (height, width) by nearest neighbour (ids stay ids)."""
+    if (mask.shape[1], mask.shape[0]) == (width, height):
+        return mask
+    rows = np.minimum(((np.arange(height) + 0.5) * mask.shape[0] / height).astype(np.int64),
+                      mask.shape[0] - 1)
+    cols = np.minimum(((np.arange(width) + 0.5) * mask.shape[1] / width).astype(np.int64),
+                      mask.shape[1] - 1)
+    return np.ascontiguousarray(mask[rows[:, None], cols[None, :]])

@@ -1,0 +1,112 @@
+"""Quantization-aware training terms (torch): the noise proxy, the rate proxy and the
+quality-aware weights of stage 2.
+
+* :func:`add_quantization_noise`: s + U(-Q/2, Q/2), the differentiable stand-in for rounding
+  to a grid of step Q while training.
+* :func:`gaussian_rate_bits`: the bits a value costs under a Gaussian (mu, sigma) quantized
+  with step q, -log2(Phi((x - mu + q/2) / sigma) - Phi((x - mu - q/2) / sigma)). Evaluated at
+  noisy values it estimates the size the range coder will produce with the frozen Gaussian
+  tables (csgs_codec.entropy.tables) for the rounded values. Clamps: sigma to
+  [0.11 q, 128 q], the range of the frozen table family (the coder can do no better nor
+  cheaper), and the probability to at least 2^-30, which keeps bits finite and gradients
+  bounded for values far in the tail.
+* :func:`quality_aware_weights`: w = 1 if 1 - norm(q_f) >= T else 1 - norm(q_f), T = 0.65,
+  where q_f is each anchor's colour quantization step from stage 1 and norm is min-max
+  normalisation over the anchors: norm(q) = (q - min q) / (max q - min q), 0 for every
+  anchor when all steps are equal. Anchors with coarse colour (large q_f, poorly
+  reconstructed) get smaller semantic features, so they weigh less in the rendered map.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+
+from csgs_codec.entropy.tables import SIGMA_MAX, SIGMA_MIN
+from csgs_codec.errors import InputError
+
+#: T of the quality-aware weighting.
+QUALITY_THRESHOLD = 0.65
+#: Smallest probability :func:`gaussian_rate_bits` assigns (at most 30 bits per value).
+MIN_PROBABILITY = 2.0**-30
+
+
+def add_quantization_noise(values: torch.Tensor, step: float | torch.Tensor = 1.0, *,
+                           generator: torch.Generator | None = None) -> torch.Tensor:
+    """values + U(-step/2, step/2), elementwise; differentiable in ``values``.
+
+    Args:
+        values: any shape.
+        step: the quantization step Q (scalar or broadcastable tensor, > 0).
+        generator: torch generator for reproducible noise (on ``values``' device).
+
+    Returns:
+        A tensor of ``values``' shape and dtype.
+    """
+    noise = torch.rand(values.shape, generator=generator, dtype=values.dtype,
+                       device=values.device) - 0.5
+    return values + noise * step
+
+
+def _normal_cdf(z: torch.Tensor) -> torch.Tensor:
+    return 0.5 * torch.special.erfc(-z / math.sqrt(2.0))
+
+
+def gaussian_bin_probability(values: torch.Tensor, mean: torch.Tensor, sigma: torch.Tensor,
+                             step: torch.Tensor | float) -> torch.Tensor:
+    """Gaussian mass of the width-``step`` bin centred on each value (clamps: module notes).
+
+    Args:
+        values, mean, sigma, step: broadcastable tensors, same units (sigma, step > 0).
+
+    Returns:
+        Probabilities in [2^-30, 1], the broadcast shape. The mass is measured on the side of
+        the mean where the CDF has full relative precision (|x - mu| mirrored below the mean).
+    """
+    step = torch.as_tensor(step, dtype=values.dtype, device=values.device)
+    sigma = torch.minimum(torch.maximum(sigma, SIGMA_MIN * step), SIGMA_MAX * step)
+    distance = torch.abs(values - mean)
+    upper = _normal_cdf((0.5 * step - distance) / sigma)
+    lower = _normal_cdf((-0.5 * step - distance) / sigma)
+    return torch.clamp(upper - lower, min=MIN_PROBABILITY)
+
+
+def gaussian_rate_bits(values: torch.Tensor, mean: torch.Tensor, sigma: torch.Tensor,
+                       step: torch.Tensor | float) -> torch.Tensor:
+    """Bits of each value under N(mean, sigma) quantized with ``step``: -log2 of
+    :func:`gaussian_bin_probability`, the broadcast shape; differentiable in every input."""
+    return -torch.log2(gaussian_bin_probability(values, mean, sigma, step))
+
+
+def quality_aware_weights(color_steps: torch.Tensor | np.ndarray,
+                          threshold: float = QUALITY_THRESHOLD) -> torch.Tensor:
+    """Per-anchor weights of the rendered semantic feature (module notes).
+
+    Args:
+        color_steps: (N,) positive colour quantization steps q_f, one per anchor.
+        threshold: T.
+
+    Returns:
+        (N,) weights in [0, 1], no gradient (the steps are fixed by stage 1); dtype float32
+        for numpy input, else the input's.
+
+    Raises:
+        InputError: a step that is not finite.
+    """
+    steps = torch.as_tensor(color_steps).detach()
+    if not steps.dtype.is_floating_point:
+        steps = steps.to(torch.float32)
+    if steps.ndim != 1:
+        raise InputError(f"color steps must be (N,), got {tuple(steps.shape)}",
+                         property="color_steps")
+    if steps.numel() == 0:
+        return steps.clone()
+    if not bool(torch.all(torch.isfinite(steps))):
+        raise InputError("color steps must be finite", property="color_steps")
+    low, high = steps.min(), steps.max()
+    spread = high - low
+    norm = (steps - low) / spread if float(spread) > 0 else torch.zeros_like(steps)
+    quality = 1.0 - norm
+    return torch.where(quality >= threshold, torch.ones_like(quality), quality)

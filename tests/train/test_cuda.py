@@ -1,0 +1,50 @@
+"""The loss terms and stage 2 give the CPU's results on a CUDA device."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from csgs_codec.train.losses import (
+    inter_mask_contrastive_loss,
+    intra_mask_smoothing_loss,
+    photometric_loss,
+)
+from csgs_codec.train.quantization import gaussian_rate_bits, quality_aware_weights
+from csgs_codec.train.semantic_stage import prepare_semantic_views, train_semantic_features
+from csgs_codec.train.synthetic import make_synthetic_dataset
+
+pytestmark = pytest.mark.gpu
+
+
+def test_losses_on_cuda_equal_the_cpu():
+    generator = torch.Generator().manual_seed(0)
+    image = torch.rand(20, 24, 3, generator=generator, dtype=torch.float64)
+    target = torch.rand(20, 24, 3, generator=generator, dtype=torch.float64)
+    features = torch.randn(20, 24, 6, generator=generator, dtype=torch.float64)
+    mask = torch.randint(0, 4, (20, 24), generator=generator)
+    for loss, args in ((photometric_loss, (image, target)),
+                       (intra_mask_smoothing_loss, (features, mask)),
+                       (inter_mask_contrastive_loss, (features, mask))):
+        cpu = loss(*args).item()
+        assert loss(*(a.cuda() for a in args)).item() == pytest.approx(cpu, rel=1e-9)
+    values, mean, sigma = (torch.randn(100, generator=generator, dtype=torch.float64)
+                           for _ in range(3))
+    sigma = sigma.abs() + 0.5
+    cpu = gaussian_rate_bits(values, mean, sigma, 1.0)
+    gpu = gaussian_rate_bits(values.cuda(), mean.cuda(), sigma.cuda(), 1.0).cpu()
+    torch.testing.assert_close(gpu, cpu)
+    steps = torch.tensor([1.0, 2.0, 3.0, 5.0])
+    torch.testing.assert_close(quality_aware_weights(steps.cuda()).cpu(),
+                               quality_aware_weights(steps))
+
+
+def test_semantic_stage_trains_on_cuda():
+    dataset = make_synthetic_dataset(11, objects=3, gaussians_per_object=50, views=3,
+                                     width=32, height=24)
+    views = prepare_semantic_views(dataset.scene, dataset.views)
+    result = train_semantic_features(views, len(dataset.scene), iterations=40, seed=4,
+                                     device="cuda")
+    assert np.all(np.isfinite(result.features))
+    assert result.losses[-1] < 0.2 * result.losses[0]

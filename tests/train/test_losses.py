@@ -1,0 +1,149 @@
+"""Photometric and semantic loss terms, each on a case with a known answer."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from csgs_codec.errors import InputError
+from csgs_codec.render.metrics import ssim as numpy_ssim
+from csgs_codec.train.losses import (
+    inter_mask_contrastive_loss,
+    intra_mask_smoothing_loss,
+    l1_loss,
+    mask_means,
+    photometric_loss,
+    ssim,
+)
+
+
+def random_image(seed: int, shape=(24, 32, 3)) -> torch.Tensor:
+    return torch.rand(shape, generator=torch.Generator().manual_seed(seed), dtype=torch.float64)
+
+
+def two_mask_features(offset: float, dim: int = 6):
+    """Left half mask 0 with feature 0, right half mask 1 with feature ``offset`` * e_0."""
+    mask = torch.zeros(8, 10, dtype=torch.int64)
+    mask[:, 5:] = 1
+    features = torch.zeros(8, 10, dim, dtype=torch.float64)
+    features[:, 5:, 0] = offset
+    return features, mask
+
+
+def test_l1_of_known_difference():
+    a = torch.zeros(2, 3)
+    b = torch.tensor([[1.0, -2.0, 3.0], [0.0, 0.0, 0.0]])
+    assert l1_loss(a, b).item() == pytest.approx(1.0)
+
+
+def test_ssim_of_an_image_with_itself_is_one():
+    image = random_image(0)
+    assert ssim(image, image).item() == pytest.approx(1.0, abs=1e-12)
+    small = random_image(1, (6, 7, 3))  # smaller than the window: one whole-image window
+    assert ssim(small, small).item() == pytest.approx(1.0, abs=1e-12)
+
+
+@pytest.mark.parametrize("shape", [(24, 32, 3), (20, 16), (6, 9, 3)], ids=["rgb", "grey", "tiny"])
+def test_ssim_equals_the_metrics_module(shape):
+    a, b = random_image(2, shape), random_image(3, shape)
+    b = 0.7 * a + 0.3 * b
+    expected = numpy_ssim(a.numpy(), b.numpy())
+    assert ssim(a, b).item() == pytest.approx(expected, abs=1e-10)
+
+
+def test_ssim_gradient_moves_towards_the_target():
+    target = random_image(4)
+    rendered = (0.5 * target + 0.5 * random_image(5)).requires_grad_(True)
+    before = ssim(rendered, target)
+    before.backward()
+    with torch.no_grad():
+        after = ssim(rendered + 0.05 * rendered.grad / rendered.grad.abs().max(), target)
+    assert after.item() > before.item()
+
+
+def test_photometric_loss_is_zero_for_equal_images_and_weighted_otherwise():
+    image = random_image(6)
+    assert photometric_loss(image, image).item() == pytest.approx(0.0, abs=1e-12)
+    other = random_image(7)
+    expected = 0.8 * l1_loss(image, other) + 0.2 * (1 - ssim(image, other))
+    assert photometric_loss(image, other).item() == pytest.approx(expected.item())
+
+
+def test_smoothing_loss_is_zero_for_a_constant_feature_per_mask():
+    features, mask = two_mask_features(2.5)
+    assert intra_mask_smoothing_loss(features, mask).item() == 0.0
+
+
+def test_smoothing_loss_is_the_mean_over_masks_of_the_squared_spread():
+    # Mask 0: two pixels at 0 and 2 (mean 1, mean squared distance 1); mask 1: constant.
+    features = torch.tensor([[[0.0], [2.0], [5.0], [5.0]]])
+    mask = torch.tensor([[0, 0, 1, 1]])
+    assert intra_mask_smoothing_loss(features, mask).item() == pytest.approx(0.5)
+
+
+def test_smoothing_loss_ignores_the_ignore_id():
+    features = torch.tensor([[[0.0], [2.0], [5.0], [7.0]]])
+    mask = torch.tensor([[0, 0, 1, 1]])
+    assert intra_mask_smoothing_loss(features, mask, ignore_id=0).item() == pytest.approx(1.0)
+
+
+def test_contrastive_loss_is_zero_when_masks_are_beyond_the_margin():
+    features, mask = two_mask_features(3.5)
+    assert inter_mask_contrastive_loss(features, mask, margin=3.0).item() == 0.0
+
+
+def test_contrastive_loss_of_close_masks_has_the_known_value():
+    features, mask = two_mask_features(1.0)
+    assert inter_mask_contrastive_loss(features, mask, margin=3.0).item() == pytest.approx(4.0)
+
+
+def test_contrastive_gradient_pushes_the_mask_means_apart():
+    features, mask = two_mask_features(0.5)
+    features.requires_grad_(True)
+    inter_mask_contrastive_loss(features, mask).backward()
+    with torch.no_grad():
+        stepped = features - 0.1 * features.grad
+    means = mask_means(stepped, mask)
+    assert torch.linalg.norm(means[1] - means[0]).item() > 0.5
+    # Descending the loss separates two coincident masks too (the gradient exists at 0).
+    coincident, _ = two_mask_features(0.0)
+    coincident = coincident + 1e-3 * torch.randn(coincident.shape,
+                                                 generator=torch.Generator().manual_seed(0),
+                                                 dtype=torch.float64)
+    for _ in range(50):
+        coincident.requires_grad_(True)
+        inter_mask_contrastive_loss(coincident, mask).backward()
+        coincident = (coincident - 50.0 * coincident.grad).detach()
+    assert inter_mask_contrastive_loss(coincident, mask).item() == 0.0
+
+
+def test_contrastive_loss_averages_over_mask_pairs():
+    # Three masks at 0, 1 and 10 on a line: pairs (0,1) cost (3-1)^2, the others nothing.
+    features = torch.tensor([[[0.0], [1.0], [10.0]]])
+    mask = torch.tensor([[4, 7, 9]])
+    assert inter_mask_contrastive_loss(features, mask, margin=3.0).item() == pytest.approx(
+        4.0 / 3.0)
+
+
+def test_contrastive_loss_of_a_single_mask_is_zero_with_a_gradient():
+    features = torch.ones(3, 3, 2, requires_grad=True)
+    loss = inter_mask_contrastive_loss(features, torch.zeros(3, 3, dtype=torch.int32))
+    loss.backward()
+    assert loss.item() == 0.0 and features.grad is not None
+
+
+def test_float_masks_and_mismatched_shapes_are_rejected():
+    features = torch.zeros(4, 4, 2)
+    with pytest.raises(InputError, match="integer"):
+        intra_mask_smoothing_loss(features, torch.zeros(4, 4))
+    with pytest.raises(InputError, match="mask"):
+        inter_mask_contrastive_loss(features, torch.zeros(4, 5, dtype=torch.int64))
+    with pytest.raises(InputError, match="shapes differ"):
+        ssim(torch.zeros(12, 12), torch.zeros(12, 13))
+
+
+def test_losses_accept_numpy_converted_masks():
+    mask = torch.from_numpy(np.array([[0, 1], [0, 1]], np.int32))
+    features = torch.tensor([[[0.0], [7.0]], [[0.0], [7.0]]])
+    assert inter_mask_contrastive_loss(features, mask).item() == 0.0
