@@ -27,11 +27,23 @@ def run(args) -> int:
         from csgs_codec.format import format_description
 
         facts = describe_bitstream(args.file, verify=True)
-        print(json.dumps(facts, indent=2) if args.json else format_description(facts))
+        print(json.dumps(facts, indent=2) if args.json
+              else with_semantic_share(format_description(facts), facts))
         return 0
     facts = describe_file(args.file, sanitize=args.sanitize)
     print(json.dumps(facts, indent=2) if args.json else format_ply_facts(facts))
     return 0
+
+
+def with_semantic_share(text: str, facts: dict) -> str:
+    """``text`` with a line giving the semantic layer's share of the file, placed after the
+    semantic layer's line (or last when there is none)."""
+    share = (f"  semantic share   {facts['semantic_share_percent']:.2f}% of the file "
+             "(semantic layer bytes / file bytes)")
+    lines = text.split("\n")
+    at = next((i + 1 for i, line in enumerate(lines) if line.startswith("  semantic ")),
+              len(lines))
+    return "\n".join(lines[:at] + [share] + lines[at:])
 
 
 def is_csgs(path: str) -> bool:

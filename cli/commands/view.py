@@ -1,4 +1,5 @@
-"""``csgs view SCENE [--screenshot out.png]``: a pyvista preview of the Gaussians."""
+"""``csgs view SCENE [--screenshot out.png] [--select X,Y | --select-mask M.npy]``: a pyvista
+preview of the Gaussians, optionally with a selection highlighted."""
 
 from __future__ import annotations
 
@@ -9,6 +10,8 @@ HELP = ("preview a scene with pyvista: Gaussians as oriented ellipsoids or point
 
 def add_arguments(parser) -> None:
     """Arguments of ``csgs view``."""
+    from csgs_codec.semantic.selection import DEFAULT_THRESHOLD
+
     parser.add_argument("scene", help="a 3DGS .ply scene")
     parser.add_argument("--screenshot", metavar="PNG",
                         help="render offscreen to this PNG file instead of opening a window")
@@ -22,6 +25,15 @@ def add_arguments(parser) -> None:
                         help="up axis of the view: +x -x +y -y +z -z (default: guessed)")
     parser.add_argument("--max-gaussians", type=int, default=60_000, metavar="N",
                         help="draw at most N Gaussians, an even sample (default 60000)")
+    chosen = parser.add_mutually_exclusive_group()
+    chosen.add_argument("--select", metavar="X,Y",
+                        help="highlight the object under pixel X,Y of this view (by semantic "
+                             "feature, as 'csgs select'); the rest is drawn dim")
+    chosen.add_argument("--select-mask", metavar="NPY",
+                        help="highlight the Gaussians of a .npy bool mask from 'csgs select "
+                             "--save-mask' (same scene file); the rest is drawn dim")
+    parser.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, metavar="T",
+                        help=f"cosine threshold for --select (default {DEFAULT_THRESHOLD})")
 
 
 def run(args) -> int:
@@ -37,7 +49,7 @@ def run(args) -> int:
     scene = load_scene(args.scene, command=NAME)
     options = dict(mode="points" if args.points else "ellipsoids", color_by=args.color,
                    window_size=parse_size(args.size), up=args.up,
-                   max_gaussians=args.max_gaussians)
+                   max_gaussians=args.max_gaussians, selection=selection_from_args(args, scene))
     if args.screenshot:
         save_screenshot(scene, args.screenshot, **options)
         if not args.quiet:
@@ -45,3 +57,49 @@ def run(args) -> int:
     else:
         show_window(scene, **options)
     return 0
+
+
+def selection_from_args(args, scene):
+    """The (N,) bool mask --select or --select-mask asks for, or None.
+
+    Raises:
+        InputError: a bad click, a click on nothing, or a mask file that is unreadable or does
+            not fit the scene.
+    """
+    from csgs_cli.commands.select import parse_click
+    from csgs_cli.view_options import parse_size
+    from csgs_codec.render.preview import preview_camera
+    from csgs_codec.semantic.selection import select_at_click
+
+    if args.select:
+        x, y = parse_click(args.select)
+        camera = preview_camera(scene, parse_size(args.size), args.up)
+        return select_at_click(scene, camera, x, y, threshold=args.threshold)
+    if args.select_mask:
+        return load_mask(args.select_mask, len(scene))
+    return None
+
+
+def load_mask(path: str, count: int):
+    """The (count,) bool mask stored in the .npy file ``path``.
+
+    Raises:
+        InputError: the file is missing, not a .npy array, or not (count,) bool.
+    """
+    import numpy as np
+    from numpy.lib import format as npy
+
+    from csgs_codec.errors import InputError
+
+    try:  # the header first, so a file claiming a huge array allocates nothing
+        with open(path, "rb") as fh:
+            version = npy.read_magic(fh)
+            reader = npy.read_array_header_1_0 if version == (1, 0) else \
+                npy.read_array_header_2_0
+            shape, _, dtype = reader(fh)
+            if dtype != np.bool_ or shape != (count,):
+                raise InputError(f"selection mask must be a ({count},) bool array for this "
+                                 f"scene, got {shape} {dtype}", file=path)
+        return np.load(path, allow_pickle=False)
+    except (OSError, ValueError, EOFError) as exc:
+        raise InputError(f"cannot read the selection mask as .npy: {exc}", file=path) from None

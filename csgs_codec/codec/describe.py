@@ -9,11 +9,16 @@ from csgs_codec.format import describe, read_layers
 def describe_bitstream(source, *, verify: bool = True) -> dict:
     """:func:`csgs_codec.format.describe` facts, plus, when the file holds a scene header:
     ``gaussians``, ``sh_degree_stored`` / ``sh_degree_coded``, ``quality``, ``grid_bits`` and
-    ``bits_per_gaussian`` for the file, each layer and each chunk (bytes * 8 / N).
+    ``bits_per_gaussian`` for the file, each layer and each chunk (bytes * 8 / N); and
+    always ``semantic_share_percent``, the semantic layer's chunk frames as a percentage of
+    the whole file (header and TOC included).
 
     Reads only the base layer's payloads besides the header and TOC.
     """
     facts = describe(source, verify=verify)
+    total = facts["file_bytes"]
+    facts["semantic_share_percent"] = (100.0 * facts["layers"]["semantic"]["bytes"] / total
+                                       if total else 0.0)
     if not any(c["type"] == "SCNE" for c in facts["chunks"]):
         return facts
     container = read_layers(source, layers=set())

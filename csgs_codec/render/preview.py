@@ -26,6 +26,8 @@ SH_C0 = 0.28209479177387814
 COLOR_MODES = ("auto", "dc", "label", "semantic")
 #: Gaussians at or below this opacity are not drawn.
 MIN_PREVIEW_OPACITY = 0.1
+#: Brightness of unselected Gaussians when a selection is shown (a fraction of their colour).
+UNSELECTED_SHADE = 0.3
 
 
 def dc_colors(scene: GaussianScene) -> np.ndarray:
@@ -74,6 +76,29 @@ def gaussian_colors(scene: GaussianScene, color_by: str = "auto") -> np.ndarray:
     return dc_colors(scene)
 
 
+def highlight_selection(colors: np.ndarray, selection: np.ndarray) -> np.ndarray:
+    """(N, 3) float32 RGB: ``colors`` where ``selection`` ((N,) bool) holds, a dim grey
+    (:data:`UNSELECTED_SHADE` of the colour's mean) elsewhere.
+
+    Raises:
+        InputError: ``selection`` is not an (N,) bool array.
+    """
+    selection = np.asarray(selection)
+    if selection.dtype != np.bool_ or selection.shape != (len(colors),):
+        raise InputError(f"selection mask must be ({len(colors)},) bool, got "
+                         f"{selection.shape} {selection.dtype}", property="selection")
+    grey = UNSELECTED_SHADE * colors.mean(axis=1, keepdims=True)
+    return np.where(selection[:, None], colors, grey).astype(np.float32)
+
+
+def preview_camera(scene: GaussianScene, window_size: tuple[int, int] = (800, 600),
+                   up: str | np.ndarray | None = None):
+    """The :class:`~csgs_codec.render.camera.Camera` the preview looks from (the first orbit
+    view at ``window_size``); pixel (x, y) of a screenshot is pixel (x, y) of its render."""
+    width, height = window_size
+    return orbit_cameras(scene, 1, width=width, height=height, up=up)[0]
+
+
 def ellipsoid_mesh(positions: np.ndarray, log_scales: np.ndarray, quaternions: np.ndarray,
                    colors: np.ndarray, *, sigma_scale: float = 1.5, resolution: int = 8):
     """One pyvista PolyData of K ellipsoids with per-point "rgb" colours.
@@ -118,8 +143,9 @@ def quaternion_matrices(quaternions: np.ndarray) -> np.ndarray:
 
 def preview_plotter(scene: GaussianScene, *, mode: str = "ellipsoids", color_by: str = "auto",
                     window_size: tuple[int, int] = (800, 600), off_screen: bool = False,
-                    up: str | np.ndarray | None = None, max_gaussians: int = 60_000):
-    """A pyvista Plotter showing ``scene``, looking from the first orbit camera.
+                    up: str | np.ndarray | None = None, max_gaussians: int = 60_000,
+                    selection: np.ndarray | None = None):
+    """A pyvista Plotter showing ``scene``, looking from :func:`preview_camera`.
 
     Args:
         mode: "ellipsoids" or "points".
@@ -128,6 +154,8 @@ def preview_plotter(scene: GaussianScene, *, mode: str = "ellipsoids", color_by:
         off_screen: render without a window (for screenshots).
         up: up direction for the view (see :func:`~csgs_codec.render.orbit.parse_up`).
         max_gaussians: draw at most this many (an even stride through the visible ones).
+        selection: optional (N,) bool mask; the rest are drawn dim grey
+            (:func:`highlight_selection`).
     """
     import pyvista as pv
 
@@ -135,6 +163,8 @@ def preview_plotter(scene: GaussianScene, *, mode: str = "ellipsoids", color_by:
         raise InputError(f"preview mode must be 'ellipsoids' or 'points', got {mode!r}",
                          property="mode")
     colors = gaussian_colors(scene, color_by)
+    if selection is not None:
+        colors = highlight_selection(colors, selection)
     opacity = 1.0 / (1.0 + np.exp(-scene.opacity.astype(np.float64)))
     shown = np.flatnonzero(opacity > MIN_PREVIEW_OPACITY)
     if len(shown) == 0:
@@ -142,7 +172,7 @@ def preview_plotter(scene: GaussianScene, *, mode: str = "ellipsoids", color_by:
     if len(shown) > max_gaussians:
         shown = shown[np.linspace(0, len(shown) - 1, max_gaussians).astype(np.int64)]
     width, height = window_size
-    camera = orbit_cameras(scene, 1, width=width, height=height, up=up)[0]
+    camera = preview_camera(scene, window_size, up)
     plotter = pv.Plotter(off_screen=off_screen, window_size=[width, height])
     plotter.set_background("black")
     if mode == "ellipsoids":
