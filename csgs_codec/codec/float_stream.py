@@ -8,6 +8,9 @@ Each channel c is one of:
 - predicted (mode 2): k is predicted from the indices of the channels before it (a
   channel-wise autoregressive model, linear with integer coefficients):
   ``P = floor((sum_j A_j * k_j + B) / 2^12)`` in exact int64, and ``k - P`` is coded.
+- histogram (mode 4): k or k - P (with or without the prediction) coded with a frequency
+  table of its own (:mod:`csgs_codec.entropy.histogram`) instead of a frozen Gaussian table,
+  for channels whose distribution is not Gaussian.
 
 The value decodes as ``float32((mu + q * k) * 2^-F)``. The encoder picks, per channel, the mode
 that codes smallest (counting the coefficients), so prediction is used only where it pays.
@@ -17,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from csgs_codec.entropy.histogram import decode_histogram, encode_histogram, histogram_cost
 from csgs_codec.entropy.residual import (
     STEP_COUNT,
     decode_symbols,
@@ -35,6 +39,7 @@ from csgs_codec.format.primitives import ByteReader, ByteWriter
 MODE_CONSTANT = 0
 MODE_FACTORIZED = 1
 MODE_PREDICTED = 2
+MODE_HISTOGRAM = 4
 #: Fractional bits of prediction coefficients and bias.
 COEF_FRAC_BITS = 12
 #: |A_j| must stay below this; |B| below BIAS_LIMIT.
@@ -92,27 +97,34 @@ def write_float_stream(out: ByteWriter, values: np.ndarray, step: float) -> np.n
         mean_arr = np.full(n, mean, np.int64)
         k = quantize(grid, mean_arr, steps)
         indices[:, c] = k
-        costs = table_costs(k)
-        mode, table, residuals, coefs, bias = MODE_FACTORIZED, int(np.argmin(costs)), k, None, 0
-        best = float(costs.min())
+        candidates = [(float(table_costs(k).min()), MODE_FACTORIZED, k, None, 0),
+                      (histogram_cost(k), MODE_HISTOGRAM, k, None, 0)]
         fitted = _fit_prediction(indices[:, :c], k)
         if fitted is not None:
             coefs, bias = fitted
             r = k - predict(indices[:, :c], coefs, bias)
-            pred_costs = table_costs(r)
             overhead = 8 * (3 * c + 6)  # coefficient bytes, at most
-            if pred_costs.min() + overhead < best:
-                mode, table, residuals = MODE_PREDICTED, int(np.argmin(pred_costs)), r
+            candidates += [(float(table_costs(r).min()) + overhead, MODE_PREDICTED, r, coefs,
+                            bias),
+                           (histogram_cost(r) + overhead, MODE_HISTOGRAM, r, coefs, bias)]
+        _, mode, residuals, coefs, bias = min(candidates, key=lambda cand: cand[0])
         out.fixed("u8", mode)
         out.svarint(mean)
-        out.fixed("u8", table)
+        if mode != MODE_HISTOGRAM:
+            table = int(np.argmin(table_costs(residuals)))
+            out.fixed("u8", table)
         out.fixed("u8", step_idx)
-        if mode == MODE_PREDICTED:
+        if mode == MODE_PREDICTED or (mode == MODE_HISTOGRAM and coefs is not None):
             out.varint(c)
             for a in coefs:
                 out.svarint(int(a))
             out.svarint(int(bias))
-        out.byte_string(encode_symbols(residuals, np.full(n, table, np.int64)))
+        elif mode == MODE_HISTOGRAM:
+            out.varint(0)
+        if mode == MODE_HISTOGRAM:
+            out.byte_string(encode_histogram(residuals))
+        else:
+            out.byte_string(encode_symbols(residuals, np.full(n, table, np.int64)))
         recon[:, c] = from_grid(reconstruct(mean_arr, k, steps), f).astype(np.float32)
     return recon
 
@@ -156,16 +168,21 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None) ->
         if mode == MODE_CONSTANT:
             out[:, c] = np.float32(r.fixed("f32", "constant_value"))
             continue
-        if mode not in (MODE_FACTORIZED, MODE_PREDICTED):
+        if mode not in (MODE_FACTORIZED, MODE_PREDICTED, MODE_HISTOGRAM):
             raise r.error(f"channel {c} has unknown mode {mode}")
         mean = r.svarint("mean")
-        table = r.fixed("u8", "scale_index")
+        table = 0 if mode == MODE_HISTOGRAM else r.fixed("u8", "scale_index")
         step = r.fixed("u8", "step_index")
         if abs(mean) > 1 << 53 or table >= tables or step >= STEP_COUNT:
             raise r.error(f"channel {c}: mean, scale index or step index out of range")
         prediction = 0
-        if mode == MODE_PREDICTED:
+        m = 0
+        if mode == MODE_HISTOGRAM:
             m = r.varint("coefficient_count", maximum=c_count)
+            if m not in (0, c):
+                raise r.error(f"channel {c} has {m} coefficients, expected 0 or {c}")
+        if mode == MODE_PREDICTED or m:
+            m = r.varint("coefficient_count", maximum=c_count) if mode == MODE_PREDICTED else m
             if m != c:
                 raise r.error(f"channel {c} has {m} coefficients, expected {c}")
             coefs = np.array([r.svarint("coefficient") for _ in range(m)], np.int64)
@@ -176,8 +193,12 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None) ->
                 raise r.error(f"channel {c}: earlier indices too large to predict from")
             prediction = predict(indices[:, :c], coefs, bias)
         stream = r.byte_string("residual_stream")
-        k = decode_symbols(stream, np.full(n, table, np.int64), chunk=r.chunk,
-                           base_offset=r.offset - len(stream)) + prediction
+        if mode == MODE_HISTOGRAM:
+            k = decode_histogram(stream, n, chunk=r.chunk,
+                                 base_offset=r.offset - len(stream)) + prediction
+        else:
+            k = decode_symbols(stream, np.full(n, table, np.int64), chunk=r.chunk,
+                               base_offset=r.offset - len(stream)) + prediction
         q = int(step_size(np.array([step]))[0])
         if n and np.abs(k).max() > ((1 << 53) - abs(mean)) // q:
             raise r.error(f"channel {c}: decoded value exceeds 2^53 on its grid")

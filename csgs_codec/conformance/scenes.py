@@ -3,6 +3,10 @@
 Valid vectors carry the SHA-256 of the canonical PLY (csgs_codec.scene.ply_io.ply_bytes) of
 each read, plus the decoded arrays for the small ones; invalid vectors carry the error class
 and the chunk it names.
+
+Vectors are never rewritten once landed: when the encoder's output changes, the generator
+writes new vectors under a new revision suffix and the old files stay as frozen history
+(:data:`FROZEN`), still decoded by the tests.
 """
 
 from __future__ import annotations
@@ -24,6 +28,11 @@ REPO = Path(__file__).resolve().parents[2]
 DONUT = REPO / "samples" / "donut.ply"
 THREE_POINTS = REPO.parent / "shared" / "data" / "fixtures" / "three_points_sh3.ply"
 READS = ("color", "color,semantic")
+#: Vectors written by earlier encoder revisions; kept as files, no longer generated.
+FROZEN = ("donut_q3", "donut_q7", "three_points_sh3_q9", "semantic_small",
+          "missing_opacity_chunk", "truncated_dc_payload", "truncated_label_payload")
+#: Suffix of the vectors the current encoder writes (r2: histogram-coded channels).
+REVISION = "_r2"
 
 
 def small_semantic_scene() -> GaussianScene:
@@ -82,32 +91,26 @@ def _invalid(data: bytes, drop: str | None = None, cut: str | None = None) -> by
 
 
 def generate(out_dir: Path) -> None:
-    """Write the scene vectors into ``out_dir``."""
+    """Write the current revision's scene vectors into ``out_dir`` (frozen ones untouched)."""
+    r = REVISION
     donut = read_ply(DONUT)
     for quality in (3, 7):
         data = Encoder(quality=quality).encode(donut)
-        _write(out_dir, f"donut_q{quality}", data,
+        _write(out_dir, f"donut_q{quality}{r}", data,
                f"samples/donut.ply (45,624 Gaussians, SH 0) at quality {quality}",
                _reads(data))
     three = read_ply(THREE_POINTS)
     data = Encoder(quality=9).encode(three)
-    _write(out_dir, "three_points_sh3_q9", data,
+    _write(out_dir, f"three_points_sh3_q9{r}", data,
            "fixtures/three_points_sh3.ply (3 Gaussians, SH 3) at quality 9",
            _reads(data), arrays=Decoder().decode(data))
     small = small_semantic_scene()
     data = Encoder(quality=6).encode(small)
-    _write(out_dir, "semantic_small", data,
+    _write(out_dir, f"semantic_small{r}", data,
            "40 Gaussians, SH 1, 3 semantic channels and labels, quality 6",
            _reads(data),
            arrays=Decoder().decode(data, layers="color,semantic"))
-    bad = _invalid(data, drop="OPAC")
-    _write(out_dir, "missing_opacity_chunk", bad, "semantic_small without its OPAC chunk",
-           _reads(bad))
-    bad = _invalid(data, cut="SHDC")
-    _write(out_dir, "truncated_dc_payload", bad,
-           "semantic_small with the SHDC payload cut in half (frame and CRC rewritten)",
-           _reads(bad))
-    bad = _invalid(data, cut="SEML")
-    _write(out_dir, "truncated_label_payload", bad,
-           "semantic_small with the SEML payload cut in half: colour decodes, semantic fails",
+    bad = _invalid(data, cut="OPAC")
+    _write(out_dir, f"truncated_opacity_payload{r}", bad,
+           "semantic_small_r2 with the OPAC payload cut in half (frame and CRC rewritten)",
            _reads(bad))
