@@ -46,8 +46,26 @@ def parse_layers(layers) -> set[str]:
     return (names | {"color"}) - {"base"}
 
 
+#: Decoder limits against decompression bombs (FORMAT §10.1): a file may declare at most
+#: this many Gaussians, and at most this many per byte of the file (real files hold well
+#: under one per byte; 10,000 identical Gaussians code in about 200 bytes).
+MAX_GAUSSIANS = 1 << 24
+MAX_GAUSSIANS_PER_BYTE = 64
+
+
 class Decoder:
-    """Decodes .csgs bitstreams written by :class:`csgs_codec.codec.encoder.Encoder`."""
+    """Decodes .csgs bitstreams written by :class:`csgs_codec.codec.encoder.Encoder`.
+
+    Args:
+        max_gaussians: refuse files declaring more Gaussians than this.
+        max_gaussians_per_byte: refuse files declaring more Gaussians per byte of the file
+            than this (a scene of many identical Gaussians may need it raised).
+    """
+
+    def __init__(self, *, max_gaussians: int = MAX_GAUSSIANS,
+                 max_gaussians_per_byte: int = MAX_GAUSSIANS_PER_BYTE) -> None:
+        self.max_gaussians = max_gaussians
+        self.max_gaussians_per_byte = max_gaussians_per_byte
 
     def decode(self, source, layers="color") -> GaussianScene:
         """Decode ``source`` (bytes, a path or a seekable binary file).
@@ -67,6 +85,7 @@ class Decoder:
         try:
             container = read_layers(source, layers=wanted)
             header = SceneHeader.from_bytes(*_payload(container, "SCNE"))
+            self._check_count(header, container.source_size)
             positions = self._positions(container, header)
             streams = self._colour_streams(container, header)
             scene = join_streams(streams, positions)
@@ -77,6 +96,16 @@ class Decoder:
                 err.file = str(source)
             raise
         return scene
+
+    def _check_count(self, header: SceneHeader, source_size: int) -> None:
+        """FormatError when the declared Gaussian count breaks this decoder's limits."""
+        limit = min(self.max_gaussians, self.max_gaussians_per_byte * source_size)
+        if header.count > limit:
+            raise FormatError(
+                f"declares {header.count} Gaussians in a {source_size}-byte file, above this "
+                f"decoder's limit of {limit} (max_gaussians={self.max_gaussians}, "
+                f"max_gaussians_per_byte={self.max_gaussians_per_byte}; raise them to decode "
+                "it)", chunk="SCNE")
 
     # ------------------------------------------------------------------ base layer
     def _positions(self, container, header: SceneHeader) -> np.ndarray:

@@ -31,9 +31,10 @@ from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.scene.position_grid import PositionGrid
 
 SEMANTIC_MODES = ("auto", "none")
-#: Step of semantic features (their units are whatever the trainer used; 1/256 keeps cosine
-#: similarities of unit-scale features within about 1%).
-SEMANTIC_STEP = 1.0 / 256
+#: Largest |value| of an attribute coded as a float stream without a clamp or normalisation
+#: before it: grid values and their reconstructions then stay within 2^53 (FORMAT §12.8).
+MAX_CODED_MAGNITUDE = 2.0**52
+LIMITED_ATTRIBUTES = ("sh_dc", "sh_rest", "scales", "semantic")
 
 
 @dataclass
@@ -89,9 +90,11 @@ class Encoder:
         """Encode ``scene`` and report the reconstruction, order and bytes per chunk."""
         start = time.perf_counter()
         scene.validate()
+        _check_codable(scene)
         pruned = 0
         if self.prune_opacity is not None and len(scene):
-            alpha = 1.0 / (1.0 + np.exp(-scene.opacity.astype(np.float64)))
+            with np.errstate(over="ignore"):  # exp(-logit) is inf below -709: alpha 0
+                alpha = 1.0 / (1.0 + np.exp(-scene.opacity.astype(np.float64)))
             keep = alpha >= self.prune_opacity
             pruned = int((~keep).sum())
             scene = scene.subset(keep)
@@ -156,7 +159,8 @@ class Encoder:
             out.varint(len(ordered.semantic_names))
             for name in ordered.semantic_names:
                 out.byte_string(name.encode("utf-8"))
-            reconstruction.semantic = write_float_stream(out, ordered.semantic, SEMANTIC_STEP)
+            reconstruction.semantic = write_float_stream(out, ordered.semantic,
+                                                         self.preset.semantic_step)
             reconstruction.semantic_names = ordered.semantic_names
             chunks.append(Chunk("SEMF", "semantic", out.getvalue()))
         if ordered.labels is not None:
@@ -170,6 +174,21 @@ class Encoder:
             out.byte_string(encode_symbols(residuals, np.full(labels.size, table, np.int64)))
             reconstruction.labels = ordered.labels.copy()
             chunks.append(Chunk("SEML", "semantic", out.getvalue()))
+
+
+def _check_codable(scene: GaussianScene) -> None:
+    """InputError naming the attribute and Gaussian when a value is too large to code."""
+    attributes = scene.attributes()
+    for name in LIMITED_ATTRIBUTES:
+        values = attributes.get(name)
+        if values is None or not values.size:
+            continue
+        too_big = ~(np.abs(values) <= MAX_CODED_MAGNITUDE)
+        if too_big.any():
+            row, col = np.argwhere(too_big)[0]
+            raise InputError(f"|value| {abs(float(values[row, col])):.6g} (channel {col}) "
+                             "exceeds 2^52, the largest the codec can code", property=name,
+                             index=int(row))
 
 
 def _outliers_payload(positions: np.ndarray) -> bytes:

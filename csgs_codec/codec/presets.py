@@ -1,9 +1,11 @@
 """Quality presets: quantization steps per attribute type and position resolution.
 
 Steps are in each attribute's coding form: SH coefficients (colour = 0.5 + 0.2821 * dc, so a
-dc step of 0.01 is about 0.7/255 of colour), opacity logits, natural-log scales, and the
-smallest-three rotation components scaled to [-1, 1]. Position bits are per axis over the
-scene's robust extent. Quality 1 is the smallest file, 9 near-lossless.
+dc step of 0.01 is about 0.7/255 of colour), opacity logits, natural-log scales, the
+smallest-three rotation components scaled to [-1, 1], and semantic features in the trainer's
+units (click selection on unit-scale features is unchanged down to a step of 1/8, measured by
+benchmarks/selection.py, so quality 1 uses 1/8 and quality 9 1/240). Position bits are per
+axis over the scene's robust extent. Quality 1 is the smallest file, 9 near-lossless.
 
 Calibration (samples/donut.ply, 4 orbit views at 400x300, foreground PSNR of the decoded
 against the original render): about 26 dB at 1, 31 at 2, 40 at 4, 47 at 6, 53 at 8.
@@ -16,7 +18,8 @@ from dataclasses import dataclass
 from csgs_codec.errors import InputError
 
 #: Steps at multiplier 1 (quality 8), in coding-form units.
-_BASE = {"dc": 0.025, "rest": 0.05, "opacity": 0.12, "scale": 0.05, "rotation": 0.025}
+_BASE = {"dc": 0.025, "rest": 0.05, "opacity": 0.12, "scale": 0.05, "rotation": 0.025,
+         "semantic": 1.0 / 96}
 
 
 @dataclass(frozen=True)
@@ -30,6 +33,7 @@ class Preset:
     opacity_step: float
     scale_step: float
     rotation_step: float
+    semantic_step: float
 
 
 def _row(quality: int, bits: int, multiplier: float) -> Preset:

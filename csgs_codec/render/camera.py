@@ -6,6 +6,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: Near plane in camera-space z (world units) of a camera that does not set one: Gaussians
+#: closer are culled.
+DEFAULT_NEAR_PLANE = 0.01
+
 
 @dataclass(frozen=True)
 class Camera:
@@ -18,6 +22,7 @@ class Camera:
         cx, cy: principal point in pixels (pixel centres at integer + 0.5).
         world_to_camera: (4, 4) float64 rigid transform taking world points to camera space.
         name: optional identifier (e.g. the image file name).
+        near_plane: camera-space z (world units, > 0) at or below which Gaussians are culled.
     """
 
     width: int
@@ -28,6 +33,7 @@ class Camera:
     cy: float
     world_to_camera: np.ndarray
     name: str = ""
+    near_plane: float = DEFAULT_NEAR_PLANE
 
     @property
     def camera_to_world(self) -> np.ndarray:

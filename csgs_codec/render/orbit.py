@@ -23,11 +23,15 @@ import math
 import numpy as np
 
 from csgs_codec.errors import InputError
-from csgs_codec.render.camera import Camera
+from csgs_codec.render.camera import DEFAULT_NEAR_PLANE, Camera
 from csgs_codec.scene.gaussian_scene import GaussianScene
 
 #: Gaussians at or below this opacity are ignored when measuring the scene.
 MIN_OPACITY_FOR_BOUNDS = 0.1
+#: Orbit cameras closer than 1 world unit to the centre scale the near plane down with their
+#: distance (near = this x distance), so a scene renders the same at any extent (a 1e-6 scene
+#: would otherwise lie wholly inside the default near plane).
+NEAR_PLANE_PER_DISTANCE = DEFAULT_NEAR_PLANE
 _AXES = {"x": 0, "y": 1, "z": 2}
 
 
@@ -63,7 +67,8 @@ def robust_bounds(scene: GaussianScene, percentile: float = 2.0
     if len(scene) == 0:
         raise InputError("the scene has no Gaussians to frame")
     positions = scene.positions.astype(np.float64)
-    opacity = 1.0 / (1.0 + np.exp(-scene.opacity.astype(np.float64)))
+    with np.errstate(over="ignore"):  # exp(-logit) overflows to inf for logits below -709
+        opacity = 1.0 / (1.0 + np.exp(-scene.opacity.astype(np.float64)))
     visible = positions[opacity > MIN_OPACITY_FOR_BOUNDS]
     if len(visible) >= 16:
         positions = visible
@@ -114,6 +119,7 @@ def orbit_cameras(scene: GaussianScene, count: int = 16, *, width: int = 800,
     fy = 0.5 * height / math.tan(math.radians(fov_y_deg) / 2)
     half_fov_small = math.atan(0.5 * min(width, height) / fy)
     distance = 0.5 * extent / fill / math.tan(half_fov_small) + 0.5 * extent
+    near_plane = min(DEFAULT_NEAR_PLANE, NEAR_PLANE_PER_DISTANCE * distance)
     first, second = _horizontal_basis(up_vector)
     elevation = math.radians(elevation_deg)
     cameras = []
@@ -123,7 +129,8 @@ def orbit_cameras(scene: GaussianScene, count: int = 16, *, width: int = 800,
         direction = math.cos(elevation) * horizontal + math.sin(elevation) * up_vector
         position = centre + distance * direction
         cameras.append(Camera(width, height, fy, fy, width / 2, height / 2,
-                              look_at(position, centre, up_vector), name=f"orbit_{i:03d}"))
+                              look_at(position, centre, up_vector), name=f"orbit_{i:03d}",
+                              near_plane=near_plane))
     return cameras
 
 

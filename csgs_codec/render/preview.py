@@ -165,7 +165,8 @@ def preview_plotter(scene: GaussianScene, *, mode: str = "ellipsoids", color_by:
     colors = gaussian_colors(scene, color_by)
     if selection is not None:
         colors = highlight_selection(colors, selection)
-    opacity = 1.0 / (1.0 + np.exp(-scene.opacity.astype(np.float64)))
+    with np.errstate(over="ignore"):  # exp(-logit) is inf below -709: opacity 0
+        opacity = 1.0 / (1.0 + np.exp(-scene.opacity.astype(np.float64)))
     shown = np.flatnonzero(opacity > MIN_PREVIEW_OPACITY)
     if len(shown) == 0:
         raise InputError("the scene has no Gaussians opaque enough to show")

@@ -12,14 +12,12 @@ from typing import NamedTuple
 
 import torch
 
-from csgs_codec.render.camera import Camera
+from csgs_codec.render.camera import DEFAULT_NEAR_PLANE, Camera
 
 #: Variance in pixels^2 added to every projected covariance (the 3DGS anti-aliasing low-pass).
 LOW_PASS_VARIANCE = 0.3
 #: A Gaussian contributes to a pixel only where its alpha reaches this value.
 ALPHA_THRESHOLD = 1.0 / 255.0
-#: Default near plane in camera-space z (world units): Gaussians closer are culled.
-DEFAULT_NEAR_PLANE = 0.01
 #: The perspective Jacobian is evaluated at the centre clamped to this multiple of the field of
 #: view, so Gaussians far outside the image do not get huge footprints (as in the INRIA code).
 JACOBIAN_FOV_MARGIN = 1.3
@@ -51,12 +49,16 @@ def quaternion_to_rotation(quats: torch.Tensor) -> torch.Tensor:
     """Rotation matrices from quaternions (w, x, y, z), normalised here.
 
     Args:
-        quats: [N, 4] quaternions, any non-zero length.
+        quats: [N, 4] quaternions of any length; a zero quaternion gives the identity.
 
     Returns:
         [N, 3, 3] rotation matrices.
     """
-    q = quats / torch.clamp(torch.linalg.vector_norm(quats, dim=-1, keepdim=True), min=1e-12)
+    # Divide by the largest component first: the squared norm of a quaternion of length 1e-20
+    # or 1e20 under- or overflows float32, which would leave it unnormalised.
+    largest = quats.abs().amax(dim=-1, keepdim=True)
+    q = quats / torch.where(largest > 0, largest, torch.ones_like(largest))
+    q = q / torch.clamp(torch.linalg.vector_norm(q, dim=-1, keepdim=True), min=1e-12)
     w, x, y, z = q.unbind(-1)
     rows = [
         1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
@@ -79,6 +81,24 @@ def covariance_3d(log_scales: torch.Tensor, quats: torch.Tensor) -> torch.Tensor
     rot = quaternion_to_rotation(quats)
     m = rot * torch.exp(log_scales)[..., None, :]
     return m @ m.transpose(-1, -2)
+
+
+def _footprint_determinant(to_screen: torch.Tensor, rotation: torch.Tensor,
+                           log_scales: torch.Tensor, a_bare: torch.Tensor,
+                           c_bare: torch.Tensor) -> torch.Tensor:
+    """Determinant [N] of the 2D covariance (a_bare + v, b; b, c_bare + v), v the low-pass.
+
+    ``a c - b^2`` cancels catastrophically in float32 for long thin Gaussians (their footprint
+    is nearly a line: a c and b^2 agree to many digits), which turns the conic into noise.
+    With rows s0, s1 of (J W) M, M = R diag(scale), Lagrange's identity gives
+    |s0|^2 |s1|^2 - (s0 . s1)^2 = |s0 x s1|^2, and s0 x s1 = cof(scale) R^T (A0 x A1) with
+    A = J W and cof(scale) = (s1 s2, s0 s2, s0 s1): a sum of squares, no cancellation.
+    """
+    normal = torch.linalg.cross(to_screen[:, 0], to_screen[:, 1], dim=-1)
+    local = (rotation.transpose(-1, -2) @ normal[..., None])[..., 0]
+    cofactors = torch.exp(log_scales.sum(-1, keepdim=True) - log_scales)
+    area = ((cofactors * local) ** 2).sum(-1)
+    return area + LOW_PASS_VARIANCE * (a_bare + c_bare) + LOW_PASS_VARIANCE**2
 
 
 def camera_matrices(camera: Camera, dtype: torch.dtype,
@@ -130,12 +150,15 @@ def project_gaussians(means: torch.Tensor, log_scales: torch.Tensor, quats: torc
 
     # With S = M M^T (M = R diag(scale)), J W S W^T J^T = (J W M)(J W M)^T: one batched
     # [2, 3] x [3, 3] product instead of a chain of 3x3 ones.
-    factor = quaternion_to_rotation(quats) * torch.exp(log_scales)[:, None, :]
-    screen = (jac @ rot_w2c) @ factor
-    a = (screen[:, 0] * screen[:, 0]).sum(-1) + LOW_PASS_VARIANCE
+    rotation = quaternion_to_rotation(quats)
+    to_screen = jac @ rot_w2c
+    screen = to_screen @ (rotation * torch.exp(log_scales)[:, None, :])
+    a_bare = (screen[:, 0] * screen[:, 0]).sum(-1)
+    c_bare = (screen[:, 1] * screen[:, 1]).sum(-1)
+    a = a_bare + LOW_PASS_VARIANCE
     b = (screen[:, 0] * screen[:, 1]).sum(-1)
-    c = (screen[:, 1] * screen[:, 1]).sum(-1) + LOW_PASS_VARIANCE
-    det = a * c - b * b
+    c = c_bare + LOW_PASS_VARIANCE
+    det = _footprint_determinant(to_screen, rotation, log_scales, a_bare, c_bare)
     nondegenerate = det > 0
     det_safe = torch.where(nondegenerate, det, torch.ones_like(det))
     conics = torch.stack([c / det_safe, -b / det_safe, a / det_safe], dim=-1)

@@ -87,6 +87,9 @@ def _check_inputs(scene: GaussianScene, camera: Camera, features: np.ndarray | N
     intrinsics = np.array([camera.fx, camera.fy, camera.cx, camera.cy], dtype=np.float64)
     if not np.all(np.isfinite(intrinsics)) or camera.fx <= 0 or camera.fy <= 0:
         raise InputError("camera intrinsics must be finite with fx, fy > 0", property="camera")
+    if not (np.isfinite(camera.near_plane) and camera.near_plane > 0):
+        raise InputError(f"camera near plane must be finite and > 0, got {camera.near_plane}",
+                         property="camera")
     w2c = np.asarray(camera.world_to_camera)
     if w2c.shape != (4, 4) or not np.all(np.isfinite(w2c)):
         raise InputError("world_to_camera must be a finite 4x4 matrix", property="camera")
@@ -108,7 +111,8 @@ def render(scene: GaussianScene, camera: Camera, *,
 
     Args:
         scene: the Gaussians (raw INRIA attributes; SH of any degree 0..3).
-        camera: pinhole camera; the image is camera.height x camera.width.
+        camera: pinhole camera; the image is camera.height x camera.width; Gaussians whose
+            camera-space z is at most ``camera.near_plane`` are culled.
         background: linear RGB behind the scene (black by default).
         backend: "auto", "torch", "numba" or "gsplat" (see the module docstring).
         features: optional (N, F) per-Gaussian features (e.g. ``scene.semantic``) to render
@@ -127,15 +131,15 @@ def render(scene: GaussianScene, camera: Camera, *,
     feats = None if features is None else torch.as_tensor(np.asarray(features, np.float32))
     if chosen == "gsplat":
         return rasterize_gsplat(**tensors, camera=camera, features=feats,
-                                background=background)
+                                background=background, near_plane=camera.near_plane)
     with torch.no_grad():
         if chosen == "numba":
             prepared = prepare_gaussians(tensors["means"], tensors["log_scales"],
                                          tensors["quats"], tensors["opacity_logits"], camera,
-                                         sh=tensors["sh"])
+                                         sh=tensors["sh"], near_plane=camera.near_plane)
             return rasterize_numba(prepared, camera, features=None if feats is None
                                    else feats.numpy(), background=background)
         out = rasterize_gaussians(**tensors, camera=camera, features=feats,
-                                  background=background)
+                                  background=background, near_plane=camera.near_plane)
     return RenderOutput(out.image.numpy(), out.alpha.numpy(), out.depth.numpy(),
                         None if out.features is None else out.features.numpy(), "torch")

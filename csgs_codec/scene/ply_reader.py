@@ -234,7 +234,8 @@ def _as_float32(column: np.ndarray) -> np.ndarray:
 
 def _labels(column: np.ndarray, source: str | None) -> np.ndarray:
     values = column.astype(np.float64)
-    ok = np.isfinite(values) & (values == np.round(values)) & (np.abs(values) < 2**31)
+    ok = (np.isfinite(values) & (values == np.round(values))
+          & (values >= -(2**31)) & (values < 2**31))
     if not ok.all():
         first = int(np.flatnonzero(~ok)[0])
         raise InputError(f"label {values[first]} is not a 32-bit integer", file=source,

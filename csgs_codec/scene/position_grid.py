@@ -35,6 +35,10 @@ class PositionGrid:
         """The grid for ``positions`` (N, 3): the robust box's largest side spans
         ``2**resolution_bits`` cells; the grid grows (up to ``max_bits``) to cover the rest.
 
+        The robust box runs per axis from ``sorted[k]`` to ``sorted[N - 1 - k]`` (0-based),
+        k = ceil(percentile / 100 * (N - 1)), so even among a few dozen points a single
+        floater is left out of it.
+
         Raises:
             InputError: ``resolution_bits`` outside 1..max_bits or non-finite positions.
         """
@@ -45,8 +49,10 @@ class PositionGrid:
             return cls((0.0, 0.0, 0.0), 1.0, 1)
         if not np.all(np.isfinite(p)):
             raise InputError("positions must be finite", property="positions")
-        lo_r = np.percentile(p, percentile, axis=0)
-        hi_r = np.percentile(p, 100 - percentile, axis=0)
+        # Sample percentiles, not interpolated ones: below ~100 points an interpolated 1%
+        # would lie between a floater and its neighbour and stretch the box towards it.
+        lo_r = np.percentile(p, percentile, axis=0, method="higher")
+        hi_r = np.percentile(p, 100 - percentile, axis=0, method="lower")
         extent = float(np.max(hi_r - lo_r))
         full_lo, full_hi = p.min(axis=0), p.max(axis=0)
         if extent <= 0:

@@ -1,0 +1,1 @@
+"""Numerical stability tests: extreme and degenerate scenes through the codec, PLY and renderer."""

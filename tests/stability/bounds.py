@@ -1,0 +1,172 @@
+"""The colour codec's documented error bounds, as checks on a decoded scene.
+
+Bounds (spec/FORMAT.md §12.4, §12.8, §16.3.1; csgs_codec/codec/presets.py), for the steps an
+encode used (the preset's; a rate-controlled encoder's plan where its report has one):
+
+- a coded value is ``mu + q k`` with k the round-half-up of (a - mu) / q on the value grid of F
+  fractional bits, so it errs by at most q / 2, plus half a grid unit (2^-F-1) for placing the
+  input on the grid, plus half a float32 ulp of the output; q is the step snapped to the
+  integer step table (:func:`snapped_step`: within sqrt(9/8) of the step asked for, or one
+  grid unit when the step is finer than the grid);
+- constant channels are exact; semantic features have the fixed step 1/256, labels are exact;
+- opacity logits are compared with the input clamped to +-10 (the encoder's clamp, §12.13);
+- grid positions err by at most ``PositionGrid.max_error`` per axis; far outliers are exact;
+- rotations are compared as unit quaternions up to sign, zero quaternions as the identity;
+  each of the three stored components errs by at most q / 2 / sqrt(2) and the dropped
+  (largest, >= 1/2) one by at most 3 (sqrt(2) e + e^2) for a component error e.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from csgs_codec.codec.encoder import EncodeResult
+from csgs_codec.codec.float_stream import MAX_FRAC_BITS, frac_bits_for
+from csgs_codec.codec.presets import Preset
+from csgs_codec.entropy.residual import step_index, step_size
+from csgs_codec.scene.attribute_forms import (
+    OPACITY_LOGIT_LIMIT,
+    normalize_quaternions,
+    quaternion_to_smallest_three,
+)
+from csgs_codec.scene.gaussian_scene import GaussianScene
+from csgs_codec.scene.position_grid import PositionGrid
+
+
+def snapped_step(step: float, frac_bits: int) -> float:
+    """The step (value units) the coder uses when asked for ``step`` on a value grid of
+    ``frac_bits`` fractional bits: the nearest step of the integer step table (§16.3.1)."""
+    index = step_index(np.array([step * 2.0**frac_bits]))
+    return float(step_size(index)[0]) * 2.0**-frac_bits
+
+
+def value_bound(reference: np.ndarray, step: float) -> np.ndarray:
+    """Largest allowed |decoded - reference| per element of one float stream (same shape).
+
+    ``reference`` is the whole (N, C) stream: its largest magnitude fixes the value grid.
+    """
+    ref = np.asarray(reference, np.float32)
+    f = frac_bits_for(ref.reshape(len(ref), -1)) if ref.size else 0
+    grid_unit = 2.0 ** -f
+    half_step = snapped_step(step, f) / 2
+    ulp = np.spacing(np.abs(ref)).astype(np.float64)
+    return half_step + grid_unit / 2 + ulp
+
+
+def assert_values_within(name: str, decoded: np.ndarray, reference: np.ndarray,
+                         step: float) -> None:
+    """Assert |decoded - reference| stays within :func:`value_bound`, naming the worst value."""
+    error = np.abs(decoded.astype(np.float64) - reference.astype(np.float64))
+    bound = value_bound(reference, step)
+    excess = error - bound
+    assert not excess.size or excess.max() <= 0, (
+        f"{name}: error {error.reshape(-1)[np.argmax(excess)]:.6g} exceeds its bound "
+        f"{bound.reshape(-1)[np.argmax(excess)]:.6g} at value "
+        f"{reference.reshape(-1)[np.argmax(excess)]:.6g}")
+
+
+def assert_positions_within(decoded: GaussianScene, reference: GaussianScene,
+                            position_bits: int) -> None:
+    """Grid points within the grid's max error per axis, far outliers exact."""
+    grid = PositionGrid.fit(reference.positions, position_bits)
+    _, inside = grid.quantize(reference.positions)
+    error = np.abs(decoded.positions.astype(np.float64) - reference.positions.astype(np.float64))
+    assert np.all(decoded.positions[~inside] == reference.positions[~inside]), "far outliers"
+    if inside.any():
+        assert error[inside].max() <= grid.max_error, (
+            f"positions: error {error[inside].max():.6g} exceeds {grid.max_error:.6g}")
+
+
+def rotation_component_error(step: float) -> float:
+    """Largest error of one stored smallest-three component (quaternion units, on the
+    finest value grid, which rotations in [-1, 1] always get)."""
+    return snapped_step(step, MAX_FRAC_BITS) / 2 / np.sqrt(2.0) + 1e-6
+
+
+def assert_rotations_within(decoded: np.ndarray, reference: np.ndarray, step: float) -> None:
+    """Unit quaternions up to sign: within the bound of the module notes per component."""
+    ref = normalize_quaternions(reference).astype(np.float64)
+    dec = decoded.astype(np.float64)
+    sign = np.where(np.sum(ref * dec, axis=1) < 0, -1.0, 1.0)
+    error = np.abs(dec - sign[:, None] * ref)
+    e = rotation_component_error(step)
+    dropped, _ = quaternion_to_smallest_three(reference)
+    rows = np.arange(len(ref))
+    stored = np.ones_like(error, dtype=bool)
+    stored[rows, dropped] = False
+    if len(ref):
+        assert error[stored].max() <= e, f"rotation component error {error[stored].max():.4g}"
+        big = 3 * (np.sqrt(2.0) * e + e * e)
+        assert error[rows, dropped].max() <= big, (
+            f"largest rotation component error {error[rows, dropped].max():.4g} > {big:.4g}")
+
+
+@dataclass(frozen=True)
+class CodingSteps:
+    """The steps an encode used: stream name -> step (coding-form units), and grid bits.
+
+    Stream names: "dc", "rest1".."rest3", "opacity", "scale", "rot" (csgs_codec/codec/streams.py)
+    and "semantic".
+    """
+
+    steps: dict[str, float]
+    position_bits: int
+
+
+def preset_steps(preset: Preset) -> CodingSteps:
+    """The steps of a quality preset (what a fixed-step encode uses)."""
+    return CodingSteps({"dc": preset.dc_step, "rest1": preset.rest_step,
+                        "rest2": preset.rest_step, "rest3": preset.rest_step,
+                        "opacity": preset.opacity_step, "scale": preset.scale_step,
+                        "rot": preset.rotation_step, "semantic": preset.semantic_step},
+                       preset.position_bits)
+
+
+def result_steps(result: EncodeResult, preset: Preset) -> CodingSteps:
+    """The steps an encode used: a rate-controlled encoder's plan where its report carries one
+    (``result.plan`` with ``steps`` and ``position_bits``), else the preset's."""
+    steps = preset_steps(preset)
+    plan = getattr(result, "plan", None)
+    if plan is None:
+        return steps
+    return CodingSteps({**steps.steps, **plan.steps}, plan.position_bits)
+
+
+def assert_within_bounds(decoded: GaussianScene, reference: GaussianScene,
+                         coding: CodingSteps) -> None:
+    """Every decoded attribute within the bounds of ``coding``'s steps of ``reference``.
+
+    Both scenes are in the decoder's order.
+    """
+    assert len(decoded) == len(reference)
+    assert decoded.sh_rest.shape == reference.sh_rest.shape
+    n = len(reference)
+    if n == 0:
+        return
+    step = coding.steps
+    assert_positions_within(decoded, reference, coding.position_bits)
+    assert_values_within("sh_dc", decoded.sh_dc, reference.sh_dc, step["dc"])
+    for band, (lo, hi) in enumerate(((0, 3), (3, 8), (8, 15)), start=1):
+        if reference.sh_rest.shape[1] >= hi:
+            ref_band = reference.sh_rest[:, lo:hi].reshape(n, -1)
+            assert_values_within(f"sh band {band}", decoded.sh_rest[:, lo:hi].reshape(n, -1),
+                                 ref_band, step[f"rest{band}"])
+    clamped = np.clip(reference.opacity, -OPACITY_LOGIT_LIMIT, OPACITY_LOGIT_LIMIT)
+    assert_values_within("opacity", decoded.opacity, clamped, step["opacity"])
+    assert_values_within("scales", decoded.scales, reference.scales, step["scale"])
+    assert_rotations_within(decoded.rotations, reference.rotations, step["rot"])
+    assert (decoded.semantic is None) == (reference.semantic is None)
+    if reference.semantic is not None:
+        assert decoded.semantic_names == reference.semantic_names
+        assert_values_within("semantic", decoded.semantic, reference.semantic,
+                             step["semantic"])
+    if reference.labels is not None:
+        assert np.array_equal(decoded.labels, reference.labels), "labels"
+
+
+def assert_all_finite(scene: GaussianScene) -> None:
+    """No NaN or Inf in any float attribute of ``scene``."""
+    for name, values in scene.attributes().items():
+        assert np.all(np.isfinite(values)), f"non-finite value in decoded {name}"
