@@ -12,6 +12,32 @@ SCENE_SUFFIXES = (".ply", ".csgs")
 CSGS_MAGIC = b"\x89CSG\r\n\x1a\n"
 
 
+ANCHOR_PROPERTY = b"f_anchor_feat_"
+HEADER_PEEK = 1 << 16
+
+
+def is_anchor_input(path: str | Path) -> bool:
+    """True when ``path`` is a Scaffold-GS anchor scene: a checkpoint folder (or model root)
+    or a PLY whose header has ``f_anchor_feat_*`` properties."""
+    path = Path(path)
+    if path.is_dir():
+        return (path / "point_cloud.ply").is_file() or (path / "point_cloud").is_dir()
+    if not path.is_file():
+        return False
+    with open(path, "rb") as fh:
+        head = fh.read(HEADER_PEEK)
+    end = head.find(b"end_header")
+    return head.startswith(b"ply") and ANCHOR_PROPERTY in head[: end if end >= 0 else None]
+
+
+def load_anchor_scene(path: str | Path):
+    """Read the anchor scene in ``path``: a checkpoint folder with its MLPs, or a bare anchor
+    PLY (then with its MLP files if they sit beside it)."""
+    from csgs_codec.scene.scaffold_io import read_scaffold
+
+    return read_scaffold(path, require_mlps=False)
+
+
 def load_scene(path: str | Path, *, command: str, layers: str = "color,semantic"
                ) -> GaussianScene:
     """Read the scene in ``path`` for ``csgs <command>``: a 3DGS PLY, or a .csgs bitstream

@@ -11,16 +11,21 @@ HELP = "decode a .csgs bitstream into a standard 3DGS .ply"
 def add_arguments(parser) -> None:
     """Arguments of ``csgs decode``."""
     parser.add_argument("bitstream", help="input .csgs")
-    parser.add_argument("-o", "--output", required=True, help="output .ply")
+    parser.add_argument("-o", "--output", required=True,
+                        help="output .ply (an anchor scene: an anchor .ply, or a Scaffold-GS "
+                             "checkpoint folder when the name has no .ply suffix)")
     parser.add_argument("--layers", default="color", choices=("color", "color,semantic"),
                         help="layers to decode; 'color' never reads the semantic bytes")
 
 
 def run(args) -> int:
     """Decode the layers asked for and write the PLY atomically."""
+    from csgs_codec.codec.anchor_decoder import is_anchor_file
     from csgs_codec.codec.decoder import Decoder
     from csgs_codec.scene.ply_io import write_ply
 
+    if is_anchor_file(args.bitstream):
+        return _decode_anchors(args)
     start = time.perf_counter()
     scene = Decoder().decode(args.bitstream, layers=args.layers)
     seconds = time.perf_counter() - start
@@ -32,4 +37,25 @@ def run(args) -> int:
         extra += ", labels"
     print(f"{args.output}: {len(scene):,} Gaussians, SH degree {scene.sh_degree_stored}"
           f"{extra} (decoded in {seconds:.2f} s)")
+    return 0
+
+
+def _decode_anchors(args) -> int:
+    """Decode an anchor-scene bitstream to an anchor PLY or a checkpoint folder."""
+    from pathlib import Path
+
+    from csgs_codec.codec.anchor_decoder import AnchorDecoder
+    from csgs_codec.scene.anchor_ply import write_anchor_ply
+    from csgs_codec.scene.scaffold_io import write_scaffold
+
+    start = time.perf_counter()
+    scene = AnchorDecoder().decode(args.bitstream, layers=args.layers)
+    seconds = time.perf_counter() - start
+    if Path(args.output).suffix.lower() == ".ply":
+        write_anchor_ply(scene, args.output)
+        kind = "anchor PLY"
+    else:
+        write_scaffold(scene, args.output)
+        kind = "checkpoint folder"
+    print(f"{args.output}: {len(scene):,} anchors ({kind}; decoded in {seconds:.2f} s)")
     return 0

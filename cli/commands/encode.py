@@ -9,13 +9,14 @@ from tqdm import tqdm
 from csgs_codec.codec.presets import DEFAULT_QUALITY
 
 NAME = "encode"
-HELP = "compress a 3DGS .ply scene into a .csgs bitstream"
+HELP = "compress a 3DGS .ply scene (or a Scaffold-GS anchor scene) into a .csgs bitstream"
 STAGES = ("geometry", "colour", "semantic", "container")
 
 
 def add_arguments(parser) -> None:
     """Arguments of ``csgs encode``."""
-    parser.add_argument("scene", help="input 3DGS .ply")
+    parser.add_argument("scene", help="input 3DGS .ply, or a Scaffold-GS checkpoint folder / "
+                                      "anchor .ply (coded as an anchor scene)")
     parser.add_argument("-o", "--output", required=True, help="output .csgs file")
     parser.add_argument("--quality", type=int, default=DEFAULT_QUALITY, choices=range(1, 10),
                         metavar="1-9", help=f"1 smallest .. 9 near-lossless "
@@ -31,10 +32,13 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     """Read, encode and write atomically; print the sizes."""
+    from csgs_cli.scene_input import is_anchor_input
     from csgs_codec.atomic_write import write_atomically
     from csgs_codec.codec.encoder import Encoder
     from csgs_codec.scene.ply_io import read_ply
 
+    if is_anchor_input(args.scene):
+        return _encode_anchors(args, write_atomically)
     scene = read_ply(args.scene, sanitize=args.sanitize)
     bar = tqdm(total=len(STAGES), desc="encode", unit="stage", disable=args.quiet,
                leave=False)
@@ -58,4 +62,25 @@ def run(args) -> int:
           f"{result.seconds:.2f} s")
     if result.pruned:
         print(f"pruned {result.pruned:,} Gaussians with opacity below {args.prune_opacity}")
+    return 0
+
+
+def _encode_anchors(args, write_atomically) -> int:
+    """Encode a Scaffold-GS anchor scene (checkpoint folder or anchor PLY)."""
+    from csgs_cli.scene_input import load_anchor_scene
+    from csgs_codec.codec.anchor_encoder import AnchorEncoder
+
+    if args.prune_opacity is not None or args.sanitize:
+        from csgs_codec.errors import InputError
+
+        raise InputError("--prune-opacity and --sanitize apply to 3DGS PLY input, not to "
+                         "anchor scenes", file=args.scene)
+    scene = load_anchor_scene(args.scene)
+    with tqdm(total=1, desc="encode anchors (fit + code)", disable=args.quiet, leave=False):
+        result = AnchorEncoder(quality=args.quality, semantic=args.semantic
+                               ).encode_with_report(scene)
+    write_atomically(args.output, result.data)
+    m = len(result.reconstruction)
+    print(f"{args.output}: {len(result.data):,} bytes, {m:,} anchors, "
+          f"{8 * len(result.data) / max(m, 1):.1f} bits/anchor, {result.seconds:.2f} s")
     return 0
