@@ -21,6 +21,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--quality", type=int, default=DEFAULT_QUALITY, choices=range(1, 10),
                         metavar="1-9", help=f"1 smallest .. 9 near-lossless "
                                             f"(default {DEFAULT_QUALITY})")
+    parser.add_argument("--target-psnr", type=float, default=None, metavar="DB",
+                        help="instead of --quality: the smallest file whose renders reach this "
+                             "foreground PSNR on the encoder's probe views (several encodes)")
     parser.add_argument("--semantic", choices=("auto", "none"), default="auto",
                         help="write the semantic layer when the scene has semantic channels "
                              "(auto) or never (none)")
@@ -40,15 +43,16 @@ def run(args) -> int:
     if is_anchor_input(args.scene):
         return _encode_anchors(args, write_atomically)
     scene = read_ply(args.scene, sanitize=args.sanitize)
-    bar = tqdm(total=len(STAGES), desc="encode", unit="stage", disable=args.quiet,
-               leave=False)
+    bar = tqdm(total=None if args.target_psnr else len(STAGES), desc="encode", unit="stage",
+               disable=args.quiet, leave=False)
 
     def progress(stage: str) -> None:
         bar.set_postfix_str(stage)
         bar.update(1)
 
     try:
-        result = Encoder(quality=args.quality, semantic=args.semantic,
+        result = Encoder(quality=args.quality, target_psnr=args.target_psnr,
+                         semantic=args.semantic,
                          prune_opacity=args.prune_opacity, progress=progress
                          ).encode_with_report(scene)
     finally:
@@ -60,6 +64,10 @@ def run(args) -> int:
     print(f"{args.output}: {len(result.data):,} bytes, {n:,} Gaussians, {bits:.2f} bits/Gaussian"
           f", {in_bytes / max(len(result.data), 1):.1f}x smaller than the input, "
           f"{result.seconds:.2f} s")
+    if result.rate_control is not None:
+        rc = result.rate_control
+        print(f"rate control: {rc.psnr:.2f} dB on the probe views (target {rc.target:.2f} dB), "
+              f"steps x{rc.multiplier:.3g} of quality 8's, {len(rc.trials)} trial encodes")
     if result.pruned:
         print(f"pruned {result.pruned:,} Gaussians with opacity below {args.prune_opacity}")
     return 0

@@ -49,6 +49,8 @@ class EncodeResult:
         pruned: Gaussians removed by ``prune_opacity``.
         stream_bytes: chunk type -> payload bytes.
         seconds: encode wall time.
+        rate_control: the :class:`~csgs_codec.codec.rate_control.RateControlReport` of a
+            target-PSNR encode, else None.
     """
 
     data: bytes
@@ -57,6 +59,7 @@ class EncodeResult:
     pruned: int = 0
     stream_bytes: dict[str, int] = field(default_factory=dict)
     seconds: float = 0.0
+    rate_control: object | None = None
 
 
 class Encoder:
@@ -64,6 +67,9 @@ class Encoder:
 
     Args:
         quality: preset 1 (smallest) .. 9 (near-lossless); see csgs_codec/codec/presets.py.
+        target_psnr: instead of the preset, the smallest encode whose renders reach this
+            foreground PSNR (dB) on the rate control's probe views
+            (:mod:`csgs_codec.codec.rate_control`; several encodes and renders).
         semantic: "auto" writes the semantic layer when the scene has semantic channels or
             labels; "none" never writes it.
         prune_opacity: drop Gaussians whose opacity sigmoid(logit) is below this (lossy,
@@ -71,9 +77,15 @@ class Encoder:
         progress: a callable ``progress(step_name)`` told of each stage, or None.
     """
 
-    def __init__(self, quality: int = DEFAULT_QUALITY, *, semantic: str = "auto",
-                 prune_opacity: float | None = None, progress=None) -> None:
+    def __init__(self, quality: int = DEFAULT_QUALITY, *, target_psnr: float | None = None,
+                 semantic: str = "auto", prune_opacity: float | None = None,
+                 progress=None) -> None:
         self.preset: Preset = preset(quality)
+        if target_psnr is not None:
+            from csgs_codec.codec.rate_control import check_target
+
+            check_target(target_psnr)
+        self.target_psnr = target_psnr
         if semantic not in SEMANTIC_MODES:
             raise InputError(f"semantic must be one of {SEMANTIC_MODES}, got {semantic!r}")
         if prune_opacity is not None and not 0.0 <= prune_opacity < 1.0:
@@ -97,10 +109,31 @@ class Encoder:
                 alpha = 1.0 / (1.0 + np.exp(-scene.opacity.astype(np.float64)))
             keep = alpha >= self.prune_opacity
             pruned = int((~keep).sum())
-            scene = scene.subset(keep)
+            original, scene = scene, scene.subset(keep)
+        else:
+            original = scene
+        if self.target_psnr is None:
+            result = self._encode(scene, self.preset)
+        else:
+            from csgs_codec.codec.rate_control import RenderProbe, encode_to_target
 
+            self.progress("rate control")
+            probe = RenderProbe(original) if len(original) else None
+            if probe is None:
+                result = self._encode(scene, self.preset)
+            else:
+                result, result.rate_control = encode_to_target(
+                    lambda p: self._encode(scene, p), scene, self.target_psnr, probe=probe,
+                    progress=self.progress)
+        result.pruned = pruned
+        result.seconds = time.perf_counter() - start
+        return result
+
+    def _encode(self, scene: GaussianScene, settings: Preset) -> EncodeResult:
+        """Encode a validated (and pruned) scene with ``settings``."""
+        start = time.perf_counter()
         self.progress("geometry")
-        grid = PositionGrid.fit(scene.positions, self.preset.position_bits)
+        grid = PositionGrid.fit(scene.positions, settings.position_bits)
         cells, inside = grid.quantize(scene.positions)
         inside_idx = np.flatnonzero(inside)
         far_idx = np.flatnonzero(~inside)
@@ -115,31 +148,31 @@ class Encoder:
         header = SceneHeader(
             count=len(ordered), sh_degree_stored=streams.sh_degree_stored,
             sh_degree_coded=sum(1 for k in streams.float_streams if k.startswith("rest")),
-            quality=self.preset.quality, grid_origin=grid.origin, grid_cell=grid.cell,
+            quality=settings.quality, grid_origin=grid.origin, grid_cell=grid.cell,
             grid_bits=grid.bits, far_count=len(far_idx))
         chunks = [Chunk("SCNE", "base", header.to_bytes()), Chunk("GEOM", "base", geometry)]
         if len(far_idx):
             chunks.append(Chunk("OUTL", "base", _outliers_payload(scene.positions[far_idx])))
 
         self.progress("colour")
-        decoded_streams = self._colour_chunks(streams, chunks)
+        decoded_streams = self._colour_chunks(streams, chunks, settings)
         reconstruction = join_streams(decoded_streams, positions)
 
         if self.semantic == "auto" and (ordered.semantic is not None or
                                         ordered.labels is not None):
             self.progress("semantic")
-            self._semantic_chunks(ordered, reconstruction, chunks)
+            self._semantic_chunks(ordered, reconstruction, chunks, settings)
 
         self.progress("container")
         data = write_container(chunks)
         return EncodeResult(
-            data=data, reconstruction=reconstruction, order=order, pruned=pruned,
+            data=data, reconstruction=reconstruction, order=order,
             stream_bytes={c.type: len(c.payload) for c in chunks},
             seconds=time.perf_counter() - start)
 
     # ------------------------------------------------------------------ layers
-    def _colour_chunks(self, streams: SceneStreams, chunks: list[Chunk]) -> SceneStreams:
-        p = self.preset
+    def _colour_chunks(self, streams: SceneStreams, chunks: list[Chunk],
+                       p: Preset) -> SceneStreams:
         steps = {"dc": p.dc_step, "rest1": p.rest_step, "rest2": p.rest_step,
                  "rest3": p.rest_step, "opacity": p.opacity_step, "scale": p.scale_step,
                  "rot": p.rotation_step}
@@ -153,14 +186,14 @@ class Encoder:
         return SceneStreams(decoded, streams.rot_axis.copy(), streams.sh_degree_stored)
 
     def _semantic_chunks(self, ordered: GaussianScene, reconstruction: GaussianScene,
-                         chunks: list[Chunk]) -> None:
+                         chunks: list[Chunk], settings: Preset) -> None:
         if ordered.semantic is not None:
             out = ByteWriter()
             out.varint(len(ordered.semantic_names))
             for name in ordered.semantic_names:
                 out.byte_string(name.encode("utf-8"))
             reconstruction.semantic = write_float_stream(out, ordered.semantic,
-                                                         self.preset.semantic_step)
+                                                         settings.semantic_step)
             reconstruction.semantic_names = ordered.semantic_names
             chunks.append(Chunk("SEMF", "semantic", out.getvalue()))
         if ordered.labels is not None:

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from csgs_codec.errors import InputError
 
 #: Steps at multiplier 1 (quality 8), in coding-form units.
@@ -40,17 +42,12 @@ def _row(quality: int, bits: int, multiplier: float) -> Preset:
     return Preset(quality, bits, *(v * multiplier for v in _BASE.values()))
 
 
-PRESETS = {p.quality: p for p in (
-    _row(1, 10, 12.0),
-    _row(2, 11, 8.0),
-    _row(3, 11, 6.0),
-    _row(4, 12, 4.0),
-    _row(5, 12, 3.0),
-    _row(6, 13, 2.0),
-    _row(7, 14, 1.4),
-    _row(8, 14, 1.0),
-    _row(9, 16, 0.4),
-)}
+#: Step multiplier of each preset (their steps are ``_BASE`` times it).
+MULTIPLIERS = {1: 12.0, 2: 8.0, 3: 6.0, 4: 4.0, 5: 3.0, 6: 2.0, 7: 1.4, 8: 1.0, 9: 0.4}
+
+
+_BITS = {1: 10, 2: 11, 3: 11, 4: 12, 5: 12, 6: 13, 7: 14, 8: 14, 9: 16}
+PRESETS = {q: _row(q, _BITS[q], MULTIPLIERS[q]) for q in MULTIPLIERS}
 DEFAULT_QUALITY = 5
 
 
@@ -63,3 +60,14 @@ def preset(quality: int) -> Preset:
     if quality not in PRESETS:
         raise InputError(f"quality must be 1..9, got {quality}")
     return PRESETS[quality]
+
+
+def scaled_preset(multiplier: float) -> Preset:
+    """Settings between the presets: every step ``multiplier`` times its base (0.05..64) and
+    grid bits following the presets' trend (about 1.2 bits per axis per halving of the
+    steps). Its ``quality`` is the preset with the nearest multiplier (informative only)."""
+    if not 0.05 <= multiplier <= 64.0:
+        raise InputError(f"step multiplier must be in [0.05, 64], got {multiplier}")
+    bits = int(np.clip(np.rint(14.3 - 1.2 * np.log2(multiplier)), 8, 18))
+    nearest = min(MULTIPLIERS, key=lambda q: abs(np.log(MULTIPLIERS[q] / multiplier)))
+    return _row(nearest, bits, multiplier)

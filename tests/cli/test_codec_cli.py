@@ -84,3 +84,16 @@ def test_info_reports_bits_per_gaussian_per_chunk(tmp_path, capsys):
     assert facts["bits_per_gaussian"] == 8 * out.stat().st_size / 3
     assert main(["info", str(out)]) == 0
     assert "bits/G" in capsys.readouterr().out
+
+
+def test_target_psnr_through_the_cli(tmp_path, capsys):
+    src = tmp_path / "small.ply"
+    write_ply(random_scene(1500), src)
+    out = tmp_path / "t.csgs"
+    assert main(["encode", str(src), "-o", str(out), "--target-psnr", "35", "-q"]) == 0
+    printed = capsys.readouterr().out
+    assert "rate control:" in printed and "target 35.00 dB" in printed
+    assert main(["encode", str(src), "-o", str(tmp_path / "bad.csgs"), "--target-psnr",
+                 "500", "-q"]) == 2
+    assert "target PSNR" in capsys.readouterr().err
+    assert not (tmp_path / "bad.csgs").exists()
