@@ -66,7 +66,7 @@ def predict(previous: np.ndarray, coefs: np.ndarray, bias: int) -> np.ndarray:
         previous: (N, m) int64 indices of the earlier channels, each |k| < 2^31.
         coefs: (m,) int64, each |A| < 2^15.
     """
-    total = previous.astype(np.int64) @ coefs.astype(np.int64) + np.int64(bias)
+    total = previous.astype(np.int64, copy=False) @ coefs.astype(np.int64) + np.int64(bias)
     return total >> COEF_FRAC_BITS
 
 
@@ -203,6 +203,6 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None) ->
         if n and np.abs(k).max() > ((1 << 53) - abs(mean)) // q:
             raise r.error(f"channel {c}: decoded value exceeds 2^53 on its grid")
         indices[:, c] = k
-        values = reconstruct(np.full(n, mean, np.int64), k, np.full(n, step, np.int64))
+        values = k * np.int64(q) + np.int64(mean)  # mu + q k, bounded by 2^53 just above
         out[:, c] = from_grid(values, f).astype(np.float32)
     return out
