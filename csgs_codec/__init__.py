@@ -25,6 +25,12 @@ _LAZY = {
     "GaussianScene": "csgs_codec.scene.gaussian_scene",
     "read_ply": "csgs_codec.scene.ply_io",
     "write_ply": "csgs_codec.scene.ply_io",
+    "AnchorScene": "csgs_codec.scene.anchor_scene",
+    "AnchorEncoder": "csgs_codec.codec.anchor_encoder",
+    "AnchorDecoder": "csgs_codec.codec.anchor_decoder",
+    "read_scaffold": "csgs_codec.scene.scaffold_io",
+    "write_scaffold": "csgs_codec.scene.scaffold_io",
+    "select_at_click": "csgs_codec.semantic.selection",
 }
 __all__ = ["__version__", *_LAZY]
 

@@ -27,3 +27,18 @@ def test_importing_the_package_and_decoder_loads_no_torch():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_every_public_name_resolves():
+    for name in csgs_codec.__all__:
+        assert getattr(csgs_codec, name) is not None, name
+
+
+def test_anchor_api_round_trip():
+    from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene
+
+    scene = synthetic_anchor_scene(n_objects=2, anchors_per_object=40, seed=1)
+    result = csgs_codec.AnchorEncoder(quality=5).encode_with_report(scene)
+    decoded = csgs_codec.AnchorDecoder().decode(result.data, layers="color,semantic")
+    assert isinstance(decoded, csgs_codec.AnchorScene)
+    assert decoded.equals(result.reconstruction)
