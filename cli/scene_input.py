@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from csgs_codec.errors import InputError, UnsupportedError
-from csgs_codec.scene.gaussian_scene import GaussianScene
 
 #: File suffixes accepted as scene input by render, compare and view.
 SCENE_SUFFIXES = (".ply", ".csgs")
@@ -13,6 +12,8 @@ CSGS_MAGIC = b"\x89CSG\r\n\x1a\n"
 
 
 ANCHOR_PROPERTY = b"f_anchor_feat_"
+#: Commands that also take anchor scenes (AnchorScene) from a .csgs.
+ANCHOR_COMMANDS = ("select",)
 HEADER_PEEK = 1 << 16
 
 
@@ -38,10 +39,10 @@ def load_anchor_scene(path: str | Path):
     return read_scaffold(path, require_mlps=False)
 
 
-def load_scene(path: str | Path, *, command: str, layers: str = "color,semantic"
-               ) -> GaussianScene:
+def load_scene(path: str | Path, *, command: str, layers: str = "color,semantic"):
     """Read the scene in ``path`` for ``csgs <command>``: a 3DGS PLY, or a .csgs bitstream
-    (recognised by its magic or its suffix) decoded with ``layers``.
+    (recognised by its magic or its suffix) decoded with ``layers``: a GaussianScene, or for
+    the commands in :data:`ANCHOR_COMMANDS` an AnchorScene when the file holds one.
 
     Raises:
         InputError: missing file, a folder, or a malformed PLY.
@@ -57,8 +58,15 @@ def load_scene(path: str | Path, *, command: str, layers: str = "color,semantic"
         is_csgs = fh.read(len(CSGS_MAGIC)) == CSGS_MAGIC
     suffix = path.suffix.lower()
     if is_csgs or suffix == ".csgs":
+        from csgs_codec.codec.anchor_decoder import AnchorDecoder, is_anchor_file
         from csgs_codec.codec.decoder import Decoder
 
+        if is_anchor_file(path):
+            if command not in ANCHOR_COMMANDS:
+                raise UnsupportedError(f"'csgs {command}' takes Gaussian scenes; this is an "
+                                       "anchor scene (csgs decode writes it as a Scaffold-GS "
+                                       "checkpoint)", file=path)
+            return AnchorDecoder().decode(path, layers=layers)
         return Decoder().decode(path, layers=layers)
     if suffix not in SCENE_SUFFIXES:
         raise UnsupportedError(f"'{suffix or path.name}' files are not supported as input to "

@@ -46,3 +46,15 @@ def test_gaussian_only_options_are_refused_for_anchor_scenes(tmp_path, capsys):
     assert main(["encode", str(folder), "-o", str(out), "--prune-opacity", "0.1", "-q"]) == 2
     assert "anchor scenes" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_select_takes_an_anchor_bitstream_and_render_refuses_it(tmp_path, capsys):
+    _, folder = _checkpoint(tmp_path)
+    out = tmp_path / "a.csgs"
+    assert main(["encode", str(folder), "-o", str(out), "-q"]) == 0
+    capsys.readouterr()
+    assert main(["render", str(out), "--orbit", "1", "-o", str(tmp_path / "r"), "-q"]) == 2
+    assert "anchor scene" in capsys.readouterr().err
+    assert main(["select", str(out), "--view", "orbit:0", "--size", "64x48", "--click",
+                 "32,24", "-o", str(tmp_path / "sel.ply"), "-q"]) == 0
+    assert (tmp_path / "sel.ply").exists()
