@@ -38,9 +38,14 @@ class AnchorGrid:
 
 
 def dequantize(cells: np.ndarray, origin, voxel_size: float) -> np.ndarray:
-    """(M, 3) integer cells -> (M, 3) float32 ``origin + cell * voxel_size`` (float64 first)."""
-    return (np.asarray(origin, np.float64)[None, :]
-            + np.asarray(cells, np.float64) * float(voxel_size)).astype(np.float32)
+    """(M, 3) integer cells -> (M, 3) float32 ``origin + cell * voxel_size`` (float64 first).
+
+    Values beyond the float32 range become inf (no warning); the decoder refuses them.
+    """
+    values = (np.asarray(origin, np.float64)[None, :]
+              + np.asarray(cells, np.float64) * float(voxel_size))
+    with np.errstate(over="ignore"):
+        return values.astype(np.float32)
 
 
 def _cells(p: np.ndarray, origin: np.ndarray, voxel: float) -> np.ndarray:

@@ -1,0 +1,80 @@
+"""Seed .csgs files for the decoder fuzzer, made by the encoder at fuzz time.
+
+Seeds: a 300-Gaussian subset of samples/donut.ply (SH 0), the same with four Gaussians moved
+1e4 to 1e6 units away (so the file has far outliers, chunk OUTL), a 300-Gaussian subset of the
+SH-3 fixture ../shared/data/fixtures/sh3_iter7000.ply, and a 200-Gaussian random scene with
+four semantic channels and labels, each at qualities 2 and 8; plus every .csgs under
+spec/vectors/scenes and (anchor scenes, where present) spec/vectors/anchors. The large donut
+vectors (45,624 Gaussians) get a small weight so they
+are fuzzed without dominating the run time.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from csgs_codec.codec.encoder import Encoder
+from csgs_codec.conformance import VECTORS_DIR
+from csgs_codec.scene.gaussian_scene import GaussianScene
+from csgs_codec.scene.ply_io import read_ply
+from tests.codec.helpers import random_scene
+from tests.conftest import FIXTURES, SAMPLE
+from tests.fuzz.container_edit import RawChunk, split_chunks
+
+QUALITIES = (2, 8)
+SUBSET = 300
+#: Seeds above this many bytes are drawn this much less often than the small ones.
+LARGE_BYTES = 100_000
+LARGE_WEIGHT = 0.02
+#: Vector folders whose .csgs files are seeds (a missing folder adds none).
+SEED_VECTOR_FAMILIES = ("scenes", "anchors")
+
+
+@dataclass(frozen=True)
+class Seed:
+    """One seed file: its name, bytes, chunks (file order) and drawing weight."""
+
+    name: str
+    data: bytes
+    chunks: tuple[RawChunk, ...]
+    weight: float
+
+
+def _subset(scene: GaussianScene, count: int, seed: int) -> GaussianScene:
+    rng = np.random.default_rng(seed)
+    keep = np.sort(rng.choice(len(scene), min(count, len(scene)), replace=False))
+    return scene.subset(keep)
+
+
+def seed_scenes() -> dict[str, GaussianScene]:
+    """The scenes the encoder makes seeds from (the SH-3 fixture only where present)."""
+    donut = _subset(read_ply(SAMPLE), SUBSET, 1)
+    far = donut.subset(np.arange(len(donut)))
+    far.positions[:4] = np.array([[1e4, 0, 0], [-3e4, 5, 1], [0, 2e5, 0], [7, 7, -1e6]],
+                                 np.float32)
+    scenes = {"donut300": donut, "outliers300": far,
+              "semantic200": random_scene(200, sh_degree=1, seed=2, semantic=4, labels=True)}
+    sh3 = FIXTURES / "sh3_iter7000.ply"
+    if sh3.exists():
+        scenes["sh3_300"] = _subset(read_ply(sh3), SUBSET, 3)
+    return scenes
+
+
+def _seed(name: str, data: bytes) -> Seed:
+    weight = LARGE_WEIGHT if len(data) > LARGE_BYTES else 1.0
+    return Seed(name, data, tuple(split_chunks(data)), weight)
+
+
+def build_seeds(vectors_dir: Path = VECTORS_DIR) -> list[Seed]:
+    """Every seed: the encoded ones, then the vectors of :data:`SEED_VECTOR_FAMILIES`."""
+    seeds = []
+    for name, scene in seed_scenes().items():
+        for quality in QUALITIES:
+            seeds.append(_seed(f"{name}_q{quality}", Encoder(quality=quality).encode(scene)))
+    for family in SEED_VECTOR_FAMILIES:
+        for path in sorted((vectors_dir / family).glob("*.csgs")):
+            seeds.append(_seed(f"vector:{path.stem}", path.read_bytes()))
+    return seeds
