@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-FAMILIES = ("anchors", "container", "entropy", "geometry", "scenes")
+FAMILIES = ("anchors", "container", "entropy", "geometry", "histogram", "scenes")
 
 
 @dataclass(frozen=True)
@@ -124,6 +124,24 @@ def _entropy_cases(folder: Path) -> list[Case]:
     return out
 
 
+def _histogram_run(data_path: Path, count: int) -> Callable[[], str]:
+    def run() -> str:
+        from csgs_codec.entropy.histogram import decode_histogram
+
+        return json_digest(decode_histogram(data_path.read_bytes(), count).tolist())
+    return run
+
+
+def _histogram_cases(folder: Path) -> list[Case]:
+    out = []
+    for meta_path in sorted(folder.glob("*.json")):
+        doc = json.loads(meta_path.read_text())
+        if doc.get("outcome") == "ok":
+            out.append(Case(f"histogram/{meta_path.stem}", json_digest(doc["values"]),
+                            _histogram_run(folder / doc["file"], doc["count"])))
+    return out
+
+
 def _geometry_cases(folder: Path) -> list[Case]:
     def compute(data_path: Path) -> Callable[[], str]:
         def run() -> str:
@@ -187,6 +205,7 @@ def _anchor_cases(folder: Path) -> list[Case]:
 
 
 _BUILDERS = {"anchors": _anchor_cases, "container": _container_cases, "entropy": _entropy_cases,
+             "histogram": _histogram_cases,
              "geometry": _geometry_cases, "scenes": _scene_cases}
 
 
