@@ -155,14 +155,7 @@ class IntMLP:
 
     def worst_case_sums(self) -> list[int]:
         """Per layer, max over outputs of sum |W| * X + |b| + 2^(s-1) (Python ints)."""
-        sums = []
-        for layer, bound in zip(self.layers, self.input_bounds()):
-            # Row sums fit int64 (|w| < 2^23, width <= 4096); the products use Python ints.
-            abs_rows = np.abs(layer.weights).sum(axis=1).tolist()
-            half = (1 << (layer.shift - 1)) if layer.shift else 0
-            sums.append(max(r * bound + abs(int(b)) + half
-                            for r, b in zip(abs_rows, layer.biases.tolist())))
-        return sums
+        return worst_case_sums(self.layers, self.input_bounds())
 
     def embed(self, positions: np.ndarray) -> np.ndarray:
         """(N, 3) integer positions -> (N, 6L) int64 embedding."""
@@ -281,8 +274,29 @@ def validate(net: IntMLP) -> None:
         raise _fail(f"act_bits {net.act_bits} outside [1, {MAX_ACT_BITS}]")
     if not 1 <= len(net.layers) <= MAX_LAYERS:
         raise _fail(f"{len(net.layers)} layers outside [1, {MAX_LAYERS}]")
-    width = net.in_width
-    for i, layer in enumerate(net.layers):
+    validate_layers(net.layers, net.in_width, net.out_lo, net.out_hi, net.input_bounds())
+
+
+def worst_case_sums(layers, input_bounds: list[int]) -> list[int]:
+    """Per layer, max over outputs of sum |W| * X + |b| + 2^(s-1) (Python ints), X the
+    layer's largest input magnitude."""
+    sums = []
+    for layer, bound in zip(layers, input_bounds):
+        # Row sums fit int64 (|w| < 2^23, width <= 4096); the products use Python ints.
+        abs_rows = np.abs(layer.weights).sum(axis=1).tolist()
+        half = (1 << (layer.shift - 1)) if layer.shift else 0
+        sums.append(max(r * bound + abs(int(b)) + half
+                        for r, b in zip(abs_rows, layer.biases.tolist())))
+    return sums
+
+
+def validate_layers(layers, in_width: int, out_lo: np.ndarray, out_hi: np.ndarray,
+                    input_bounds: list[int]) -> None:
+    """Check the layers of an integer network (shapes, bit widths, shifts, output ranges)
+    and the exactness bound (every worst-case accumulator <= 2^53); ModelError if broken.
+    Shared by every integer network type, so they all obey the same rules."""
+    width = in_width
+    for i, layer in enumerate(layers):
         w, b = layer.weights, layer.biases
         if w.ndim != 2 or w.shape[1] != width or not 1 <= w.shape[0] <= MAX_WIDTH:
             raise _fail(f"layer {i} weights have shape {w.shape}, expected (1..{MAX_WIDTH}, "
@@ -301,12 +315,12 @@ def validate(net: IntMLP) -> None:
         if not 0 <= layer.shift <= MAX_SHIFT:
             raise _fail(f"layer {i} shift {layer.shift} outside [0, {MAX_SHIFT}]", index=i)
         width = w.shape[0]
-    if net.out_lo.shape != (width,) or net.out_hi.shape != (width,):
+    if out_lo.shape != (width,) or out_hi.shape != (width,):
         raise _fail(f"output ranges must have shape ({width},)")
-    if (net.out_lo.min() < -OUTPUT_LIMIT or net.out_hi.max() > OUTPUT_LIMIT
-            or np.any(net.out_lo > net.out_hi)):
+    if (out_lo.min() < -OUTPUT_LIMIT or out_hi.max() > OUTPUT_LIMIT
+            or np.any(out_lo > out_hi)):
         raise _fail("output ranges must satisfy -2^53 <= lo <= hi <= 2^53")
-    for i, total in enumerate(net.worst_case_sums()):
+    for i, total in enumerate(worst_case_sums(layers, input_bounds)):
         if total > EXACT_LIMIT:
             raise _fail(f"layer {i} worst-case accumulator {total} exceeds 2^53: its sums "
                         "could overflow the exact integer range", index=i)

@@ -28,7 +28,6 @@ import numpy as np
 
 from csgs_codec.entropy.intnet import (
     BIAS_LIMIT,
-    EXACT_LIMIT,
     MAX_ACT_BITS,
     MAX_LAYERS,
     MAX_SHIFT,
@@ -39,6 +38,8 @@ from csgs_codec.entropy.intnet import (
     _float_params,
     _frozen,
     _frozen_layer,
+    validate_layers,
+    worst_case_sums,
 )
 from csgs_codec.entropy.intnet_bytes import weight_dtype
 from csgs_codec.errors import FormatError, InputError, ModelError
@@ -93,13 +94,7 @@ class IntDenseMLP:
 
     def worst_case_sums(self) -> list[int]:
         """Per layer, max over outputs of sum |W| * X + |b| + 2^(s-1) (Python ints)."""
-        sums = []
-        for layer, bound in zip(self.layers, self.input_bounds()):
-            rows = np.abs(layer.weights).sum(axis=1).tolist()
-            half = (1 << (layer.shift - 1)) if layer.shift else 0
-            sums.append(max(r * bound + abs(int(b)) + half
-                            for r, b in zip(rows, layer.biases.tolist())))
-        return sums
+        return worst_case_sums(self.layers, self.input_bounds())
 
     def prepare(self, inputs: np.ndarray) -> np.ndarray:
         """The first layer's input: (N, D) int -> (N, D) int64 shifted and clipped."""
@@ -245,33 +240,4 @@ def validate_dense(net: IntDenseMLP) -> None:
         raise ModelError(f"act_bits {net.act_bits} outside [1, {MAX_ACT_BITS}]")
     if not 1 <= len(net.layers) <= MAX_LAYERS:
         raise ModelError(f"{len(net.layers)} layers outside [1, {MAX_LAYERS}]")
-    width = net.in_width
-    for i, layer in enumerate(net.layers):
-        w, b = layer.weights, layer.biases
-        if w.ndim != 2 or w.shape[1] != width or not 1 <= w.shape[0] <= MAX_WIDTH:
-            raise ModelError(f"layer {i} weights have shape {w.shape}, expected "
-                             f"(1..{MAX_WIDTH}, {width})", index=i)
-        if b.shape != (w.shape[0],):
-            raise ModelError(f"layer {i} biases have shape {b.shape}", index=i)
-        if not 2 <= layer.weight_bits <= MAX_WEIGHT_BITS:
-            raise ModelError(f"layer {i} weight_bits {layer.weight_bits} outside "
-                             f"[2, {MAX_WEIGHT_BITS}]", index=i)
-        limit = 1 << (layer.weight_bits - 1)
-        if w.min() < -limit or w.max() >= limit:
-            raise ModelError(f"layer {i} weights exceed {layer.weight_bits} signed bits",
-                             index=i)
-        if b.min() <= -BIAS_LIMIT or b.max() >= BIAS_LIMIT:
-            raise ModelError(f"layer {i} biases reach 2^52", index=i)
-        if not 0 <= layer.shift <= MAX_SHIFT:
-            raise ModelError(f"layer {i} shift {layer.shift} outside [0, {MAX_SHIFT}]",
-                             index=i)
-        width = w.shape[0]
-    if net.out_lo.shape != (width,) or net.out_hi.shape != (width,):
-        raise ModelError(f"output ranges must have shape ({width},)")
-    if (net.out_lo.min() < -OUTPUT_LIMIT or net.out_hi.max() > OUTPUT_LIMIT
-            or np.any(net.out_lo > net.out_hi)):
-        raise ModelError("output ranges must satisfy -2^53 <= lo <= hi <= 2^53")
-    for i, total in enumerate(net.worst_case_sums()):
-        if total > EXACT_LIMIT:
-            raise ModelError(f"layer {i} worst-case accumulator {total} exceeds 2^53",
-                             index=i)
+    validate_layers(net.layers, net.in_width, net.out_lo, net.out_hi, net.input_bounds())
