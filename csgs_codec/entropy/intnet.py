@@ -183,34 +183,10 @@ class IntMLP:
         return out
 
     def _forward_int64(self, h: np.ndarray) -> np.ndarray:
-        top = (1 << self.act_bits) - 1
-        for i, layer in enumerate(self.layers):
-            acc = h @ layer.weights.T + layer.biases
-            if layer.shift:
-                acc = (acc + (1 << (layer.shift - 1))) >> layer.shift
-            last = i == len(self.layers) - 1
-            h = np.clip(acc, self.out_lo, self.out_hi) if last else np.clip(acc, 0, top)
-        return h
+        return layers_int64(self.layers, h, self.act_bits, self.out_lo, self.out_hi)
 
     def _forward_float64(self, h: np.ndarray, buffers: list[np.ndarray]) -> np.ndarray:
-        top = float((1 << self.act_bits) - 1)
-        rows = h.shape[0]
-        last = len(self.layers) - 1
-        for i, layer in enumerate(self.layers):
-            w, offset = _float_params(layer)
-            acc = buffers[i][:rows]
-            # (x W^T + b + 2^(s-1)) * 2^-s with the power of two folded into W and b: every
-            # partial sum is an integer <= 2^53 times 2^-s, so it stays exact.
-            np.matmul(h, w, out=acc)
-            acc += offset
-            np.floor(acc, out=acc)
-            if i == last:
-                np.clip(acc, self.out_lo.astype(np.float64), self.out_hi.astype(np.float64),
-                        out=acc)
-            else:
-                np.clip(acc, 0.0, top, out=acc)
-            h = acc
-        return h.astype(np.int64)
+        return layers_float64(self.layers, h, self.act_bits, self.out_lo, self.out_hi, buffers)
 
     def to_bytes(self) -> bytes:
         """The network chunk payload (spec/drafts/entropy.md §4)."""
@@ -324,3 +300,40 @@ def validate_layers(layers, in_width: int, out_lo: np.ndarray, out_hi: np.ndarra
         if total > EXACT_LIMIT:
             raise _fail(f"layer {i} worst-case accumulator {total} exceeds 2^53: its sums "
                         "could overflow the exact integer range", index=i)
+
+
+def layers_int64(layers, h: np.ndarray, act_bits: int, out_lo: np.ndarray,
+                 out_hi: np.ndarray) -> np.ndarray:
+    """The reference evaluation of integer layers on (N, in) int64 inputs -> (N, O) int64:
+    accumulate, round by the shift, ReLU-clamp hidden layers to act_bits, clamp the output."""
+    top = (1 << act_bits) - 1
+    for i, layer in enumerate(layers):
+        acc = h @ layer.weights.T + layer.biases
+        if layer.shift:
+            acc = (acc + (1 << (layer.shift - 1))) >> layer.shift
+        last = i == len(layers) - 1
+        h = np.clip(acc, out_lo, out_hi) if last else np.clip(acc, 0, top)
+    return h
+
+
+def layers_float64(layers, h: np.ndarray, act_bits: int, out_lo: np.ndarray,
+                   out_hi: np.ndarray, buffers: list[np.ndarray] | None = None) -> np.ndarray:
+    """:func:`layers_int64` through float64 BLAS, identical for layers that pass
+    :func:`validate_layers` (``buffers``: optional per-layer (rows, out) work arrays)."""
+    top = float((1 << act_bits) - 1)
+    rows = h.shape[0]
+    last = len(layers) - 1
+    for i, layer in enumerate(layers):
+        w, offset = _float_params(layer)
+        acc = np.empty((rows, w.shape[1])) if buffers is None else buffers[i][:rows]
+        # (x W^T + b + 2^(s-1)) * 2^-s with the power of two folded into W and b: every
+        # partial sum is an integer <= 2^53 times 2^-s, so it stays exact.
+        np.matmul(h, w, out=acc)
+        acc += offset
+        np.floor(acc, out=acc)
+        if i == last:
+            np.clip(acc, out_lo.astype(np.float64), out_hi.astype(np.float64), out=acc)
+        else:
+            np.clip(acc, 0.0, top, out=acc)
+        h = acc
+    return h.astype(np.int64)

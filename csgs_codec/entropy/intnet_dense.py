@@ -35,9 +35,10 @@ from csgs_codec.entropy.intnet import (
     MAX_WIDTH,
     OUTPUT_LIMIT,
     IntLayer,
-    _float_params,
     _frozen,
     _frozen_layer,
+    layers_float64,
+    layers_int64,
     validate_layers,
     worst_case_sums,
 )
@@ -120,29 +121,10 @@ class IntDenseMLP:
         return out
 
     def _int64(self, h: np.ndarray) -> np.ndarray:
-        top = (1 << self.act_bits) - 1
-        for i, layer in enumerate(self.layers):
-            acc = h @ layer.weights.T + layer.biases
-            if layer.shift:
-                acc = (acc + (1 << (layer.shift - 1))) >> layer.shift
-            last = i == len(self.layers) - 1
-            h = np.clip(acc, self.out_lo, self.out_hi) if last else np.clip(acc, 0, top)
-        return h
+        return layers_int64(self.layers, h, self.act_bits, self.out_lo, self.out_hi)
 
     def _float64(self, h: np.ndarray) -> np.ndarray:
-        top = float((1 << self.act_bits) - 1)
-        last = len(self.layers) - 1
-        for i, layer in enumerate(self.layers):
-            w, offset = _float_params(layer)
-            # Exact: every partial sum is an integer <= 2^53 times the power of two 2^-s.
-            acc = np.floor(h @ w + offset)
-            if i == last:
-                acc = np.clip(acc, self.out_lo.astype(np.float64),
-                              self.out_hi.astype(np.float64))
-            else:
-                acc = np.clip(acc, 0.0, top)
-            h = acc
-        return h.astype(np.int64)
+        return layers_float64(self.layers, h, self.act_bits, self.out_lo, self.out_hi)
 
     def to_bytes(self) -> bytes:
         """The network payload (module docstring)."""
