@@ -15,8 +15,8 @@ from csgs_codec.codec.anchor_grid import dequantize
 from csgs_codec.codec.anchor_payloads import (
     AnchorHeader,
     mlps_from_bytes,
-    names_from_bytes,
 )
+from csgs_codec.codec.payloads import names_from_bytes
 from csgs_codec.entropy.anchor_attributes import (
     FRAC_BITS,
     decode_block,

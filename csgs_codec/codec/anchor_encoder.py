@@ -23,7 +23,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from csgs_codec.codec.anchor_grid import anchor_grid
-from csgs_codec.codec.anchor_payloads import AnchorHeader, mlps_to_bytes, names_to_bytes
+from csgs_codec.codec.anchor_payloads import AnchorHeader, mlps_to_bytes
+from csgs_codec.codec.payloads import names_to_bytes
 from csgs_codec.entropy.anchor_attributes import (
     FRAC_BITS,
     encode_block,

@@ -179,23 +179,3 @@ def mlps_from_bytes(data: bytes, feat_dim: int, n_offsets: int,
         raise FormatError(f"MLP weights do not fit the anchors: {err}", chunk="AMLP",
                           offset=base_offset) from None
     return mlps
-
-
-def names_to_bytes(out: ByteWriter, names: tuple[str, ...]) -> None:
-    """Append varint S and S UTF-8 byte strings."""
-    out.varint(len(names))
-    for name in names:
-        out.byte_string(name.encode("utf-8"))
-
-
-def names_from_bytes(r: ByteReader, maximum: int) -> tuple[str, ...]:
-    """Read what :func:`names_to_bytes` wrote (at most ``maximum`` names of <= 256 bytes)."""
-    count = r.varint("channel_count", maximum=maximum)
-    names = []
-    for _ in range(count):
-        raw = r.byte_string("channel_name", maximum=256)
-        try:
-            names.append(raw.decode("utf-8"))
-        except UnicodeDecodeError:
-            raise r.error("channel name is not UTF-8") from None
-    return tuple(names)

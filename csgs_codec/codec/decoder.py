@@ -18,6 +18,7 @@ from csgs_codec.codec.payloads import (
     STREAM_CHUNKS,
     SceneHeader,
     check_finite,
+    names_from_bytes,
 )
 from csgs_codec.codec.streams import SceneStreams, join_streams
 from csgs_codec.entropy.categorical import decode_categorical
@@ -170,18 +171,11 @@ class Decoder:
         if "SEMF" in present:
             data, offset = _payload(container, "SEMF")
             r = ByteReader(data, base_offset=offset, chunk="SEMF")
-            s = r.varint("channel_count", maximum=MAX_SEMANTIC_CHANNELS)
-            names = []
-            for _ in range(s):
-                raw = r.byte_string("channel_name", maximum=256)
-                try:
-                    names.append(raw.decode("utf-8"))
-                except UnicodeDecodeError:
-                    raise r.error("channel name is not UTF-8") from None
-            values = read_float_stream(r, header.count, s)
+            names = names_from_bytes(r, MAX_SEMANTIC_CHANNELS)
+            values = read_float_stream(r, header.count, len(names))
             r.expect_end("the semantic feature stream")
             check_finite(values, "SEMF")
-            scene.semantic, scene.semantic_names = values, tuple(names)
+            scene.semantic, scene.semantic_names = values, names
         if "SEML" in present:
             data, offset = _payload(container, "SEML")
             r = ByteReader(data, base_offset=offset, chunk="SEML")

@@ -17,6 +17,7 @@ from csgs_codec.codec.float_stream import write_float_stream
 from csgs_codec.codec.payloads import (
     STREAM_CHUNKS,
     SceneHeader,
+    names_to_bytes,
 )
 from csgs_codec.codec.presets import DEFAULT_QUALITY, Preset, preset
 from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
@@ -189,9 +190,7 @@ class Encoder:
                          chunks: list[Chunk], settings: Preset) -> None:
         if ordered.semantic is not None:
             out = ByteWriter()
-            out.varint(len(ordered.semantic_names))
-            for name in ordered.semantic_names:
-                out.byte_string(name.encode("utf-8"))
+            names_to_bytes(out, ordered.semantic_names)
             reconstruction.semantic = write_float_stream(out, ordered.semantic,
                                                          settings.semantic_step)
             reconstruction.semantic_names = ordered.semantic_names

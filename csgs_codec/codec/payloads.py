@@ -99,3 +99,24 @@ def check_finite(values: np.ndarray, chunk: str) -> None:
     """FormatError when a decoded stream holds a non-finite value (float32 overflow)."""
     if values.size and not np.all(np.isfinite(values)):
         raise FormatError("decoded values overflow float32", chunk=chunk)
+
+
+def names_to_bytes(out: ByteWriter, names: tuple[str, ...]) -> None:
+    """Append varint S and S UTF-8 byte strings."""
+    out.varint(len(names))
+    for name in names:
+        out.byte_string(name.encode("utf-8"))
+
+
+def names_from_bytes(r: ByteReader, maximum: int) -> tuple[str, ...]:
+    """Read what :func:`names_to_bytes` wrote (at most ``maximum`` names of <= 256 bytes):
+    the semantic channel names of SEMF and ASEM.."""
+    count = r.varint("channel_count", maximum=maximum)
+    names = []
+    for _ in range(count):
+        raw = r.byte_string("channel_name", maximum=256)
+        try:
+            names.append(raw.decode("utf-8"))
+        except UnicodeDecodeError:
+            raise r.error("channel name is not UTF-8") from None
+    return tuple(names)

@@ -14,48 +14,11 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from csgs_codec.entropy.intnet import IntLayer, IntMLP
+from csgs_codec.entropy.intnet import IntMLP
 from csgs_codec.entropy.intnet_dense import IntDenseMLP
 from csgs_codec.entropy.tables import SINE_AMPLITUDE_BITS
 from csgs_codec.errors import ModelError
-from csgs_codec.model.intnet_export import _exponent_to_fit, _linear_layers, float_embedding
-
-
-def quantize_layers(linears: list[torch.nn.Linear], x: torch.Tensor, frac_in: int,
-                    weight_bits: tuple[int, ...], act_bits: int) -> list[IntLayer]:
-    """Integer layers for ``linears`` reading ``x`` (float64 calibration inputs, which are
-    integers times 2^-frac_in); outputs are round(float outputs). ``weight_bits`` per layer."""
-    a_limit = (1 << act_bits) - 1
-    layers = []
-    with torch.no_grad():
-        for i, linear in enumerate(linears):
-            w_limit = (1 << (weight_bits[i] - 1)) - 1
-            w = linear.weight.detach().double()
-            b = (linear.bias.detach().double() if linear.bias is not None
-                 else torch.zeros(w.shape[0], dtype=torch.float64))
-            last = i == len(linears) - 1
-            x = x @ w.T + b
-            if last:
-                frac_out = 0
-            else:
-                x = torch.relu(x)
-                peak = float(x.max()) if x.numel() else 0.0
-                frac_out = _exponent_to_fit(peak, a_limit) if peak > 0 else act_bits
-            w_peak = float(w.abs().max())
-            frac_w = _exponent_to_fit(w_peak, w_limit) if w_peak > 0 else 0
-            frac_w = max(frac_w, frac_out - frac_in)
-            if w_peak * 2.0 ** frac_w > w_limit + 0.5:
-                raise ModelError(f"layer {i}: weights cannot reach the output scale within "
-                                 f"{weight_bits[i]} bits", index=i)
-            shift = frac_w + frac_in - frac_out
-            w_int = torch.round(w * 2.0 ** frac_w).numpy().astype(np.int64)
-            b_scaled = (b * 2.0 ** (frac_w + frac_in)).numpy()
-            if not np.all(np.abs(b_scaled) < 2.0 ** 52):
-                raise ModelError(f"layer {i}: bias does not fit 52 bits at its scale", index=i)
-            layers.append(IntLayer(w_int, np.rint(b_scaled).astype(np.int64), int(shift),
-                                   int(weight_bits[i])))
-            frac_in = frac_out
-    return layers
+from csgs_codec.model.intnet_export import _linear_layers, float_embedding, quantize_layers
 
 
 def export_position_mlp(mlp: torch.nn.Module, *, pos_bits: int, num_freqs: int,

@@ -52,6 +52,45 @@ def _exponent_to_fit(magnitude: float, limit: int) -> int:
     return f
 
 
+def quantize_layers(linears: list[torch.nn.Linear], x: torch.Tensor, frac_in: int,
+                    weight_bits: tuple[int, ...], act_bits: int,
+                    output_frac_bits: int = 0) -> list[IntLayer]:
+    """Integer layers for ``linears`` reading ``x`` (float64 calibration inputs, which are
+    integers times 2^-frac_in); outputs are round(float outputs * 2^output_frac_bits).
+    ``weight_bits`` per layer; ModelError when a layer cannot be represented."""
+    a_limit = (1 << act_bits) - 1
+    layers = []
+    with torch.no_grad():
+        for i, linear in enumerate(linears):
+            w_limit = (1 << (weight_bits[i] - 1)) - 1
+            w = linear.weight.detach().double()
+            b = (linear.bias.detach().double() if linear.bias is not None
+                 else torch.zeros(w.shape[0], dtype=torch.float64))
+            last = i == len(linears) - 1
+            x = x @ w.T + b
+            if last:
+                frac_out = output_frac_bits
+            else:
+                x = torch.relu(x)
+                peak = float(x.max()) if x.numel() else 0.0
+                frac_out = _exponent_to_fit(peak, a_limit) if peak > 0 else act_bits
+            w_peak = float(w.abs().max())
+            frac_w = _exponent_to_fit(w_peak, w_limit) if w_peak > 0 else 0
+            frac_w = max(frac_w, frac_out - frac_in)
+            if w_peak * 2.0 ** frac_w > w_limit + 0.5:
+                raise ModelError(f"layer {i}: weights cannot reach the output scale within "
+                                 f"{weight_bits[i]} bits", index=i)
+            shift = frac_w + frac_in - frac_out
+            w_int = torch.round(w * 2.0 ** frac_w).numpy().astype(np.int64)
+            b_scaled = (b * 2.0 ** (frac_w + frac_in)).numpy()
+            if not np.all(np.abs(b_scaled) < 2.0 ** 52):
+                raise ModelError(f"layer {i}: bias does not fit 52 bits at its scale", index=i)
+            layers.append(IntLayer(w_int, np.rint(b_scaled).astype(np.int64), int(shift),
+                                   int(weight_bits[i])))
+            frac_in = frac_out
+    return layers
+
+
 def export_mlp(mlp: torch.nn.Module, *, pos_bits: int, num_freqs: int,
                calibration_positions: np.ndarray, out_lo: np.ndarray, out_hi: np.ndarray,
                weight_bits: int = 12, act_bits: int = 14, output_frac_bits: int = 0) -> IntMLP:
@@ -77,37 +116,8 @@ def export_mlp(mlp: torch.nn.Module, *, pos_bits: int, num_freqs: int,
     if not 2 <= weight_bits <= 24 or not 1 <= act_bits <= 30:
         raise ModelError(f"weight_bits {weight_bits} / act_bits {act_bits} out of range")
     x = float_embedding(calibration_positions, pos_bits, num_freqs).double()
-    w_limit = (1 << (weight_bits - 1)) - 1
-    a_limit = (1 << act_bits) - 1
-    frac_in = SINE_AMPLITUDE_BITS
-    layers = []
-    with torch.no_grad():
-        for i, linear in enumerate(linears):
-            w = linear.weight.detach().double()
-            b = (linear.bias.detach().double() if linear.bias is not None
-                 else torch.zeros(w.shape[0], dtype=torch.float64))
-            last = i == len(linears) - 1
-            x = x @ w.T + b
-            if last:
-                frac_out = output_frac_bits
-            else:
-                x = torch.relu(x)
-                peak = float(x.max()) if x.numel() else 0.0
-                frac_out = _exponent_to_fit(peak, a_limit) if peak > 0 else act_bits
-            w_peak = float(w.abs().max())
-            frac_w = _exponent_to_fit(w_peak, w_limit) if w_peak > 0 else 0
-            frac_w = max(frac_w, frac_out - frac_in)  # shift = frac_w + frac_in - frac_out >= 0
-            if w_peak * 2.0 ** frac_w > w_limit + 0.5:
-                raise ModelError(f"layer {i}: weights cannot reach the output scale within "
-                                 f"{weight_bits} bits", index=i)
-            shift = frac_w + frac_in - frac_out
-            w_int = torch.round(w * 2.0 ** frac_w).numpy().astype(np.int64)
-            b_scaled = (b * 2.0 ** (frac_w + frac_in)).numpy()
-            if not np.all(np.abs(b_scaled) < 2.0 ** 52):
-                raise ModelError(f"layer {i}: bias does not fit 52 bits at its scale", index=i)
-            b_int = np.rint(b_scaled).astype(np.int64)
-            layers.append(IntLayer(w_int, b_int, int(shift), weight_bits))
-            frac_in = frac_out
+    layers = quantize_layers(linears, x, SINE_AMPLITUDE_BITS, (weight_bits,) * len(linears),
+                             act_bits, output_frac_bits)
     try:
         return IntMLP(pos_bits, num_freqs, act_bits, tuple(layers),
                       np.asarray(out_lo, dtype=np.int64), np.asarray(out_hi, dtype=np.int64))
