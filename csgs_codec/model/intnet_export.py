@@ -76,6 +76,11 @@ def quantize_layers(linears: list[torch.nn.Linear], x: torch.Tensor, frac_in: in
                 frac_out = _exponent_to_fit(peak, a_limit) if peak > 0 else act_bits
             w_peak = float(w.abs().max())
             frac_w = _exponent_to_fit(w_peak, w_limit) if w_peak > 0 else 0
+            if not last and frac_out - frac_in > frac_w:
+                # Small activations under large weights: the activation would need more
+                # fraction bits than the weights can carry without a left shift, so it keeps
+                # fewer (it then uses less of its range; it stays exact).
+                frac_out = frac_w + frac_in
             frac_w = max(frac_w, frac_out - frac_in)
             if w_peak * 2.0 ** frac_w > w_limit + 0.5:
                 raise ModelError(f"layer {i}: weights cannot reach the output scale within "

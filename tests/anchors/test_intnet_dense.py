@@ -65,3 +65,21 @@ def test_export_outputs_follow_the_torch_network():
     with torch.no_grad():
         expected = mlp(torch.from_numpy(np.ldexp((x >> 6).astype(np.float64), -6)).float())
     assert np.abs(net.forward(x) - expected.numpy()).max() <= 1.5
+
+
+def test_tiny_hidden_activations_under_large_weights_still_export():
+    """Regression (found by training): inputs near zero gave layer-0 activations so small that
+    their scale needed more fraction bits than 8-bit weights can carry; export refused with
+    "weights cannot reach the output scale". The hidden layer now keeps fewer fraction bits."""
+    torch.manual_seed(1)
+    mlp = torch.nn.Sequential(torch.nn.Linear(4, 8), torch.nn.ReLU(), torch.nn.Linear(8, 2))
+    with torch.no_grad():
+        mlp[0].weight.mul_(40.0)
+        mlp[0].bias.fill_(1e-4)
+    x = np.random.default_rng(1).integers(-2, 3, (500, 4))
+    net = export_dense_mlp(mlp, input_shift=0, input_bits=12, input_frac_bits=12,
+                           calibration_inputs=x, out_lo=np.full(2, -1 << 20),
+                           out_hi=np.full(2, 1 << 20), weight_bits=(8, 10))
+    with torch.no_grad():
+        expected = mlp(torch.from_numpy(np.ldexp(x.astype(np.float64), -12)).float())
+    assert np.abs(net.forward(x) - expected.numpy()).max() <= 1.5
