@@ -160,7 +160,8 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
                             contrastive_weight: float = 1.0, ignore_id: int | None = None,
                             initial_scale: float = 0.1, rate_weight: float = 0.0,
                             rate_model: torch.nn.Module | None = None, seed: int = 0,
-                            device: str | torch.device = "cpu") -> SemanticResult:
+                            device: str | torch.device = "cpu",
+                            initial_features: np.ndarray | None = None) -> SemanticResult:
     """Fit the semantic feature of every group to the views' masks (module notes).
 
     Args:
@@ -184,6 +185,8 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
             when ``rate_weight`` > 0.
         seed: seeds the initial features and the noise (bit-reproducible on the CPU).
         device: torch device to train on ("cpu", "cuda", ...).
+        initial_features: (G, D) features to start from (stage 3 continues stage 2's);
+            default random (``initial_scale``).
 
     Returns:
         :class:`SemanticResult`.
@@ -211,6 +214,12 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
     # The initial features come from a CPU generator so every device starts from the same s.
     start = initial_scale * torch.randn(group_count, dim,
                                         generator=torch.Generator().manual_seed(seed))
+    if initial_features is not None:
+        initial = np.asarray(initial_features, np.float32)
+        if initial.shape != (group_count, dim) or not np.isfinite(initial).all():
+            raise InputError(f"initial features must be finite ({group_count}, {dim}), got "
+                             f"{initial.shape}", property="initial_features")
+        start = torch.from_numpy(initial.copy())
     features = start.to(device).requires_grad_(True)
     generator = torch.Generator(device=device).manual_seed(seed + 1)
     if rate_model is None and rate_weight > 0:

@@ -1,0 +1,152 @@
+"""``csgs train DATA -o scene.csgs``: train a scene from images, cameras and masks (the three
+CSGaussian stages) and write it as a .csgs with colour and semantic layers."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from csgs_codec.errors import InputError
+
+NAME = "train"
+HELP = ("train a scene from images + cameras (+ instance masks) through the three CSGaussian "
+        "stages and write it as a .csgs")
+
+
+def add_arguments(parser) -> None:
+    """Arguments of ``csgs train``."""
+    from csgs_codec.train.color_stage import RATE_WEIGHT_PRESETS, ColorStageSettings
+
+    defaults = ColorStageSettings()
+    parser.add_argument("data", help="dataset: a folder with transforms.json, cameras.json "
+                                     "(+ images/) or a COLMAP model, or the camera file itself")
+    parser.add_argument("-o", "--output", required=True, metavar="CSGS",
+                        help="output .csgs file")
+    parser.add_argument("--lambda", dest="rate_weight", type=float,
+                        default=RATE_WEIGHT_PRESETS[0], metavar="L",
+                        help="stage-1 rate weight lambda_rate (paper presets "
+                             f"{', '.join(str(v) for v in RATE_WEIGHT_PRESETS)}; larger: "
+                             f"smaller files; default {RATE_WEIGHT_PRESETS[0]})")
+    parser.add_argument("--iterations", type=int, default=defaults.iterations, metavar="N",
+                        help=f"stage-1 steps, one view each (default {defaults.iterations})")
+    parser.add_argument("--semantic-iterations", type=int, default=150, metavar="N",
+                        help="stage-2 steps (stage 3 runs two thirds as many; default 150)")
+    parser.add_argument("--resolution", type=int, metavar="R",
+                        help="downscale images so their longer side is at most R pixels")
+    parser.add_argument("--quality", type=int, default=defaults.quality, choices=range(1, 10),
+                        metavar="Q", help="encoder quality 1..9 whose quantization steps "
+                                          f"training simulates (default {defaults.quality})")
+    parser.add_argument("--anchors", type=int, default=defaults.initial_anchors, metavar="M",
+                        help="initial anchors (about; default "
+                             f"{defaults.initial_anchors}); growth may add up to "
+                             f"--max-anchors")
+    parser.add_argument("--max-anchors", type=int, default=defaults.max_anchors, metavar="M",
+                        help=f"anchor limit of growth (default {defaults.max_anchors})")
+    parser.add_argument("--points", metavar="PLY",
+                        help="initial point cloud (default: the dataset's, else random)")
+    parser.add_argument("--masks", metavar="DIR",
+                        help="instance-mask folder (default: masks/ beside the images; "
+                             "without one a built-in segmenter makes masks, with a warning)")
+    parser.add_argument("--no-semantic", action="store_true",
+                        help="train colour only (no masks, no semantic layer)")
+    parser.add_argument("--test-every", type=int, default=8, metavar="K",
+                        help="hold out every K-th view to score the result (0: none; "
+                             "default 8)")
+    parser.add_argument("--checkpoint-dir", metavar="DIR",
+                        help="save stage-1 checkpoints here (every --checkpoint-every steps)")
+    parser.add_argument("--checkpoint-every", type=int, default=500, metavar="N",
+                        help="steps between checkpoints (default 500)")
+    parser.add_argument("--resume", action="store_true",
+                        help="continue from the checkpoint in --checkpoint-dir")
+    parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"),
+                        help="torch device to train on (default cpu)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+
+
+def _downscale_for(data: str, resolution: int | None) -> float:
+    if resolution is None:
+        return 1.0
+    if resolution < 16:
+        raise InputError(f"--resolution must be at least 16 pixels, got {resolution}",
+                         property="resolution")
+    from csgs_codec.render.cameras_io import load_cameras
+    from csgs_codec.train.datasets import find_camera_file
+
+    cameras = load_cameras(find_camera_file(Path(data)))
+    longest = max((max(c.width, c.height) for c in cameras), default=resolution)
+    return max(1.0, longest / resolution)
+
+
+def run(args) -> int:
+    """Load the dataset, train every stage, write the .csgs atomically and print a summary."""
+    import torch
+    from tqdm import tqdm
+
+    from csgs_codec.atomic_write import write_atomically
+    from csgs_codec.train.color_stage import ColorStageSettings
+    from csgs_codec.train.datasets import load_dataset
+    from csgs_codec.train.evaluation import score_views, split_views
+    from csgs_codec.train.initial_points import find_initial_points
+    from csgs_codec.train.pipeline import TrainSettings, train_scene
+
+    if args.device == "cuda" and not torch.cuda.is_available():
+        raise InputError("--device cuda: torch sees no CUDA device", property="device")
+    if not (math.isfinite(args.rate_weight) and args.rate_weight >= 0):
+        raise InputError(f"--lambda must be a finite number >= 0, got {args.rate_weight}",
+                         property="lambda")
+    for name in ("iterations", "semantic_iterations", "anchors", "max_anchors",
+                 "checkpoint_every"):
+        if getattr(args, name) < 1:
+            raise InputError(f"--{name.replace('_', '-')} must be at least 1",
+                             property=name)
+    if args.resume and not args.checkpoint_dir:
+        raise InputError("--resume needs --checkpoint-dir", property="resume")
+    views = load_dataset(args.data, downscale=_downscale_for(args.data, args.resolution),
+                         masks=args.masks, segment_missing=not args.no_semantic)
+    if args.no_semantic:
+        for view in views:
+            view.mask = None
+    train_views, test_views = split_views(views, args.test_every)
+    points, source = find_initial_points(args.data, [v.camera for v in train_views],
+                                         points=args.points, seed=args.seed)
+    color = ColorStageSettings(
+        iterations=args.iterations, rate_weight=args.rate_weight, quality=args.quality,
+        initial_anchors=args.anchors, max_anchors=args.max_anchors, seed=args.seed,
+        device=args.device)
+    settings = TrainSettings(color, semantic_iterations=args.semantic_iterations,
+                             stage3_iterations=max(1, 2 * args.semantic_iterations // 3),
+                             checkpoint_every=args.checkpoint_every)
+    if not args.quiet:
+        print(f"{len(train_views)} training views, {len(test_views)} held out, "
+              f"{views[0].width}x{views[0].height}; initial points: {source}")
+    bar = tqdm(total=args.iterations, desc="stage 1", unit="step", disable=args.quiet,
+               leave=False)
+
+    def progress(stage, step) -> None:
+        if step is None:
+            bar.set_description(stage, refresh=False)
+            return
+        bar.set_postfix(loss=f"{step.loss:.4f}", psnr=f"{step.psnr:.1f}",
+                        bpp=f"{step.bits_per_parameter:.2f}", anchors=step.anchors,
+                        refresh=False)
+        bar.update(step.step - bar.n)
+
+    try:
+        result = train_scene(train_views, points, settings, checkpoint_dir=args.checkpoint_dir,
+                             resume=args.resume, progress=progress)
+    finally:
+        bar.close()
+    write_atomically(args.output, result.data)
+    scene = result.encode.reconstruction
+    semantic = sum(size for chunk, size in result.encode.chunk_bytes.items()
+                   if chunk in ("SHYP", "ASEM", "SEML"))
+    print(f"{args.output}: {len(result.data):,} bytes, {len(scene):,} anchors, "
+          f"{scene.active_offsets():,} Gaussian slots, semantic layer "
+          f"{100.0 * semantic / len(result.data):.1f}% of the file")
+    timings = ", ".join(f"{k} {v:.1f} s" for k, v in result.seconds.items())
+    print(f"time: {timings}")
+    if test_views:
+        scores = score_views(scene, test_views)
+        print(f"held-out views: PSNR {scores.psnr:.2f} dB, SSIM {scores.ssim:.4f} "
+              f"({scores.views} views, decoded scene)")
+    return 0

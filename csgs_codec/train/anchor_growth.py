@@ -1,0 +1,127 @@
+"""Anchor growing and pruning (Scaffold-GS), and view-frequency pruning (CSGaussian).
+
+Between rounds, :class:`GrowthStats` accumulates for every slot (anchor, offset) the
+screen-space gradient of its Gaussian's centre, and for every anchor its opacity and the views
+that saw it. A round then
+
+* **grows**: slots whose mean screen-space gradient is in the top ``grow_fraction`` of the slots
+  that were seen spawn an anchor at their centre's voxel when that voxel holds none yet (the new
+  anchor starts from its parent's feature). Scaffold-GS compares the gradient with an absolute
+  threshold; its scale depends on the loss normalisation and the image size, so a quantile is
+  used instead;
+* **prunes**: anchors seen in at least one view whose mean summed opacity per view is below
+  ``min_opacity`` (Scaffold-GS's rule), unless that would leave none.
+
+:func:`view_counts` counts the training views whose frustum holds each anchor; stage 1 drops
+anchors seen from fewer than ``min_views`` views (they are fitted to too few images to
+generalise and cost bits all the same).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from csgs_codec.model.scaffold import NeuralGaussians
+from csgs_codec.render.camera import Camera
+from csgs_codec.train.anchor_model import AnchorModel
+
+
+def view_counts(positions: np.ndarray, cameras: list[Camera]) -> np.ndarray:
+    """(M,) int64 number of ``cameras`` whose image holds each (M, 3) position (in front of
+    the near plane and inside the image)."""
+    points = np.asarray(positions, np.float64)
+    counts = np.zeros(len(points), np.int64)
+    homogeneous = np.concatenate([points, np.ones((len(points), 1))], axis=1)
+    for camera in cameras:
+        cam = homogeneous @ camera.world_to_camera.T
+        z = cam[:, 2]
+        ahead = z > camera.near_plane
+        safe_z = np.where(ahead, z, 1.0)
+        u = camera.fx * cam[:, 0] / safe_z + camera.cx
+        v = camera.fy * cam[:, 1] / safe_z + camera.cy
+        counts += ahead & (u >= 0) & (u < camera.width) & (v >= 0) & (v < camera.height)
+    return counts
+
+
+@dataclass
+class GrowthStats:
+    """Accumulators of one growth interval (module notes); shapes follow the model's M, K."""
+
+    grad_sum: torch.Tensor
+    grad_count: torch.Tensor
+    opacity_sum: torch.Tensor
+    visits: torch.Tensor
+
+    @classmethod
+    def empty(cls, anchors: int, n_offsets: int) -> GrowthStats:
+        """Zeroed accumulators for ``anchors`` anchors of ``n_offsets`` slots."""
+        slots = anchors * n_offsets
+        return cls(torch.zeros(slots, dtype=torch.float64), torch.zeros(slots, dtype=torch.int64),
+                   torch.zeros(anchors, dtype=torch.float64),
+                   torch.zeros(anchors, dtype=torch.int64))
+
+    def record(self, gaussians: NeuralGaussians, camera: Camera, n_offsets: int,
+               seen: np.ndarray) -> None:
+        """Add one view: ``gaussians.positions.grad`` must hold dL/d(centre) (N, 3);
+        ``seen`` (M,) bool anchors inside the view."""
+        with torch.no_grad():
+            grad = gaussians.positions.grad
+            slots = gaussians.anchor_index * n_offsets + gaussians.offset_index
+            if grad is not None and len(slots):
+                rot = torch.as_tensor(camera.world_to_camera[:3, :3],
+                                      dtype=gaussians.positions.dtype)
+                shift = torch.as_tensor(camera.world_to_camera[:3, 3],
+                                        dtype=gaussians.positions.dtype)
+                depth = (gaussians.positions @ rot.T + shift)[:, 2].abs()
+                # |dL/d pixel| ~ |dL/d centre| * z / f for motion across the image plane.
+                pixel_grad = grad.norm(dim=1) * depth / float(camera.fx)
+                self.grad_sum.index_add_(0, slots, pixel_grad.double())
+                self.grad_count.index_add_(0, slots, torch.ones_like(slots))
+            self.opacity_sum.index_add_(0, gaussians.anchor_index,
+                                        gaussians.opacities.detach().double())
+            self.visits += torch.from_numpy(seen.astype(np.int64))
+
+
+def grow_and_prune(model: AnchorModel, stats: GrowthStats, *, grow_fraction: float,
+                   min_opacity: float, max_anchors: int) -> tuple[int, int]:
+    """One round (module notes) on ``model``, in place; returns (grown, pruned) counts."""
+    m, k = model.count, model.n_offsets
+    seen_slots = stats.grad_count > 0
+    grown_cells = np.zeros((0, 3), np.int64)
+    parents = torch.zeros(0, dtype=torch.int64)
+    room = max_anchors - m
+    if bool(seen_slots.any()) and room > 0 and grow_fraction > 0:
+        mean_grad = torch.where(seen_slots, stats.grad_sum / stats.grad_count.clamp_min(1), 0.0)
+        threshold = torch.quantile(mean_grad[seen_slots], 1.0 - grow_fraction)
+        candidates = torch.nonzero(seen_slots & (mean_grad >= threshold) & (mean_grad > 0))
+        candidates = candidates.reshape(-1)
+        # Strongest first, so a limited budget goes to the largest gradients.
+        candidates = candidates[torch.argsort(mean_grad[candidates], descending=True,
+                                              stable=True)]
+        centres = model.slot_positions().reshape(m * k, 3)[candidates].numpy()
+        cells = model.grid.cells_of(centres)
+        existing = {tuple(c) for c in model.cells.numpy().tolist()}
+        chosen, chosen_parents = [], []
+        for cell, slot in zip(cells.tolist(), candidates.tolist()):
+            key = tuple(cell)
+            if key in existing:
+                continue
+            existing.add(key)
+            chosen.append(cell)
+            chosen_parents.append(slot // k)
+            if len(chosen) >= room:
+                break
+        if chosen:
+            grown_cells = np.asarray(chosen, np.int64)
+            parents = torch.as_tensor(chosen_parents, dtype=torch.int64)
+    mean_opacity = stats.opacity_sum / stats.visits.clamp_min(1)
+    prune = (stats.visits > 0) & (mean_opacity < min_opacity)
+    if bool(prune.all()):
+        prune = torch.zeros_like(prune)
+    pruned = int(prune.sum())
+    if pruned or len(grown_cells):
+        model.resize(~prune, grown_cells, parents)
+    return len(grown_cells), pruned

@@ -1,0 +1,199 @@
+"""The trainable Scaffold-GS scene of stage 1: anchors on a voxel grid, their MLPs and masks.
+
+Anchors sit at fixed voxel centres ``origin + cell * voxel`` (Scaffold-GS does not move them; a
+grid also lets the encoder code them losslessly). Each anchor has a feature f (F), K offsets
+(in units of ``exp(scaling[:3])``), a log scaling l (6) and K offset-mask logits. The mask
+follows HAC: a slot is kept when ``sigmoid(logit) > MASK_THRESHOLD``, with a straight-through
+gradient to the soft value, so the mask loss can switch slots off. Spawning the neural Gaussians
+of a view is :func:`csgs_codec.model.scaffold.neural_gaussians`, the rule the decoder uses.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch import nn
+
+from csgs_codec.errors import InputError
+from csgs_codec.model.scaffold import NeuralGaussians, ScaffoldMLPs, neural_gaussians
+from csgs_codec.render.camera import Camera
+from csgs_codec.render.rasterize_torch import RasterTensors, rasterize_gaussians
+from csgs_codec.scene.anchor_scene import AnchorScene
+
+#: A slot is kept when its mask probability exceeds this (HAC's rule).
+MASK_THRESHOLD = 0.01
+#: Initial mask logit: probability 0.73, well above the threshold.
+INITIAL_MASK_LOGIT = 1.0
+#: Initial offsets are uniform in +-this (units of exp(scaling[:3]), i.e. voxels).
+INITIAL_OFFSET_SPREAD = 0.5
+#: Opacities are clamped into [eps, 1 - eps] before the logit the rasterizer takes.
+OPACITY_EPS = 1e-6
+
+
+@dataclass(frozen=True)
+class AnchorGrid:
+    """The voxel grid anchors live on.
+
+    Attributes:
+        origin: (3,) float64 world position of cell (0, 0, 0).
+        voxel: cell edge, world units.
+    """
+
+    origin: np.ndarray
+    voxel: float
+
+    def cells_of(self, points: np.ndarray) -> np.ndarray:
+        """(N, 3) int64 nearest cell of each point ((N, 3) world units)."""
+        return np.floor((np.asarray(points, np.float64) - self.origin) / self.voxel
+                        + 0.5).astype(np.int64)
+
+    def centres(self, cells: np.ndarray) -> np.ndarray:
+        """(N, 3) float32 world positions of ``cells``."""
+        return (self.origin + cells.astype(np.float64) * self.voxel).astype(np.float32)
+
+
+def grid_for_points(points: np.ndarray, target_anchors: int) -> AnchorGrid:
+    """A grid whose voxel puts about ``target_anchors`` occupied cells on ``points``.
+
+    The voxel is searched by bisection on a log scale between the points' extent and
+    1e-6 of it (25 steps), counting occupied cells each time.
+    """
+    points = np.asarray(points, np.float64)
+    if points.ndim != 2 or points.shape[1] != 3 or len(points) == 0:
+        raise InputError(f"initial points must be (N, 3) with N >= 1, got {points.shape}",
+                         property="points")
+    if target_anchors < 1:
+        raise InputError(f"target anchor count must be >= 1, got {target_anchors}",
+                         property="anchors")
+    low, high = points.min(axis=0), points.max(axis=0)
+    extent = float((high - low).max()) or 1.0
+    lo, hi = math.log(extent * 1e-6), math.log(extent)
+    for _ in range(25):
+        mid = 0.5 * (lo + hi)
+        grid = AnchorGrid(low, math.exp(mid))
+        occupied = len(np.unique(grid.cells_of(points), axis=0))
+        if occupied > target_anchors:
+            lo = mid
+        else:
+            hi = mid
+    return AnchorGrid(low, math.exp(hi))
+
+
+class AnchorModel(nn.Module):
+    """Anchors, their Scaffold-GS MLPs and offset masks as torch parameters.
+
+    Args:
+        cells: (M, 3) int64 occupied cells of ``grid``.
+        grid: the voxel grid.
+        feat_dim: F; n_offsets: K.
+        seed: seeds the initial offsets and MLP weights.
+    """
+
+    def __init__(self, cells: np.ndarray, grid: AnchorGrid, *, feat_dim: int = 32,
+                 n_offsets: int = 10, seed: int = 0) -> None:
+        super().__init__()
+        if len(cells) == 0:
+            raise InputError("stage 1 needs at least one anchor", property="anchors")
+        self.grid = grid
+        self.feat_dim, self.n_offsets = feat_dim, n_offsets
+        generator = torch.Generator().manual_seed(seed)
+        torch.manual_seed(seed)  # nn.Linear initialisation draws from the global generator
+        self.mlps = ScaffoldMLPs(feat_dim, n_offsets)
+        m = len(cells)
+        self.register_buffer("cells", torch.from_numpy(np.asarray(cells, np.int64)))
+        self.register_buffer("positions", torch.from_numpy(grid.centres(cells)))
+        self.features = nn.Parameter(torch.zeros(m, feat_dim))
+        self.offsets = nn.Parameter(self._initial_offsets(m, generator))
+        self.scaling = nn.Parameter(torch.full((m, 6), math.log(grid.voxel)))
+        self.mask_logits = nn.Parameter(torch.full((m, n_offsets), INITIAL_MASK_LOGIT))
+        self._generator = generator
+
+    def _initial_offsets(self, m: int, generator: torch.Generator) -> torch.Tensor:
+        return (torch.rand(m, self.n_offsets, 3, generator=generator) * 2 - 1) \
+            * INITIAL_OFFSET_SPREAD
+
+    @property
+    def count(self) -> int:
+        """Number of anchors M."""
+        return int(self.positions.shape[0])
+
+    def anchor_tensors(self) -> dict[str, torch.Tensor]:
+        """The per-anchor parameters by name (what growth and pruning resize)."""
+        return {"features": self.features, "offsets": self.offsets, "scaling": self.scaling,
+                "mask_logits": self.mask_logits}
+
+    def mask(self) -> torch.Tensor:
+        """(M, K) float {0, 1} kept slots, straight-through gradient to the probabilities."""
+        soft = torch.sigmoid(self.mask_logits)
+        hard = (soft > MASK_THRESHOLD).to(soft.dtype)
+        return hard + soft - soft.detach()
+
+    def spawn(self, camera: Camera, values: dict[str, torch.Tensor] | None = None
+              ) -> NeuralGaussians:
+        """The neural Gaussians ``camera`` sees, from ``values`` (default: the parameters;
+        stage 1 passes noisy copies of features, offsets and scaling)."""
+        v = values or {}
+        centre = torch.as_tensor(camera.position, dtype=self.positions.dtype,
+                                 device=self.positions.device)
+        return neural_gaussians(self.mlps, self.positions, v.get("features", self.features),
+                                v.get("offsets", self.offsets), v.get("scaling", self.scaling),
+                                self.mask(), centre)
+
+    def render(self, camera: Camera, values: dict[str, torch.Tensor] | None = None,
+               background: tuple[float, float, float] | None = None
+               ) -> tuple[RasterTensors, NeuralGaussians]:
+        """Render ``camera``'s view differentiably; returns the maps and the Gaussians."""
+        g = self.spawn(camera, values)
+        opacity = g.opacities.clamp(OPACITY_EPS, 1.0 - OPACITY_EPS)
+        logits = torch.log(opacity) - torch.log1p(-opacity)
+        out = rasterize_gaussians(g.positions, g.log_scales, g.rotations, logits, camera,
+                                  colors=g.colors, background=background)
+        return out, g
+
+    def slot_positions(self) -> torch.Tensor:
+        """(M, K, 3) centres of every slot (view independent), no gradient."""
+        with torch.no_grad():
+            step = torch.exp(self.scaling[:, :3])
+            return self.positions[:, None, :] + self.offsets * step[:, None, :]
+
+    def resize(self, keep: torch.Tensor, new_cells: np.ndarray,
+               parents: torch.Tensor) -> None:
+        """Keep the anchors selected by ``keep`` ((M,) bool) and append anchors at
+        ``new_cells`` ((A, 3) int64), each starting from its parent anchor's feature
+        (``parents`` (A,) int64 indices into the current anchors) as Scaffold-GS grows."""
+        with torch.no_grad():
+            a = len(new_cells)
+            additions = {
+                "features": self.features[parents.to(self.features.device)].clone(),
+                "offsets": self._initial_offsets(a, self._generator),
+                "scaling": torch.full((a, 6), math.log(self.grid.voxel)),
+                "mask_logits": torch.full((a, self.n_offsets), INITIAL_MASK_LOGIT),
+            }
+            device = self.positions.device
+            for name, tensor in self.anchor_tensors().items():
+                addition = additions[name].to(device=device, dtype=tensor.dtype)
+                setattr(self, name, nn.Parameter(torch.cat([tensor.detach()[keep], addition])))
+            cells = torch.cat([self.cells.cpu()[keep.cpu()],
+                               torch.from_numpy(new_cells.astype(np.int64))])
+            self.cells = cells.to(device)
+            self.positions = torch.from_numpy(self.grid.centres(cells.numpy())).to(device)
+
+    def to_anchor_scene(self) -> AnchorScene:
+        """The trained anchors as an :class:`AnchorScene` (masks hardened, MLP weights
+        exported); anchors whose every slot is masked are left out."""
+        with torch.no_grad():
+            mask = (torch.sigmoid(self.mask_logits) > MASK_THRESHOLD).cpu().numpy()
+            alive = mask.any(axis=1)
+            offsets = self.offsets.cpu().numpy().copy()
+            offsets[~mask] = 0.0
+            scene = AnchorScene(
+                positions=self.positions.cpu().numpy().astype(np.float32),
+                features=self.features.cpu().numpy().astype(np.float32),
+                offsets=offsets.astype(np.float32),
+                scaling=self.scaling.cpu().numpy().astype(np.float32),
+                offset_mask=mask, mlps=copy.deepcopy(self.mlps).cpu().to_weights())
+        return scene.subset(alive)

@@ -1,0 +1,308 @@
+"""Stage 1: fit Scaffold-GS anchors to images for rate and quality (CSGaussian / HAC style).
+
+Each step renders one training view (views in a seeded random order, every view once per
+epoch) and minimises
+
+    L = (1 - w) L1 + w (1 - SSIM)
+        + lambda_rate * (R / P + lambda_mask * mean(sigmoid(mask logits)))
+
+where R is the estimated bits of the noisy features, offsets and scaling under
+:class:`~csgs_codec.train.anchor_rate.AnchorRateModel` (trained jointly), P the number of coded
+values (HAC's bits per parameter), and w = 0.2. For the first ``rate_start`` share of the steps
+the anchors train without noise or rate (the MLPs first learn to render); after that every
+render sees the attributes with uniform quantization noise of the encoder's steps at
+``quality``, so the scene learns to survive the quantization it will get. Growing and pruning
+(:mod:`.anchor_growth`) run every ``growth_every`` steps between ``growth_start`` and
+``growth_end``. Gradients are clipped; a step whose loss is not finite is skipped and counted,
+and many in a row stop the stage with a :class:`ModelError`. On the CPU with the seed fixed, the
+same inputs give the same parameters bit for bit.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from csgs_codec.codec.anchor_encoder import BASE_STEPS, MULTIPLIERS
+from csgs_codec.errors import InputError, ModelError
+from csgs_codec.render.metrics import psnr
+from csgs_codec.train.anchor_growth import GrowthStats, grow_and_prune, view_counts
+from csgs_codec.train.anchor_model import AnchorModel, grid_for_points
+from csgs_codec.train.anchor_rate import AnchorRateModel
+from csgs_codec.train.losses import photometric_loss
+from csgs_codec.train.quantization import add_quantization_noise
+from csgs_codec.train.views import TrainingView
+
+#: CSGaussian's lambda_rate presets (low, mid, high rate weight).
+RATE_WEIGHT_PRESETS = (0.004, 0.01, 0.02)
+#: Consecutive non-finite losses after which the stage gives up.
+MAX_BAD_STEPS = 20
+
+
+@dataclass
+class ColorStageSettings:
+    """Stage-1 settings (defaults suit small scenes on a CPU).
+
+    Attributes:
+        iterations: optimisation steps (one view each).
+        rate_weight: lambda_rate (see :data:`RATE_WEIGHT_PRESETS`); 0 trains for quality only.
+        mask_weight: lambda_mask, inside the rate term as in DESIGN.md section 2.
+        quality: encoder quality whose steps the quantization noise uses (1..9).
+        feat_dim: F; n_offsets: K.
+        initial_anchors: anchors the initial points are voxelized into (about).
+        max_anchors: growth stops here.
+        min_views: anchors seen from fewer training views are pruned (view-frequency masking).
+        rate_start: share of the steps before noise and rate start.
+        growth_start, growth_end: share of the steps between which growth rounds run.
+        growth_every: steps between growth rounds (0: every ``iterations // 10``).
+        grow_fraction: share of seen slots (largest gradients) that may spawn anchors.
+        min_opacity: anchors whose mean opacity per view stays below this are pruned.
+        ssim_weight: w of the photometric loss.
+        learning_rates: parameter group -> initial Adam step size; MLPs and offsets decay
+            exponentially to ``final_lr_ratio`` of it.
+        final_lr_ratio: see ``learning_rates``.
+        grad_clip: gradient norm limit per step.
+        seed: seeds everything random (initial anchors, view order, noise).
+        device: torch device ("cpu", "cuda").
+        background: RGB behind the scene, as in the training images.
+    """
+
+    iterations: int = 2000
+    rate_weight: float = RATE_WEIGHT_PRESETS[0]
+    mask_weight: float = 0.25
+    quality: int = 5
+    feat_dim: int = 32
+    n_offsets: int = 10
+    initial_anchors: int = 2000
+    max_anchors: int = 20000
+    min_views: int = 2
+    rate_start: float = 0.3
+    growth_start: float = 0.1
+    growth_end: float = 0.6
+    growth_every: int = 0
+    grow_fraction: float = 0.05
+    min_opacity: float = 0.005
+    ssim_weight: float = 0.2
+    learning_rates: dict[str, float] = field(default_factory=lambda: {
+        "features": 0.0075, "offsets": 0.01, "scaling": 0.007, "mask_logits": 0.01,
+        "mlps": 0.004, "rate": 0.005})
+    final_lr_ratio: float = 0.1
+    grad_clip: float = 1.0
+    seed: int = 0
+    device: str = "cpu"
+    background: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    def validate(self) -> None:
+        """Raise InputError naming the first setting out of range."""
+        checks = [
+            ("iterations", self.iterations >= 1),
+            ("rate_weight", math.isfinite(self.rate_weight) and self.rate_weight >= 0),
+            ("mask_weight", math.isfinite(self.mask_weight) and self.mask_weight >= 0),
+            ("quality", self.quality in MULTIPLIERS),
+            ("feat_dim", 1 <= self.feat_dim <= 256),
+            ("n_offsets", 1 <= self.n_offsets <= 64),
+            ("initial_anchors", self.initial_anchors >= 1),
+            ("max_anchors", self.max_anchors >= 1),
+            ("min_views", self.min_views >= 0),
+            ("rate_start", 0.0 <= self.rate_start <= 1.0),
+            ("grow_fraction", 0.0 <= self.grow_fraction <= 1.0),
+            ("grad_clip", self.grad_clip > 0),
+        ]
+        for name, ok in checks:
+            if not ok:
+                raise InputError(f"{name} = {getattr(self, name)!r} is out of range",
+                                 property=name)
+
+    def steps(self) -> dict[str, float]:
+        """Quantization step per attribute at ``quality`` (the encoder's base steps)."""
+        scale = MULTIPLIERS[self.quality]
+        return {"features": BASE_STEPS["f"] * scale, "offsets": BASE_STEPS["offsets"] * scale,
+                "scaling": BASE_STEPS["scaling"] * scale}
+
+
+@dataclass
+class StageProgress:
+    """What the progress callback receives after each step."""
+
+    step: int
+    iterations: int
+    loss: float
+    psnr: float
+    bits_per_parameter: float
+    anchors: int
+
+
+@dataclass
+class ColorStageState:
+    """Everything stage 1 needs to continue: the model, its rate model, optimisers, the
+    random generators and the step reached (checkpoints save and restore this)."""
+
+    model: AnchorModel
+    rate_model: AnchorRateModel
+    settings: ColorStageSettings
+    step: int = 0
+    anchor_optimizer: torch.optim.Optimizer | None = None
+    shared_optimizer: torch.optim.Optimizer | None = None
+    view_generator: torch.Generator = field(default_factory=torch.Generator)
+    noise_generator: torch.Generator = field(default_factory=torch.Generator)
+    order: list[int] = field(default_factory=list)
+    stats: GrowthStats | None = None
+    history: dict[str, list[float]] = field(default_factory=lambda: {
+        "loss": [], "psnr": [], "bits_per_parameter": [], "anchors": []})
+    skipped_steps: int = 0
+    seconds: float = 0.0
+
+
+def initial_state(views: list[TrainingView], points: np.ndarray,
+                  settings: ColorStageSettings) -> ColorStageState:
+    """Anchors from ``points`` ((N, 3) world units) voxelized to about
+    ``settings.initial_anchors`` cells, minus those seen by fewer than ``min_views`` views."""
+    settings.validate()
+    if not views:
+        raise InputError("stage 1 needs at least one training view", property="views")
+    for view in views:
+        view.validate()
+    grid = grid_for_points(points, settings.initial_anchors)
+    cells = np.unique(grid.cells_of(points), axis=0)
+    min_views = min(settings.min_views, len(views))
+    seen = view_counts(grid.centres(cells), [v.camera for v in views]) >= min_views
+    if not seen.any():
+        raise InputError(f"no initial anchor is seen by {min_views} training views: the "
+                         "points and cameras do not overlap", property="points")
+    model = AnchorModel(cells[seen], grid, feat_dim=settings.feat_dim,
+                        n_offsets=settings.n_offsets, seed=settings.seed)
+    rate_model = AnchorRateModel(settings.feat_dim, settings.n_offsets, settings.steps())
+    state = ColorStageState(model.to(settings.device), rate_model.to(settings.device), settings)
+    state.view_generator.manual_seed(settings.seed + 1)
+    state.noise_generator = torch.Generator(device=settings.device).manual_seed(
+        settings.seed + 2)
+    make_optimizers(state)
+    return state
+
+
+def make_optimizers(state: ColorStageState, keep_shared: bool = False) -> None:
+    """(Re)build the Adam optimisers: one over the per-anchor tensors (rebuilt after growth
+    changes their shapes) and one over the MLPs and the rate model (kept if ``keep_shared``)."""
+    lrs = state.settings.learning_rates
+    model = state.model
+    state.anchor_optimizer = torch.optim.Adam(
+        [{"params": [t], "lr": lrs[name], "name": name}
+         for name, t in model.anchor_tensors().items()], eps=1e-15)
+    if not keep_shared or state.shared_optimizer is None:
+        state.shared_optimizer = torch.optim.Adam(
+            [{"params": list(model.mlps.parameters()), "lr": lrs["mlps"], "name": "mlps"},
+             {"params": list(state.rate_model.parameters()), "lr": lrs["rate"],
+              "name": "rate"}], eps=1e-15)
+
+
+def _set_learning_rates(state: ColorStageState) -> None:
+    s = state.settings
+    decay = s.final_lr_ratio ** (state.step / max(s.iterations - 1, 1))
+    for optimizer in (state.anchor_optimizer, state.shared_optimizer):
+        for group in optimizer.param_groups:
+            base = s.learning_rates[group["name"]]
+            group["lr"] = base * decay if group["name"] in ("offsets", "mlps") else base
+
+
+def _next_view(state: ColorStageState, count: int) -> int:
+    if not state.order:
+        state.order = torch.randperm(count, generator=state.view_generator).tolist()
+    return state.order.pop()
+
+
+def _growth_due(state: ColorStageState) -> bool:
+    s = state.settings
+    every = s.growth_every or max(s.iterations // 10, 1)
+    start, end = int(s.growth_start * s.iterations), int(s.growth_end * s.iterations)
+    return start < state.step <= end and state.step % every == 0
+
+
+def train_color_stage(views: list[TrainingView], state: ColorStageState, *,
+                      progress: Callable[[StageProgress], None] | None = None,
+                      stop_at: int | None = None) -> ColorStageState:
+    """Run stage 1 from ``state.step`` to ``settings.iterations`` (or ``stop_at``).
+
+    Args:
+        views: the training views (the same list, in the same order, on every resume).
+        state: from :func:`initial_state` or a checkpoint; updated in place and returned.
+        progress: called after every step.
+        stop_at: stop after this step (to checkpoint), default the last.
+
+    Raises:
+        ModelError: :data:`MAX_BAD_STEPS` consecutive steps had a non-finite loss.
+    """
+    s = state.settings
+    device = torch.device(s.device)
+    targets = [torch.from_numpy(v.image).to(device) for v in views]
+    seen_cache: dict[int, np.ndarray] = {}
+    bad_run = 0
+    began = time.perf_counter()
+    end = s.iterations if stop_at is None else min(stop_at, s.iterations)
+    model, rate_model = state.model, state.rate_model
+    steps = s.steps()
+    if state.stats is None:
+        state.stats = GrowthStats.empty(model.count, model.n_offsets)
+    while state.step < end:
+        index = _next_view(state, len(views))
+        camera = views[index].camera
+        _set_learning_rates(state)
+        state.anchor_optimizer.zero_grad(set_to_none=True)
+        state.shared_optimizer.zero_grad(set_to_none=True)
+        with_rate = state.step >= int(s.rate_start * s.iterations)
+        noisy = None
+        if with_rate:
+            noisy = {name: add_quantization_noise(getattr(model, name), steps[name],
+                                                  generator=state.noise_generator)
+                     for name in steps}
+        out, gaussians = model.render(camera, noisy, s.background)
+        gaussians.positions.retain_grad()
+        loss = photometric_loss(out.image, targets[index], s.ssim_weight)
+        bits_per_parameter = 0.0
+        if with_rate and s.rate_weight > 0:
+            estimate = rate_model.estimate(model.cells, noisy, model.mask())
+            mask_loss = torch.sigmoid(model.mask_logits).mean()
+            loss = loss + s.rate_weight * (estimate.bits_per_parameter
+                                           + s.mask_weight * mask_loss)
+            bits_per_parameter = float(estimate.bits_per_parameter.detach())
+        if not torch.isfinite(loss):
+            bad_run += 1
+            state.skipped_steps += 1
+            if bad_run >= MAX_BAD_STEPS:
+                raise ModelError(f"stage 1 diverged: {bad_run} consecutive non-finite losses "
+                                 f"at step {state.step}", property="loss")
+            state.step += 1
+            continue
+        bad_run = 0
+        loss.backward()
+        parameters = [p for g in state.anchor_optimizer.param_groups for p in g["params"]]
+        parameters += [p for g in state.shared_optimizer.param_groups for p in g["params"]]
+        torch.nn.utils.clip_grad_norm_(parameters, s.grad_clip)
+        state.anchor_optimizer.step()
+        state.shared_optimizer.step()
+        if index not in seen_cache:
+            seen_cache[index] = view_counts(model.positions.cpu().numpy(), [camera]) > 0
+        state.stats.record(gaussians, camera, model.n_offsets, seen_cache[index])
+        state.step += 1
+        with torch.no_grad():
+            quality = psnr(out.image.detach().clamp(0, 1).cpu().numpy(),
+                           views[index].image)
+        for key, value in (("loss", float(loss.detach())), ("psnr", quality),
+                           ("bits_per_parameter", bits_per_parameter),
+                           ("anchors", float(model.count))):
+            state.history[key].append(value)
+        if _growth_due(state):
+            grow_and_prune(model, state.stats, grow_fraction=s.grow_fraction,
+                           min_opacity=s.min_opacity, max_anchors=s.max_anchors)
+            make_optimizers(state, keep_shared=True)
+            state.stats = GrowthStats.empty(model.count, model.n_offsets)
+            seen_cache.clear()
+        if progress is not None:
+            progress(StageProgress(state.step, s.iterations, float(loss.detach()), quality,
+                                   bits_per_parameter, model.count))
+    state.seconds += time.perf_counter() - began
+    return state

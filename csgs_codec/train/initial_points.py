@@ -1,0 +1,174 @@
+"""Points that stage 1 grows its anchors from: a point cloud given with the dataset, or random.
+
+Looked for in this order (:func:`find_initial_points`):
+
+1. a PLY named by the caller (any PLY with ``x``, ``y``, ``z`` vertex properties: a 3DGS
+   scene, a COLMAP ``points3D.ply`` export, a scan);
+2. the ``ply_file_path`` entry of a nerfstudio ``transforms.json``;
+3. ``scene.ply`` beside the camera file (what :meth:`SyntheticDataset.write` adds);
+4. a COLMAP ``points3D.bin`` or ``points3D.txt`` in the model folder;
+5. otherwise uniform random points in the ball the cameras look into (Scaffold-GS's fallback
+   for scenes without structure-from-motion points), from a seed.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+from pathlib import Path
+
+import numpy as np
+
+from csgs_codec.errors import InputError
+from csgs_codec.render.camera import Camera
+from csgs_codec.train.datasets import find_camera_file
+
+#: File name of the ground-truth scene a synthetic dataset carries.
+SCENE_FILE = "scene.ply"
+#: Random points used when a dataset has no point cloud.
+RANDOM_POINT_COUNT = 10_000
+#: Binary COLMAP points3D records this many fixed bytes before each track.
+_POINT_RECORD = struct.Struct("<Q3d3BdQ")
+
+
+def read_ply_points(path: str | Path) -> np.ndarray:
+    """(N, 3) float64 vertex positions of any PLY with x, y, z properties.
+
+    Raises:
+        InputError: unreadable file, no vertex element, or x/y/z missing or not finite.
+    """
+    from plyfile import PlyData
+
+    path = Path(path)
+    try:
+        vertex = PlyData.read(str(path))["vertex"]
+    except (OSError, ValueError, KeyError, IndexError, struct.error) as error:
+        raise InputError(f"cannot read points: {error}", file=path) from None
+    names = vertex.data.dtype.names or ()
+    for axis in "xyz":
+        if axis not in names:
+            raise InputError("vertex has no position property", file=path, property=axis)
+    points = np.stack([np.asarray(vertex[a], np.float64) for a in "xyz"], axis=1)
+    _check_finite(points, path)
+    return points
+
+
+def read_colmap_points(model: str | Path) -> np.ndarray:
+    """(N, 3) float64 positions from a COLMAP model's ``points3D.bin`` or ``points3D.txt``.
+
+    Raises:
+        InputError: no points file in ``model``; a malformed file (naming the
+            byte offset or line).
+    """
+    model = Path(model)
+    binary, text = model / "points3D.bin", model / "points3D.txt"
+    if binary.is_file():
+        return _colmap_points_bin(binary)
+    if text.is_file():
+        return _colmap_points_txt(text)
+    raise InputError("no points3D.bin or points3D.txt", file=model)
+
+
+def _colmap_points_bin(path: Path) -> np.ndarray:
+    data = path.read_bytes()
+    if len(data) < 8:
+        raise InputError("file shorter than its point count", file=path, offset=0)
+    (count,) = struct.unpack_from("<Q", data, 0)
+    if count > (len(data) - 8) // _POINT_RECORD.size:
+        raise InputError(f"declares {count} points, more than its {len(data)} bytes hold",
+                          file=path, offset=0)
+    points = np.empty((count, 3), np.float64)
+    offset = 8
+    for i in range(count):
+        if offset + _POINT_RECORD.size > len(data):
+            raise InputError(f"point {i} truncated", file=path, offset=offset)
+        record = _POINT_RECORD.unpack_from(data, offset)
+        points[i] = record[1:4]
+        offset += _POINT_RECORD.size + 8 * record[-1]
+        if offset > len(data):
+            raise InputError(f"track of point {i} runs past the end", file=path, offset=offset)
+    _check_finite(points, path)
+    return points
+
+
+def _colmap_points_txt(path: Path) -> np.ndarray:
+    rows = []
+    for number, line in enumerate(path.read_text(errors="replace").splitlines(), start=1):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        fields = line.split()
+        try:
+            rows.append([float(v) for v in fields[1:4]])
+        except ValueError:
+            raise InputError(f"line {number}: expected POINT3D_ID X Y Z ...", file=path,
+                              offset=number) from None
+        if len(rows[-1]) != 3:
+            raise InputError(f"line {number}: expected POINT3D_ID X Y Z ...", file=path,
+                              offset=number)
+    points = np.asarray(rows, np.float64).reshape(-1, 3)
+    _check_finite(points, path)
+    return points
+
+
+def _check_finite(points: np.ndarray, path: Path) -> None:
+    bad = ~np.isfinite(points).all(axis=1)
+    if bad.any():
+        raise InputError("non-finite point", file=path, index=int(np.flatnonzero(bad)[0]))
+
+
+def random_points(cameras: list[Camera], count: int = RANDOM_POINT_COUNT, seed: int = 0
+                  ) -> np.ndarray:
+    """(count, 3) float64 points uniform in the ball the cameras look into.
+
+    The ball's centre is the point nearest (least squares) to every camera's optical axis;
+    its radius half the median camera distance to it.
+    """
+    if not cameras:
+        raise InputError("random initial points need at least one camera", property="views")
+    origins = np.stack([c.position for c in cameras])
+    axes = np.stack([c.camera_to_world[:3, 2] for c in cameras])
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    # Least-squares point nearest all lines origin + t * axis.
+    projectors = np.eye(3)[None] - axes[:, :, None] * axes[:, None, :]
+    lhs = projectors.sum(axis=0)
+    rhs = np.einsum("nij,nj->i", projectors, origins)
+    if np.linalg.matrix_rank(lhs) < 3:
+        centre = origins.mean(axis=0) + axes.mean(axis=0)
+    else:
+        centre = np.linalg.solve(lhs, rhs)
+    radius = 0.5 * float(np.median(np.linalg.norm(origins - centre, axis=1)))
+    rng = np.random.default_rng(seed)
+    direction = rng.standard_normal((count, 3))
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    return centre + direction * (radius * rng.uniform(0, 1, (count, 1)) ** (1 / 3))
+
+
+def find_initial_points(dataset: str | Path, cameras: list[Camera], *,
+                        points: str | Path | None = None, seed: int = 0
+                        ) -> tuple[np.ndarray, str]:
+    """The initial point cloud of a dataset and where it came from (module notes).
+
+    Returns:
+        ((N, 3) float64 points, a short description of the source for the user).
+    """
+    if points is not None:
+        return read_ply_points(points), str(points)
+    camera_file = find_camera_file(Path(dataset))
+    folder = camera_file.parent
+    if camera_file.suffix == ".json":
+        try:
+            document = json.loads(camera_file.read_text())
+        except (OSError, ValueError):
+            document = None
+        if isinstance(document, dict) and isinstance(document.get("ply_file_path"), str):
+            candidate = folder / document["ply_file_path"]
+            if candidate.is_file():
+                return read_ply_points(candidate), str(candidate)
+        if (folder / SCENE_FILE).is_file():
+            return read_ply_points(folder / SCENE_FILE), str(folder / SCENE_FILE)
+    for model in (camera_file, folder):
+        if model.is_dir() and ((model / "points3D.bin").is_file()
+                               or (model / "points3D.txt").is_file()):
+            return read_colmap_points(model), str(model)
+    return random_points(cameras, seed=seed), f"{RANDOM_POINT_COUNT} random points"

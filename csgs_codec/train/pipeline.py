@@ -1,0 +1,215 @@
+"""The three CSGaussian training stages end to end: views + points -> a .csgs bitstream.
+
+1. Stage 1 (:mod:`.color_stage`) fits anchors for rate and quality, checkpointing as it goes.
+2. The anchors are encoded once (colour only) to learn each anchor's colour step q_f and the
+   reconstruction a decoder will see.
+3. Stage 2 fits per-anchor semantic features s to the views' instance masks on that
+   reconstruction (:mod:`.semantic_stage`: quantization noise Q = 1, quality-aware weights
+   from q_f); stage 3 continues with the rate of s under a hyperprior on the anchor positions.
+4. s, scaled from quantization steps to the encoder's semantic step, joins the anchors, and
+   the scene is encoded with both layers.
+
+Stage 1 checkpoints to ``checkpoint_dir/stage1.pt`` every ``checkpoint_every`` steps and at its
+end; with ``resume`` a run continues from that file (stages 2-4 take seconds and are re-run).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from csgs_codec.codec.anchor_encoder import (
+    BASE_STEPS,
+    MULTIPLIERS,
+    AnchorEncoder,
+    AnchorEncodeResult,
+)
+from csgs_codec.errors import InputError
+from csgs_codec.model.anchor_hyperprior import FitSettings
+from csgs_codec.model.scaffold import ScaffoldDecoder
+from csgs_codec.scene.anchor_scene import AnchorScene, default_semantic_names
+from csgs_codec.train.anchor_rate import cell_embedding
+from csgs_codec.train.checkpoint import load_checkpoint, save_checkpoint
+from csgs_codec.train.color_stage import (
+    ColorStageSettings,
+    ColorStageState,
+    StageProgress,
+    initial_state,
+    train_color_stage,
+)
+from csgs_codec.train.semantic_stage import (
+    SEMANTIC_DIM,
+    SemanticResult,
+    SemanticView,
+    contribution_matrix,
+    train_semantic_features,
+)
+from csgs_codec.train.views import TrainingView
+
+#: File name of the stage-1 checkpoint in the checkpoint folder.
+CHECKPOINT_FILE = "stage1.pt"
+
+
+@dataclass
+class TrainSettings:
+    """Settings of a whole run.
+
+    Attributes:
+        color: stage-1 settings (its ``quality`` is also the final encode's quality).
+        semantic_iterations: stage-2 steps; stage3_iterations: stage-3 steps (0 skips it).
+        feature_rate_weight: lambda_feature_rate of stage 3 (bits per anchor vs the stage-2
+            loss).
+        semantic_dim: width of s.
+        checkpoint_every: stage-1 steps between checkpoints (with a checkpoint folder).
+        encoder_fit: the anchor encoder's hyperprior fitting settings (default its own).
+    """
+
+    color: ColorStageSettings = field(default_factory=ColorStageSettings)
+    semantic_iterations: int = 150
+    stage3_iterations: int = 100
+    feature_rate_weight: float = 0.1
+    semantic_dim: int = SEMANTIC_DIM
+    checkpoint_every: int = 500
+    encoder_fit: FitSettings | None = None
+
+
+@dataclass
+class TrainResult:
+    """What :func:`train_scene` returns.
+
+    Attributes:
+        data: the .csgs bytes (colour layer, and the semantic layer when the views had masks).
+        encode: the final encode's report (``reconstruction`` is what a decoder returns).
+        color_state: stage 1's final state (model, history).
+        semantic: stage 3's (or stage 2's) result, None without masks.
+        seconds: stage name -> wall seconds of this run.
+    """
+
+    data: bytes
+    encode: AnchorEncodeResult
+    color_state: ColorStageState
+    semantic: SemanticResult | None
+    seconds: dict[str, float]
+
+
+class PositionalFeaturePrior(nn.Module):
+    """Stage 3's rate model of s: an MLP on each anchor's cell embedding predicting a mean and
+    sigma per channel (the "second hyperprior"), in quantization steps."""
+
+    def __init__(self, cells: torch.Tensor, dim: int, hidden: int = 32) -> None:
+        super().__init__()
+        self.register_buffer("embedding", cell_embedding(cells))
+        self.net = nn.Sequential(nn.Linear(self.embedding.shape[1], hidden), nn.ReLU(),
+                                 nn.Linear(hidden, 2 * dim))
+        self.dim = dim
+
+    def forward(self, features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(mean, sigma), each (G, D), for noisy features (G, D) (the input only sets the
+        device and dtype: the prediction depends on positions alone)."""
+        out = self.net(self.embedding.to(features.device, features.dtype))
+        return out[:, :self.dim], torch.exp(out[:, self.dim:]) + 0.11
+
+
+def train_scene(views: list[TrainingView], points: np.ndarray, settings: TrainSettings, *,
+                checkpoint_dir: str | Path | None = None, resume: bool = False,
+                progress: Callable[[str, StageProgress | None], None] | None = None
+                ) -> TrainResult:
+    """Run every stage (module notes) on ``views`` starting from ``points`` ((N, 3) world).
+
+    Args:
+        progress: called with (stage name, :class:`StageProgress` or None at stage starts).
+
+    Raises:
+        InputError: no views, ``resume`` without a checkpoint, or bad settings.
+    """
+    report = progress or (lambda stage, step: None)
+    seconds: dict[str, float] = {}
+    checkpoint = Path(checkpoint_dir) / CHECKPOINT_FILE if checkpoint_dir else None
+    if checkpoint is not None:
+        Path(checkpoint_dir).mkdir(parents=True, exist_ok=True)
+    if resume:
+        if checkpoint is None or not checkpoint.is_file():
+            raise InputError("nothing to resume: no stage-1 checkpoint", file=checkpoint)
+        state = load_checkpoint(checkpoint)
+        state.settings.device = settings.color.device
+    else:
+        state = initial_state(views, points, settings.color)
+    report("stage 1: colour", None)
+    began = time.perf_counter()
+    every = settings.checkpoint_every if checkpoint is not None else state.settings.iterations
+    while state.step < state.settings.iterations:
+        stop = min(state.step + max(every, 1), state.settings.iterations)
+        train_color_stage(views, state, progress=lambda p: report("stage 1: colour", p),
+                          stop_at=stop)
+        if checkpoint is not None:
+            save_checkpoint(state, checkpoint)
+    seconds["stage1"] = time.perf_counter() - began
+
+    quality = state.settings.quality
+    anchors = state.model.to_anchor_scene()
+    began = time.perf_counter()
+    color = AnchorEncoder(quality, semantic="none",
+                          fit=settings.encoder_fit).encode_with_report(anchors)
+    seconds["colour_encode"] = time.perf_counter() - began
+
+    semantic = None
+    if views and all(v.mask is not None for v in views):
+        report("stages 2-3: semantics", None)
+        began = time.perf_counter()
+        semantic = _semantic_stages(views, color, settings)
+        seconds["stages2_3"] = time.perf_counter() - began
+        step = BASE_STEPS["semantic"] * MULTIPLIERS[quality]
+        values = np.zeros((len(anchors), settings.semantic_dim), np.float32)
+        values[color.order] = semantic.features * np.float32(step)
+        anchors.semantic = values
+        anchors.semantic_names = default_semantic_names(settings.semantic_dim)
+    began = time.perf_counter()
+    final = AnchorEncoder(quality, fit=settings.encoder_fit).encode_with_report(anchors)
+    seconds["encode"] = time.perf_counter() - began
+    return TrainResult(final.data, final, state, semantic, seconds)
+
+
+def _semantic_stages(views: list[TrainingView], color: AnchorEncodeResult,
+                     settings: TrainSettings) -> SemanticResult:
+    scene: AnchorScene = color.reconstruction
+    decoder = ScaffoldDecoder(scene)
+    m = len(scene)
+    prepared = []
+    for view in views:
+        decoded = decoder.decode(view.camera.position)
+        matrix = contribution_matrix(decoded.gaussians, view.camera, decoded.anchor_index,
+                                     group_count=m)
+        prepared.append(SemanticView(matrix, torch.from_numpy(view.mask.astype(np.int64))))
+    device = settings.color.device
+    seed = settings.color.seed
+    result = train_semantic_features(prepared, m, color_steps=color.steps["f"],
+                                     dim=settings.semantic_dim,
+                                     iterations=settings.semantic_iterations, seed=seed,
+                                     device=device)
+    if settings.stage3_iterations > 0:
+        cells = torch.from_numpy(np.rint((scene.positions - scene.positions.min(axis=0))
+                                         / _voxel(scene)).astype(np.int64))
+        prior = PositionalFeaturePrior(cells, settings.semantic_dim)
+        stage2_losses = result.losses
+        result = train_semantic_features(
+            prepared, m, color_steps=color.steps["f"], dim=settings.semantic_dim,
+            iterations=settings.stage3_iterations, rate_weight=settings.feature_rate_weight,
+            rate_model=prior, seed=seed + 1, device=device, initial_features=result.features)
+        result.losses = np.concatenate([stage2_losses, result.losses])
+    return result
+
+
+def _voxel(scene: AnchorScene) -> float:
+    """Smallest non-zero coordinate spacing of the anchors (their grid's cell), or 1."""
+    spacings = []
+    for axis in range(3):
+        values = np.unique(scene.positions[:, axis].astype(np.float64))
+        if len(values) > 1:
+            spacings.append(float(np.diff(values).min()))
+    return min(spacings) if spacings else 1.0
