@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The main job on the bundled sample scene: encode -> info -> decode -> compare, with
-# before/after renders. Usage: scripts/demo.sh VENV OUTDIR
+# before/after renders; then a short training run (all three stages) on a tiny synthetic
+# scene. Usage: scripts/demo.sh VENV OUTDIR
 set -euo pipefail
 venv=${1:-.venv}
 out=${2:-demo-output}
@@ -33,3 +34,10 @@ echo "== render before/after pictures"
 "$csgs" render "$scene" --orbit 4 --size 400x300 -o "$out/original" --quiet
 "$csgs" render "$out/donut.csgs" --orbit 4 --size 400x300 -o "$out/decoded" --quiet
 echo "wrote $out/original/*.png and $out/decoded/*.png"
+
+echo
+echo "== train a tiny synthetic scene from images + instance masks (stages 1-3), then encode"
+"$csgs" synthetic "$out/synthetic" --views 12 --size 64x48 --gaussians 200 --quiet
+"$csgs" train "$out/synthetic" -o "$out/synthetic.csgs" --iterations 300 --anchors 150 \
+    --features 16 --offsets 5 --semantic-iterations 60 --test-every 4
+"$csgs" info "$out/synthetic.csgs"

@@ -42,6 +42,10 @@ def add_arguments(parser) -> None:
                              f"--max-anchors")
     parser.add_argument("--max-anchors", type=int, default=defaults.max_anchors, metavar="M",
                         help=f"anchor limit of growth (default {defaults.max_anchors})")
+    parser.add_argument("--features", type=int, default=defaults.feat_dim, metavar="F",
+                        help=f"anchor feature width (default {defaults.feat_dim})")
+    parser.add_argument("--offsets", type=int, default=defaults.n_offsets, metavar="K",
+                        help=f"Gaussians per anchor (default {defaults.n_offsets})")
     parser.add_argument("--points", metavar="PLY",
                         help="initial point cloud (default: the dataset's, else random)")
     parser.add_argument("--masks", metavar="DIR",
@@ -60,6 +64,9 @@ def add_arguments(parser) -> None:
                         help="continue from the checkpoint in --checkpoint-dir")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"),
                         help="torch device to train on (default cpu)")
+    parser.add_argument("--threads", type=int, default=defaults.threads, metavar="N",
+                        help="torch CPU threads (default 1: the same file on every machine; "
+                             "more can be faster for large scenes on a quiet machine)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
 
@@ -111,8 +118,9 @@ def run(args) -> int:
                                          points=args.points, seed=args.seed)
     color = ColorStageSettings(
         iterations=args.iterations, rate_weight=args.rate_weight, quality=args.quality,
-        initial_anchors=args.anchors, max_anchors=args.max_anchors, seed=args.seed,
-        device=args.device)
+        initial_anchors=args.anchors, max_anchors=args.max_anchors, feat_dim=args.features,
+        n_offsets=args.offsets, seed=args.seed, device=args.device, threads=args.threads)
+    color.validate()
     settings = TrainSettings(color, semantic_iterations=args.semantic_iterations,
                              stage3_iterations=max(1, 2 * args.semantic_iterations // 3),
                              checkpoint_every=args.checkpoint_every)

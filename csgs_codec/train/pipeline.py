@@ -177,6 +177,16 @@ def train_scene(views: list[TrainingView], points: np.ndarray, settings: TrainSe
 
 def _semantic_stages(views: list[TrainingView], color: AnchorEncodeResult,
                      settings: TrainSettings) -> SemanticResult:
+    threads = torch.get_num_threads()
+    torch.set_num_threads(settings.color.threads)
+    try:
+        return _semantic_steps(views, color, settings)
+    finally:
+        torch.set_num_threads(threads)
+
+
+def _semantic_steps(views: list[TrainingView], color: AnchorEncodeResult,
+                    settings: TrainSettings) -> SemanticResult:
     scene: AnchorScene = color.reconstruction
     decoder = ScaffoldDecoder(scene)
     m = len(scene)
