@@ -5,7 +5,8 @@
    reconstruction a decoder will see.
 3. Stage 2 fits per-anchor semantic features s to the views' instance masks on that
    reconstruction (:mod:`.semantic_stage`: quantization noise Q = 1, quality-aware weights
-   from q_f); stage 3 continues with the rate of s under a hyperprior on the anchor positions.
+   from q_f, normalised over the range of steps the codec can give an anchor); stage 3
+   continues with the rate of s under a hyperprior on the anchor positions.
 4. s, scaled from quantization steps to the encoder's semantic step, joins the anchors, and
    the scene is encoded with both layers.
 
@@ -31,7 +32,7 @@ from csgs_codec.codec.anchor_encoder import (
     AnchorEncodeResult,
 )
 from csgs_codec.errors import InputError
-from csgs_codec.model.anchor_hyperprior import FitSettings
+from csgs_codec.model.anchor_hyperprior import STEP_RANGE, FitSettings
 from csgs_codec.model.scaffold import ScaffoldDecoder
 from csgs_codec.scene.anchor_scene import AnchorScene, default_semantic_names
 from csgs_codec.train.anchor_rate import cell_embedding
@@ -52,6 +53,8 @@ from csgs_codec.train.semantic_stage import (
 )
 from csgs_codec.train.views import TrainingView
 
+#: The anchor encoder's steps lie within this factor of the quality's base step.
+STEP_FACTOR = 2.0 ** (STEP_RANGE / 8)
 #: File name of the stage-1 checkpoint in the checkpoint folder.
 CHECKPOINT_FILE = "stage1.pt"
 
@@ -198,10 +201,12 @@ def _semantic_steps(views: list[TrainingView], color: AnchorEncodeResult,
         prepared.append(SemanticView(matrix, torch.from_numpy(view.mask.astype(np.int64))))
     device = settings.color.device
     seed = settings.color.seed
+    base = BASE_STEPS["f"] * MULTIPLIERS[settings.color.quality]
+    step_range = (base / STEP_FACTOR, base * STEP_FACTOR)
     result = train_semantic_features(prepared, m, color_steps=color.steps["f"],
                                      dim=settings.semantic_dim,
                                      iterations=settings.semantic_iterations, seed=seed,
-                                     device=device)
+                                     device=device, step_range=step_range)
     if settings.stage3_iterations > 0:
         cells = torch.from_numpy(np.rint((scene.positions - scene.positions.min(axis=0))
                                          / _voxel(scene)).astype(np.int64))
@@ -210,7 +215,8 @@ def _semantic_steps(views: list[TrainingView], color: AnchorEncodeResult,
         result = train_semantic_features(
             prepared, m, color_steps=color.steps["f"], dim=settings.semantic_dim,
             iterations=settings.stage3_iterations, rate_weight=settings.feature_rate_weight,
-            rate_model=prior, seed=seed + 1, device=device, initial_features=result.features)
+            rate_model=prior, seed=seed + 1, device=device, initial_features=result.features,
+            step_range=step_range)
         result.losses = np.concatenate([stage2_losses, result.losses])
     return result
 

@@ -161,7 +161,8 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
                             initial_scale: float = 0.1, rate_weight: float = 0.0,
                             rate_model: torch.nn.Module | None = None, seed: int = 0,
                             device: str | torch.device = "cpu",
-                            initial_features: np.ndarray | None = None) -> SemanticResult:
+                            initial_features: np.ndarray | None = None,
+                            step_range: tuple[float, float] | None = None) -> SemanticResult:
     """Fit the semantic feature of every group to the views' masks (module notes).
 
     Args:
@@ -187,6 +188,8 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
         device: torch device to train on ("cpu", "cuda", ...).
         initial_features: (G, D) features to start from (stage 3 continues stage 2's);
             default random (``initial_scale``).
+        step_range: the codec's (low, high) colour steps for the quality-aware weights (see
+            :func:`quality_aware_weights`); None normalises min-max over the groups.
 
     Returns:
         :class:`SemanticResult`.
@@ -207,7 +210,8 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
         partitions.append(MaskPartition.from_mask(view.mask.to(device), ignore_id))
     matrices = [view.contributions.to(device) for view in views]
     weights = (torch.ones(group_count) if color_steps is None
-               else quality_aware_weights(np.asarray(color_steps, np.float32)))
+               else quality_aware_weights(np.asarray(color_steps, np.float32),
+                                             step_range=step_range))
     if weights.shape != (group_count,):
         raise InputError(f"color_steps must be ({group_count},)", property="color_steps")
     weights = weights.to(device)

@@ -48,3 +48,17 @@ def test_semantic_stage_trains_on_cuda():
                                      device="cuda")
     assert np.all(np.isfinite(result.features))
     assert result.losses[-1] < 0.2 * result.losses[0]
+
+
+def test_stage_one_trains_on_cuda():
+    from csgs_codec.train.color_stage import initial_state, train_color_stage
+    from tests.train.stage1_data import tiny_color_settings, tiny_dataset
+
+    data = tiny_dataset()
+    state = initial_state(data.views, data.scene.positions,
+                          tiny_color_settings(device="cuda"))
+    train_color_stage(data.views, state)
+    psnr = np.asarray(state.history["psnr"])
+    assert np.isfinite(state.history["loss"]).all()
+    assert psnr[-10:].mean() > psnr[:5].mean() + 8.0
+    assert state.model.to_anchor_scene().positions.shape[1] == 3

@@ -7,7 +7,13 @@ import pytest
 
 from csgs_codec.codec.anchor_decoder import AnchorDecoder
 from csgs_codec.errors import InputError
-from csgs_codec.train.evaluation import click_miou, nearest_labels, score_views, split_views
+from csgs_codec.train.evaluation import (
+    click_miou,
+    image_click_miou,
+    nearest_labels,
+    score_views,
+    split_views,
+)
 from csgs_codec.train.pipeline import CHECKPOINT_FILE, train_scene
 from csgs_codec.train.synthetic import make_synthetic_dataset
 from tests.train.stage1_data import tiny_dataset, tiny_train_settings
@@ -92,6 +98,7 @@ def test_three_rate_weights_train_three_smaller_files_that_still_segment():
         labels = nearest_labels(decoded.positions, data.scene.positions, data.scene.labels)
         assert scores.psnr > 28.0, (weight, scores)
         assert click_miou(decoded, labels, test) >= 0.9, weight
+        assert image_click_miou(decoded, test) >= 0.9, weight
         sizes.append(sum(v for k, v in out.encode.chunk_bytes.items()
                          if k in ("AFEA", "AOFF", "ASCL")))
     assert sizes[0] > sizes[1] > sizes[2], sizes

@@ -105,3 +105,25 @@ def test_noise_proxy_rate_matches_the_coded_size_within_five_percent():
     proxy_bits = gaussian_rate_bits(noisy, torch.from_numpy(mean), torch.from_numpy(sigma),
                                     torch.from_numpy(step)).sum().item()
     assert proxy_bits == pytest.approx(coded_bits, rel=0.05)
+
+
+def test_quality_weights_on_the_codecs_step_range_use_a_log_scale():
+    from csgs_codec.train.quantization import quality_aware_weights
+
+    steps = np.array([0.25, 1.0, 1.09, 2.0, 4.0], np.float32)
+    weights = quality_aware_weights(steps, step_range=(0.25, 4.0)).numpy()
+    # norm = log(q / 0.25) / log(16): 0, 0.5, 0.53, 0.75, 1 -> 1 - norm = 1, 0.5, 0.47, ...
+    np.testing.assert_allclose(weights, [1.0, 0.5, 1 - np.log(1.09 / 0.25) / np.log(16),
+                                         0.25, 0.0], atol=1e-6)
+    # Two steps one grid point apart: min-max would give one of them w = 0.
+    close = np.array([1.0, 2 ** 0.125], np.float32)
+    assert quality_aware_weights(close).numpy().tolist() == [1.0, 0.0]
+    assert quality_aware_weights(close, step_range=(0.25, 4.0)).numpy().min() > 0.45
+
+
+def test_quality_weights_refuse_a_bad_step_range():
+    from csgs_codec.train.quantization import quality_aware_weights
+
+    for bad in ((0.0, 1.0), (2.0, 1.0)):
+        with pytest.raises(InputError, match="step range"):
+            quality_aware_weights(np.ones(3, np.float32), step_range=bad)
