@@ -54,7 +54,8 @@ class RateEstimate:
 
 def cell_embedding(cells: torch.Tensor) -> torch.Tensor:
     """(M, 6L) float32 embedding of (M, 3) int64 cells, shifted to start at 0."""
-    c = cells.numpy() - cells.numpy().min(axis=0) if len(cells) else cells.numpy()
+    c = cells.cpu().numpy()
+    c = c - c.min(axis=0) if len(c) else c
     bits = max(int(c.max()).bit_length(), 1) if c.size else 1
     return float_embedding(c.astype(np.int64), bits, min(EMBEDDING_OCTAVES, max(bits - 1, 1)))
 
@@ -84,10 +85,14 @@ class AnchorRateModel(nn.Module):
             for start, end in self.bounds[1:])
 
     def _embedding(self, cells: torch.Tensor) -> torch.Tensor:
+        cached = getattr(self, "_cached", None)
+        if cached is not None and cached[0] is cells:  # same anchors as the last step
+            return cached[1]
         emb = cell_embedding(cells)
         if emb.shape[1] < 6 * EMBEDDING_OCTAVES:  # tiny grids have fewer octaves
             emb = torch.cat([emb, emb.new_zeros(len(emb), 6 * EMBEDDING_OCTAVES
                                                  - emb.shape[1])], dim=1)
+        self._cached = (cells, emb)
         return emb
 
     def estimate(self, cells: torch.Tensor, noisy: dict[str, torch.Tensor],
@@ -105,7 +110,7 @@ class AnchorRateModel(nn.Module):
         """
         m = cells.shape[0]
         features = noisy["features"]
-        params = self.hyper(self._embedding(cells.cpu()).to(features.device, features.dtype))
+        params = self.hyper(self._embedding(cells).to(features.device, features.dtype))
         bits, at = {}, 0
         for name in ATTRIBUTES:
             width = self.widths[name]
