@@ -10,9 +10,13 @@ on its machine (the document's ``peer_source`` says which). Every row is marked 
 or not, per scene, on foreground PSNR against size, encode time, decode time, and all three
 at once: the front a user picks a codec and setting from.
 
+With ``--fast`` every preset also gets a row encoded with ``Encoder(fast=True)`` (setting
+"quality N fast", ``"fast": true``; the other csgs rows have ``"fast": false``), its own series
+in the plot. Timings are CPU-time-sensitive on a shared machine: run with ``--repeats 3``.
+
     .venv/bin/python benchmarks/time_vs_error.py --rd bench-output/rd.json \\
         --out bench-output/time_vs_error.json --plot bench-output/time_vs_error.png \\
-        --table bench-output/time_vs_error.md
+        --table bench-output/time_vs_error.md [--fast]
 """
 
 from __future__ import annotations
@@ -64,8 +68,9 @@ def peer_rows(rd: dict, scenes: list[str], rd_path: Path) -> list[dict]:
 
 
 def csgs_rows(name: str, original, references, cameras, qualities, backend: str,
-              repeats: int) -> list[dict]:
-    """Encode, decode, check and score ``original`` at every quality; one row each."""
+              repeats: int, fast: bool = False) -> list[dict]:
+    """Encode, decode, check and score ``original`` at every quality; one row each
+    (``fast``: with the fast encoder mode)."""
     from csgs_codec.render.comparison import score_view
 
     rows = []
@@ -73,7 +78,7 @@ def csgs_rows(name: str, original, references, cameras, qualities, backend: str,
         encode_s, decode_s = [], []
         for _ in range(repeats):
             start = time.perf_counter()
-            result = Encoder(quality=q).encode_with_report(original)
+            result = Encoder(quality=q, fast=fast).encode_with_report(original)
             encode_s.append(time.perf_counter() - start)
             start = time.perf_counter()
             decoded = Decoder().decode(result.data, layers="color")
@@ -82,7 +87,9 @@ def csgs_rows(name: str, original, references, cameras, qualities, backend: str,
             raise SystemExit(f"{name} q{q}: decode differs from the encoder's reconstruction")
         views = [score_view(ref, decoded, cam, backend=backend)
                  for ref, cam in zip(references, cameras)]
-        rows.append({"scene": name, "codec": "csgs", "setting": f"quality {q}", "quality": q,
+        rows.append({"scene": name, "codec": "csgs",
+                     "setting": f"quality {q}" + (" fast" if fast else ""), "quality": q,
+                     "fast": fast,
                      "bytes": len(result.data),
                      "bits_per_gaussian": 8 * len(result.data) / max(1, len(original)),
                      "encode_s": min(encode_s), "decode_s": min(decode_s),
@@ -124,7 +131,7 @@ def plot(rows: list[dict], path: str) -> None:
     Gaussian (rows of panels), csgs presets joined, peers as markers, the front in grey and
     its points ringed."""
     scenes = sorted({r["scene"] for r in rows})
-    codecs = sorted({r["codec"] for r in rows}, key=lambda c: (c != "csgs", c))
+    codecs = sorted({_series(r) for r in rows}, key=lambda c: (not c.startswith("csgs"), c))
     axes = (("encode_s", "pareto_encode", "encode wall time (s)", True),
             ("decode_s", "pareto_decode", "decode wall time (s)", True),
             ("bits_per_gaussian", "pareto_size", "bits per Gaussian", True))
@@ -140,16 +147,21 @@ def plot(rows: list[dict], path: str) -> None:
                              [r[FRONT_METRIC] for r in best], (170, 170, 170), marker=None,
                              line=True))
             for i, codec in enumerate(codecs):
-                points = sorted((r for r in mine if r["codec"] == codec),
+                points = sorted((r for r in mine if _series(r) == codec),
                                 key=lambda r: r.get("quality") or 0)
                 if points:
                     chart.add(Series(codec, [r[key] for r in points],
                                      [r[FRONT_METRIC] for r in points], color(i),
                                      marker=MARKERS[i % len(MARKERS)],
-                                     line=codec == "csgs",
+                                     line=codec.startswith("csgs"),
                                      highlight=[bool(r.get(front)) for r in points]))
             charts.append(chart)
     save_charts(charts, path, columns=len(scenes))
+
+
+def _series(row: dict) -> str:
+    """Plot series of a row: its codec, with " fast" for fast-mode csgs rows."""
+    return row["codec"] + (" fast" if row.get("fast") else "")
 
 
 def _cost(value) -> float:
@@ -181,6 +193,8 @@ def main() -> int:
     parser.add_argument("--size", default=None, help="WxH; default: the RD document's")
     parser.add_argument("--repeats", type=int, default=1,
                         help="encode and decode this many times; the best time is reported")
+    parser.add_argument("--fast", action="store_true",
+                        help="also encode every preset with the fast encoder mode")
     parser.add_argument("--backend", default="auto")
     parser.add_argument("--out", default=None, help="JSON file (default: stdout)")
     parser.add_argument("--plot", default=None, help="PNG of PSNR against time and size")
@@ -208,8 +222,9 @@ def main() -> int:
         original = read_ply(scenes_dir / f"{name}.ply")
         cameras = orbit_cameras(original, views, width=width, height=height)
         references = render_references(original, cameras, backend=args.backend)
-        rows += csgs_rows(name, original, references, cameras, args.qualities, args.backend,
-                          max(1, args.repeats))
+        for fast in (False, True) if args.fast else (False,):
+            rows += csgs_rows(name, original, references, cameras, args.qualities,
+                              args.backend, max(1, args.repeats), fast=fast)
         print(f"{name}: done", file=sys.stderr)
     rows += peer_rows(rd, names, rd_path)
     for row in rows:

@@ -7,6 +7,7 @@ import os
 from tqdm import tqdm
 
 from csgs_codec.codec.presets import DEFAULT_QUALITY
+from csgs_codec.errors import InputError
 
 NAME = "encode"
 HELP = "compress a 3DGS .ply scene (or a Scaffold-GS anchor scene) into a .csgs bitstream"
@@ -18,12 +19,22 @@ def add_arguments(parser) -> None:
     parser.add_argument("scene", help="input 3DGS .ply, or a Scaffold-GS checkpoint folder / "
                                       "anchor .ply (coded as an anchor scene)")
     parser.add_argument("-o", "--output", required=True, help="output .csgs file")
-    parser.add_argument("--quality", type=int, default=DEFAULT_QUALITY, choices=range(1, 10),
+    parser.add_argument("--quality", type=int, default=None, choices=range(1, 10),
                         metavar="1-9", help=f"1 smallest .. 9 near-lossless "
                                             f"(default {DEFAULT_QUALITY})")
     parser.add_argument("--target-psnr", type=float, default=None, metavar="DB",
                         help="instead of --quality: the smallest file whose renders reach this "
                              "foreground PSNR on the encoder's probe views (several encodes)")
+    parser.add_argument("--lambda", dest="lambda_", type=float, default=None, metavar="L",
+                        help="experts, instead of --quality/--target-psnr: the rate-distortion "
+                             "weight. 3DGS scenes: minimise D + L*R on probe renders (D: "
+                             "foreground MSE in squared 8-bit levels, R: bits per Gaussian; "
+                             "0.25 is near quality 5). Anchor scenes: the fit's weight in "
+                             "squared value units per bit (4e-4 is near quality 5)")
+    parser.add_argument("--fast", action="store_true",
+                        help="a faster encode for a slightly larger file (anchor scenes: a "
+                             "short fit, 3-5x faster; 3DGS scenes: shorter --target-psnr and "
+                             "--lambda searches; a preset encode is one pass and unchanged)")
     parser.add_argument("--semantic", choices=("auto", "none"), default="auto",
                         help="write the semantic layer when the scene has semantic channels "
                              "(auto) or never (none)")
@@ -40,21 +51,23 @@ def run(args) -> int:
     from csgs_codec.codec.encoder import Encoder
     from csgs_codec.scene.ply_io import read_ply
 
+    _check_exclusive(args)
     if is_anchor_input(args.scene):
         return _encode_anchors(args, write_atomically)
+    encoder = Encoder(quality=args.quality, target_psnr=args.target_psnr, lambda_=args.lambda_,
+                      fast=args.fast, semantic=args.semantic, prune_opacity=args.prune_opacity)
     scene = read_ply(args.scene, sanitize=args.sanitize)
-    bar = tqdm(total=None if args.target_psnr else len(STAGES), desc="encode", unit="stage",
+    searching = args.target_psnr is not None or args.lambda_ is not None
+    bar = tqdm(total=None if searching else len(STAGES), desc="encode", unit="stage",
                disable=args.quiet, leave=False)
 
     def progress(stage: str) -> None:
         bar.set_postfix_str(stage)
         bar.update(1)
 
+    encoder.progress = progress
     try:
-        result = Encoder(quality=args.quality, target_psnr=args.target_psnr,
-                         semantic=args.semantic,
-                         prune_opacity=args.prune_opacity, progress=progress
-                         ).encode_with_report(scene)
+        result = encoder.encode_with_report(scene)
     finally:
         bar.close()
     write_atomically(args.output, result.data)
@@ -65,9 +78,7 @@ def run(args) -> int:
           f", {in_bytes / max(len(result.data), 1):.1f}x smaller than the input, "
           f"{result.seconds:.2f} s")
     if result.rate_control is not None:
-        rc = result.rate_control
-        print(f"rate control: {rc.psnr:.2f} dB on the probe views (target {rc.target:.2f} dB), "
-              f"steps x{rc.multiplier:.3g} of quality 8's, {len(rc.trials)} trial encodes")
+        print(f"rate control: {result.rate_control.summary()}")
     if result.pruned:
         print(f"pruned {result.pruned:,} Gaussians with opacity below {args.prune_opacity}")
     return 0
@@ -78,17 +89,24 @@ def _encode_anchors(args, write_atomically) -> int:
     from csgs_cli.scene_input import load_anchor_scene
     from csgs_codec.codec.anchor_encoder import AnchorEncoder
 
-    if args.prune_opacity is not None or args.sanitize:
-        from csgs_codec.errors import InputError
-
-        raise InputError("--prune-opacity and --sanitize apply to 3DGS PLY input, not to "
-                         "anchor scenes", file=args.scene)
+    if args.prune_opacity is not None or args.sanitize or args.target_psnr is not None:
+        raise InputError("--prune-opacity, --sanitize and --target-psnr apply to 3DGS PLY "
+                         "input, not to anchor scenes", file=args.scene)
+    encoder = AnchorEncoder(quality=args.quality, lambda_=args.lambda_, fast=args.fast,
+                            semantic=args.semantic)
     scene = load_anchor_scene(args.scene)
     with tqdm(total=1, desc="encode anchors (fit + code)", disable=args.quiet, leave=False):
-        result = AnchorEncoder(quality=args.quality, semantic=args.semantic
-                               ).encode_with_report(scene)
+        result = encoder.encode_with_report(scene)
     write_atomically(args.output, result.data)
     m = len(result.reconstruction)
     print(f"{args.output}: {len(result.data):,} bytes, {m:,} anchors, "
-          f"{8 * len(result.data) / max(m, 1):.1f} bits/anchor, {result.seconds:.2f} s")
+          f"{8 * len(result.data) / max(m, 1):.1f} bits/anchor, {result.seconds:.2f} s "
+          f"(fit {result.fit_seconds:.2f} s)")
     return 0
+
+
+def _check_exclusive(args) -> None:
+    """InputError (exit 2) when --lambda comes with --quality or --target-psnr."""
+    if args.lambda_ is not None and (args.quality is not None or args.target_psnr is not None):
+        raise InputError("--lambda excludes --quality and --target-psnr: give one of them",
+                         property="lambda")

@@ -51,7 +51,8 @@ class EncodeResult:
         stream_bytes: chunk type -> payload bytes.
         seconds: encode wall time.
         rate_control: the :class:`~csgs_codec.codec.rate_control.RateControlReport` of a
-            target-PSNR encode, else None.
+            target-PSNR encode, the :class:`~csgs_codec.codec.rate_control.LambdaReport`
+            (chosen multiplier and cost J) of a lambda encode, else None.
     """
 
     data: bytes
@@ -68,9 +69,17 @@ class Encoder:
 
     Args:
         quality: preset 1 (smallest) .. 9 (near-lossless); see csgs_codec/codec/presets.py.
+            Default 5.
         target_psnr: instead of the preset, the smallest encode whose renders reach this
             foreground PSNR (dB) on the rate control's probe views
             (:mod:`csgs_codec.codec.rate_control`; several encodes and renders).
+        lambda_: instead of a quality or target, the encode minimising J = D + lambda * R on
+            the probe views: D the foreground MSE in squared 8-bit levels, R the file's bits
+            per Gaussian (:func:`~csgs_codec.codec.rate_control.encode_for_lambda`).
+        fast: shorter searches: target PSNR with fewer trial encodes and a looser
+            tolerance (the target is still met; the file may be larger), lambda with fewer
+            encodes on half the probe views. A preset encode is one pass already and is the
+            same either way.
         semantic: "auto" writes the semantic layer when the scene has semantic channels or
             labels; "none" never writes it.
         prune_opacity: drop Gaussians whose opacity sigmoid(logit) is below this (lossy,
@@ -78,15 +87,25 @@ class Encoder:
         progress: a callable ``progress(step_name)`` told of each stage, or None.
     """
 
-    def __init__(self, quality: int = DEFAULT_QUALITY, *, target_psnr: float | None = None,
-                 semantic: str = "auto", prune_opacity: float | None = None,
-                 progress=None) -> None:
-        self.preset: Preset = preset(quality)
+    def __init__(self, quality: int | None = None, *, target_psnr: float | None = None,
+                 lambda_: float | None = None, fast: bool = False, semantic: str = "auto",
+                 prune_opacity: float | None = None, progress=None) -> None:
+        if lambda_ is not None and (quality is not None or target_psnr is not None):
+            raise InputError("lambda excludes quality and target PSNR: give one of them",
+                             property="lambda")
+        self.preset: Preset = preset(DEFAULT_QUALITY if quality is None else quality)
         if target_psnr is not None:
             from csgs_codec.codec.rate_control import check_target
 
             check_target(target_psnr)
+        if lambda_ is not None:
+            from csgs_codec.codec.rate_control import check_render_lambda
+
+            check_render_lambda(lambda_)
+            lambda_ = float(lambda_)
         self.target_psnr = target_psnr
+        self.lambda_ = lambda_
+        self.fast = bool(fast)
         if semantic not in SEMANTIC_MODES:
             raise InputError(f"semantic must be one of {SEMANTIC_MODES}, got {semantic!r}")
         if prune_opacity is not None and not 0.0 <= prune_opacity < 1.0:
@@ -113,21 +132,39 @@ class Encoder:
             original, scene = scene, scene.subset(keep)
         else:
             original = scene
-        if self.target_psnr is None:
+        if (self.target_psnr is None and self.lambda_ is None) or not len(original):
             result = self._encode(scene, self.preset)
         else:
-            from csgs_codec.codec.rate_control import RenderProbe, encode_to_target
-
-            self.progress("rate control")
-            probe = RenderProbe(original) if len(original) else None
-            if probe is None:
-                result = self._encode(scene, self.preset)
-            else:
-                result, result.rate_control = encode_to_target(
-                    lambda p: self._encode(scene, p), scene, self.target_psnr, probe=probe,
-                    progress=self.progress)
+            result = self._search(scene, original)
         result.pruned = pruned
         result.seconds = time.perf_counter() - start
+        return result
+
+    def _search(self, scene: GaussianScene, original: GaussianScene) -> EncodeResult:
+        """The target-PSNR or lambda search over the step multiplier (rate_control.py),
+        scored on probe renders of ``original``; the report goes to ``rate_control``."""
+        from csgs_codec.codec import rate_control as rc
+
+        self.progress("rate control")
+        # A target is a promise about the probe views, so only the lambda search (a trade
+        # between rate and distortion anyway) scores on fewer views in fast mode.
+        fewer_views = self.fast and self.lambda_ is not None
+        probe = (rc.RenderProbe(original, views=rc.FAST_PROBE_VIEWS) if fewer_views
+                 else rc.RenderProbe(original))
+
+        def encode(settings: Preset) -> EncodeResult:
+            return self._encode(scene, settings)
+
+        if self.lambda_ is not None:
+            steps = rc.FAST_LAMBDA_STEPS if self.fast else rc.LAMBDA_STEPS
+            result, report = rc.encode_for_lambda(encode, scene, self.lambda_, probe=probe,
+                                                  progress=self.progress, steps=steps)
+        else:
+            search = ({"search_steps": rc.FAST_SEARCH_STEPS, "tolerance": rc.FAST_TOLERANCE}
+                      if self.fast else {})
+            result, report = rc.encode_to_target(encode, scene, self.target_psnr, probe=probe,
+                                                 progress=self.progress, **search)
+        result.rate_control = report
         return result
 
     def _encode(self, scene: GaussianScene, settings: Preset) -> EncodeResult:

@@ -1,4 +1,5 @@
-"""Rate control: the smallest encode whose renders reach a target foreground PSNR.
+"""Rate control: the smallest encode whose renders reach a target foreground PSNR, or the
+encode that minimises a rate-distortion cost J = D + lambda * R.
 
 The encoder renders the original scene from a few low-resolution orbit views once, then
 searches the step multiplier (all steps and the grid bits scale together, as between the
@@ -7,6 +8,12 @@ encoder's own reconstruction (which equals what the decoder will output) and sea
 multiplier's logarithm, along which PSNR falls almost linearly (about 6 dB per octave), by
 interpolation inside a bracket that always holds the target (the Illinois variant of
 regula falsi), keeping the coarsest encode that meets the target.
+
+With a Lagrange weight instead (:func:`encode_for_lambda`), it minimises
+J = D + lambda * R over the same multiplier by golden-section search, D the probe's
+foreground mean squared error in squared 8-bit levels and R the file's bits per Gaussian, so
+lambda is in squared 8-bit levels per bit per Gaussian (about 0.25 lands near quality 5 on
+samples/donut.ply). Fast mode searches with fewer encodes (``FAST_*``).
 """
 
 from __future__ import annotations
@@ -36,6 +43,18 @@ TOLERANCE = 0.3
 #: change in whole steps, so PSNR can jump across the target there.
 MIN_BRACKET = 0.1
 MIN_TARGET, MAX_TARGET = 10.0, 90.0
+#: Encodes of the lambda search (golden section: the bracket shrinks by 0.618 per encode
+#: after the first two; 10 leave about 0.2 octave of the 9-octave range).
+LAMBDA_STEPS = 10
+#: Fast mode: fewer encodes, a looser PSNR tolerance (dB); the lambda search also scores on
+#: half the probe views (rendering them costs more than an encode).
+FAST_PROBE_VIEWS = 2
+FAST_SEARCH_STEPS = 3
+FAST_TOLERANCE = 1.0
+FAST_LAMBDA_STEPS = 6
+#: Accepted lambda range, squared 8-bit levels per bit per Gaussian.
+MIN_LAMBDA, MAX_LAMBDA = 1e-6, 1e6
+_INV_PHI = (math.sqrt(5.0) - 1.0) / 2.0
 
 
 class RenderProbe:
@@ -66,6 +85,23 @@ class RenderProbe:
         finite = [s for s in scores if not math.isnan(s)]
         return float(np.mean(finite)) if finite else math.inf
 
+    def mse(self, candidate: GaussianScene) -> float:
+        """Mean over the views with foreground of ``candidate``'s foreground mean squared
+        error against the original, in squared 8-bit levels ((255 x error)^2); 0 when no
+        view has foreground."""
+        from csgs_codec.render.comparison import to_unit_range
+        from csgs_codec.render.metrics import foreground_mask
+        from csgs_codec.render.rasterizer import render
+
+        errors = []
+        for ref, cam in zip(self.references, self.cameras):
+            mask = foreground_mask(ref.alpha)
+            if mask.any():
+                image = to_unit_range(render(candidate, cam, backend=self.backend).image)
+                diff = image[mask].astype(np.float64) - to_unit_range(ref.image)[mask]
+                errors.append(float(np.mean(diff ** 2)) * 255.0 ** 2)
+        return float(np.mean(errors)) if errors else 0.0
+
 
 @dataclass(frozen=True)
 class RateControlReport:
@@ -83,6 +119,38 @@ class RateControlReport:
     target: float
     trials: tuple[tuple[float, int, float], ...]
 
+    def summary(self) -> str:
+        """One line for a user: what was reached and how."""
+        return (f"{self.psnr:.2f} dB on the probe views (target {self.target:.2f} dB), steps "
+                f"x{self.multiplier:.3g} of quality 8's, {len(self.trials)} trial encodes")
+
+
+@dataclass(frozen=True)
+class LambdaReport:
+    """What the lambda search kept: the multiplier minimising J = D + lambda * R.
+
+    Attributes:
+        lambda_: the Lagrange weight, squared 8-bit levels per bit per Gaussian.
+        multiplier: step multiplier of the kept encode.
+        distortion: its D, the probe's foreground MSE in squared 8-bit levels.
+        rate: its R, file bits per Gaussian.
+        cost: its J = D + lambda * R.
+        trials: (multiplier, bytes, D, J) of every encode tried, in order.
+    """
+
+    lambda_: float
+    multiplier: float
+    distortion: float
+    rate: float
+    cost: float
+    trials: tuple[tuple[float, int, float, float], ...]
+
+    def summary(self) -> str:
+        """One line for a user: the kept multiplier and its cost."""
+        return (f"lambda {self.lambda_:g}: steps x{self.multiplier:.3g} of quality 8's, "
+                f"D {self.distortion:.4g} (8-bit levels^2), R {self.rate:.2f} bits/Gaussian, "
+                f"J {self.cost:.4g}, {len(self.trials)} trial encodes")
+
 
 def check_target(target_psnr: float) -> None:
     """InputError unless ``target_psnr`` is a finite dB value in [10, 90]."""
@@ -91,14 +159,30 @@ def check_target(target_psnr: float) -> None:
                          f"got {target_psnr}", property="target_psnr")
 
 
+def check_render_lambda(lam: float) -> None:
+    """InputError (property ``lambda``) unless ``lam`` is a finite weight in
+    [MIN_LAMBDA, MAX_LAMBDA] squared 8-bit levels per bit per Gaussian."""
+    try:
+        value = float(lam)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not math.isfinite(value) or not MIN_LAMBDA <= value <= MAX_LAMBDA:
+        raise InputError(f"lambda must be a finite number in [{MIN_LAMBDA:g}, {MAX_LAMBDA:g}]"
+                         f" (squared 8-bit levels per bit per Gaussian), got {lam!r}",
+                         property="lambda")
+
+
 def encode_to_target(encode: Callable, scene: GaussianScene, target_psnr: float, *,
-                     probe: RenderProbe | None = None, progress=None):
+                     probe: RenderProbe | None = None, progress=None,
+                     search_steps: int = SEARCH_STEPS, tolerance: float = TOLERANCE):
     """The coarsest encode of ``scene`` whose probe PSNR is at least ``target_psnr``.
 
     Args:
         encode: ``encode(preset) -> EncodeResult`` for a :class:`Preset`.
         probe: the views to score on (made from ``scene`` when None).
         progress: ``progress(message)`` told of each trial, or None.
+        search_steps, tolerance: at most this many encodes inside the bracket; stop once
+            one meets the target by less than ``tolerance`` dB.
 
     Returns:
         (EncodeResult, RateControlReport). When even the finest multiplier misses the
@@ -129,8 +213,8 @@ def encode_to_target(encode: Callable, scene: GaussianScene, target_psnr: float,
                           f"{psnr_lo:.2f} dB on the probe views", CsgsWarning, stacklevel=2)
         # Invariant: psnr(lo) >= target > psnr(hi); f = psnr - target.
         f_lo, f_hi, side = psnr_lo - target_psnr, psnr_hi - target_psnr, 0
-        for _ in range(SEARCH_STEPS if psnr_lo >= target_psnr else 0):
-            if (best[1] - target_psnr < TOLERANCE or not math.isfinite(f_lo)
+        for _ in range(search_steps if psnr_lo >= target_psnr else 0):
+            if (best[1] - target_psnr < tolerance or not math.isfinite(f_lo)
                     or hi - lo < MIN_BRACKET):
                 break
             mid = lo + (hi - lo) * f_lo / (f_lo - f_hi)
@@ -147,3 +231,57 @@ def encode_to_target(encode: Callable, scene: GaussianScene, target_psnr: float,
     result, psnr, log2_multiplier = best
     report = RateControlReport(2.0 ** log2_multiplier, psnr, target_psnr, tuple(trials))
     return result, report
+
+
+def encode_for_lambda(encode: Callable, scene: GaussianScene, lam: float, *,
+                      probe: RenderProbe | None = None, progress=None,
+                      steps: int = LAMBDA_STEPS):
+    """The encode of ``scene`` minimising J = D + ``lam`` * R over the step multiplier.
+
+    Golden-section search over log2(multiplier) in [LOG2_LO, LOG2_HI] (J is close to convex
+    there: D grows about 4x per octave, R falls about linearly); the trial with the least J
+    is kept. Deterministic for a given scene and machine.
+
+    Args:
+        encode: ``encode(preset) -> EncodeResult`` for a :class:`Preset`.
+        lam: squared 8-bit levels per bit per Gaussian (see the module docstring).
+        probe: the views to score on (made from ``scene`` when None).
+        progress: ``progress(message)`` told of each trial, or None.
+        steps: encodes in all (>= 2).
+
+    Returns:
+        (EncodeResult, LambdaReport).
+    """
+    check_render_lambda(lam)
+    probe = probe or RenderProbe(scene)
+    count = max(1, len(scene))
+    trials, best = [], None
+
+    def cost(log2_multiplier: float) -> float:
+        nonlocal best
+        multiplier = 2.0 ** log2_multiplier
+        result = encode(scaled_preset(multiplier))
+        distortion = probe.mse(result.reconstruction)
+        rate = 8.0 * len(result.data) / count
+        total = distortion + lam * rate
+        trials.append((multiplier, len(result.data), distortion, total))
+        if best is None or total < best[0]:
+            best = (total, result, multiplier, distortion, rate)
+        if progress:
+            progress(f"lambda search: x{multiplier:.3g} steps -> J {total:.4g}")
+        return total
+
+    lo, hi = LOG2_LO, LOG2_HI
+    left, right = hi - _INV_PHI * (hi - lo), lo + _INV_PHI * (hi - lo)
+    f_left, f_right = cost(left), cost(right)
+    for _ in range(max(0, steps - 2)):
+        if f_left <= f_right:
+            hi, right, f_right = right, left, f_left
+            left = hi - _INV_PHI * (hi - lo)
+            f_left = cost(left)
+        else:
+            lo, left, f_left = left, right, f_right
+            right = lo + _INV_PHI * (hi - lo)
+            f_right = cost(right)
+    total, result, multiplier, distortion, rate = best
+    return result, LambdaReport(float(lam), multiplier, distortion, rate, total, tuple(trials))
