@@ -10,5 +10,12 @@ CSGaussian training stages (DESIGN.md section 2).
 * :mod:`.losses`: L1, SSIM and the stage-2 intra-mask smoothing and inter-mask contrastive
   losses; :mod:`.quantization`: uniform-noise quantization proxy, Gaussian rate proxy and the
   quality-aware weights.
-* :mod:`.semantic_stage`: stage 2 on fixed geometry (per-anchor features from masks).
+* :mod:`.semantic_stage`: stages 2 and 3 on fixed geometry (per-anchor features from masks).
+* Stage 1: :mod:`.anchor_model` (anchors on a voxel grid, their MLPs and offset masks),
+  :mod:`.anchor_rate` (the rate estimate under an INR hyperprior and CARM),
+  :mod:`.anchor_growth` (growing, pruning, view-frequency masking) and :mod:`.color_stage`
+  (the loop); :mod:`.initial_points` finds the points anchors start from, and
+  :mod:`.checkpoint` saves and resumes stage 1.
+* :mod:`.pipeline`: all stages end to end, ending in a .csgs; :mod:`.evaluation` scores the
+  result (held-out views, click mIoU).
 """
