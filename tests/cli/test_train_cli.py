@@ -25,7 +25,8 @@ def test_synthetic_writes_a_dataset_train_reads(dataset):
 def test_train_writes_a_decodable_file_and_reports_it(dataset, tmp_path, capsys):
     out = tmp_path / "scene.csgs"
     code = main(["train", str(dataset), "-o", str(out), "--iterations", "40", "--anchors",
-                 "50", "--semantic-iterations", "15", "--test-every", "3", "-q"])
+                 "50", "--features", "8", "--offsets", "4", "--semantic-iterations", "15",
+                 "--test-every", "3", "-q"])
     assert code == 0
     printed = capsys.readouterr().out
     assert "anchors" in printed and "held-out views: PSNR" in printed
