@@ -4,10 +4,13 @@ cameras as transforms.json, and the ground-truth scene.ply) to try ``csgs train`
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 from csgs_codec.errors import InputError
 
 NAME = "synthetic"
+#: Views x width x height a dataset may hold (its images stay in memory while rendering).
+MAX_TOTAL_PIXELS = 200_000_000
 HELP = ("write a seeded synthetic dataset of labelled objects (images, masks, "
         "transforms.json, scene.ply) for 'csgs train'")
 
@@ -40,6 +43,12 @@ def run(args) -> int:
             raise InputError(f"--{name} must be {low}..{high}", property=name)
     if not (8 <= width <= 4096 and 8 <= height <= 4096):
         raise InputError("--size must be 8..4096 pixels per side", property="size")
+    if args.views * width * height > MAX_TOTAL_PIXELS:
+        raise InputError(f"{args.views} views of {width}x{height} exceed "
+                         f"{MAX_TOTAL_PIXELS:,} pixels in all", property="views")
+    folder = Path(args.folder)
+    if folder.exists() and not folder.is_dir():
+        raise InputError("exists and is not a folder", file=folder)
     dataset = make_synthetic_dataset(args.seed, objects=args.objects,
                                      gaussians_per_object=args.gaussians, views=args.views,
                                      width=width, height=height)

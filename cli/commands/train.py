@@ -9,6 +9,9 @@ from pathlib import Path
 from csgs_codec.errors import InputError
 
 NAME = "train"
+#: The option that sets each stage-1 setting whose name differs from it.
+OPTION_OF_SETTING = {"rate_weight": "lambda", "initial_anchors": "anchors",
+                     "feat_dim": "features", "n_offsets": "offsets"}
 HELP = ("train a scene from images + cameras (+ instance masks) through the three CSGaussian "
         "stages and write it as a .csgs")
 
@@ -84,6 +87,20 @@ def _downscale_for(data: str, resolution: int | None) -> float:
     return max(1.0, longest / resolution)
 
 
+def _check_output_folder(output: Path) -> None:
+    """InputError naming ``output`` when its folder is missing or not writable (checked
+    before training, so hours of work are not lost at the end)."""
+    import os
+
+    folder = output.parent if str(output.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError("the output's folder does not exist", file=output)
+    if not os.access(folder, os.W_OK):
+        raise InputError("the output's folder is not writable", file=output)
+    if output.is_dir():
+        raise InputError("the output is a folder", file=output)
+
+
 def run(args) -> int:
     """Load the dataset, train every stage, write the .csgs atomically and print a summary."""
     import torch
@@ -108,19 +125,30 @@ def run(args) -> int:
                              property=name)
     if args.resume and not args.checkpoint_dir:
         raise InputError("--resume needs --checkpoint-dir", property="resume")
-    views = load_dataset(args.data, downscale=_downscale_for(args.data, args.resolution),
-                         masks=args.masks, segment_missing=not args.no_semantic)
-    if args.no_semantic:
-        for view in views:
-            view.mask = None
-    train_views, test_views = split_views(views, args.test_every)
-    points, source = find_initial_points(args.data, [v.camera for v in train_views],
-                                         points=args.points, seed=args.seed)
+    if args.max_anchors < args.anchors:
+        raise InputError(f"--max-anchors {args.max_anchors} is below --anchors "
+                         f"{args.anchors}", property="max-anchors")
+    if args.test_every == 1:
+        raise InputError("--test-every 1 would hold out every view, leaving none to train "
+                         "on", property="test-every")
     color = ColorStageSettings(
         iterations=args.iterations, rate_weight=args.rate_weight, quality=args.quality,
         initial_anchors=args.anchors, max_anchors=args.max_anchors, feat_dim=args.features,
         n_offsets=args.offsets, seed=args.seed, device=args.device, threads=args.threads)
-    color.validate()
+    try:
+        color.validate()
+    except InputError as error:
+        option = OPTION_OF_SETTING.get(error.property, error.property or "")
+        raise InputError(error.message.replace(error.property or "", option),
+                         property=f"--{option.replace('_', '-')}") from None
+    _check_output_folder(Path(args.output))
+    views = load_dataset(args.data, downscale=_downscale_for(args.data, args.resolution),
+                         masks=None if args.no_semantic else args.masks,
+                         segment_missing=not args.no_semantic,
+                         read_masks=not args.no_semantic)
+    train_views, test_views = split_views(views, args.test_every)
+    points, source = find_initial_points(args.data, [v.camera for v in train_views],
+                                         points=args.points, seed=args.seed)
     settings = TrainSettings(color, semantic_iterations=args.semantic_iterations,
                              stage3_iterations=max(1, 2 * args.semantic_iterations // 3),
                              checkpoint_every=args.checkpoint_every)

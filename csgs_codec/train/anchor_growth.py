@@ -48,7 +48,16 @@ def view_counts(positions: np.ndarray, cameras: list[Camera]) -> np.ndarray:
 
 @dataclass
 class GrowthStats:
-    """Accumulators of one growth interval (module notes); shapes follow the model's M, K."""
+    """Accumulators of one growth interval (module notes), float64/int64 on the CPU whatever
+    the training device (CUDA's index_add_ is not deterministic).
+
+    Attributes:
+        grad_sum: (M * K,) summed screen-space gradient norms of each slot's centre, in loss
+            units per pixel, over the views where its anchor was seen.
+        grad_count: (M * K,) number of such views.
+        opacity_sum: (M,) summed opacity of each anchor's kept Gaussians over the views.
+        visits: (M,) number of views whose image holds the anchor.
+    """
 
     grad_sum: torch.Tensor
     grad_count: torch.Tensor
@@ -69,25 +78,29 @@ class GrowthStats:
         ``seen`` (M,) bool anchors inside the view."""
         with torch.no_grad():
             grad = gaussians.positions.grad
-            slots = gaussians.anchor_index * n_offsets + gaussians.offset_index
-            if grad is not None and len(slots):
-                rot = torch.as_tensor(camera.world_to_camera[:3, :3],
-                                      dtype=gaussians.positions.dtype)
-                shift = torch.as_tensor(camera.world_to_camera[:3, 3],
-                                        dtype=gaussians.positions.dtype)
-                depth = (gaussians.positions @ rot.T + shift)[:, 2].abs()
+            anchors = gaussians.anchor_index.cpu()
+            slots = anchors * n_offsets + gaussians.offset_index.cpu()
+            visible = torch.from_numpy(np.asarray(seen, bool))[anchors]
+            if grad is not None and bool(visible.any()):
+                positions = gaussians.positions.detach().cpu().double()
+                depth = (positions @ torch.from_numpy(camera.world_to_camera[:3, :3]).T
+                         + torch.from_numpy(camera.world_to_camera[:3, 3]))[:, 2].abs()
                 # |dL/d pixel| ~ |dL/d centre| * z / f for motion across the image plane.
-                pixel_grad = grad.norm(dim=1) * depth / float(camera.fx)
-                self.grad_sum.index_add_(0, slots, pixel_grad.double())
-                self.grad_count.index_add_(0, slots, torch.ones_like(slots))
-            self.opacity_sum.index_add_(0, gaussians.anchor_index,
-                                        gaussians.opacities.detach().double())
-            self.visits += torch.from_numpy(seen.astype(np.int64))
+                pixel_grad = grad.detach().cpu().double().norm(dim=1) * depth / camera.fx
+                self.grad_sum.index_add_(0, slots[visible], pixel_grad[visible])
+                self.grad_count.index_add_(0, slots[visible],
+                                           torch.ones(int(visible.sum()), dtype=torch.int64))
+            self.opacity_sum.index_add_(0, anchors,
+                                        gaussians.opacities.detach().cpu().double())
+            self.visits += torch.from_numpy(np.asarray(seen).astype(np.int64))
 
 
 def grow_and_prune(model: AnchorModel, stats: GrowthStats, *, grow_fraction: float,
                    min_opacity: float, max_anchors: int) -> tuple[int, int]:
-    """One round (module notes) on ``model``, in place; returns (grown, pruned) counts."""
+    """One round (module notes) on ``model``, in place; returns (grown, pruned) counts.
+
+    The caller learns which rows survived from :func:`prune_mask` (computed before the
+    round) and that grown anchors are appended after them."""
     m, k = model.count, model.n_offsets
     seen_slots = stats.grad_count > 0
     grown_cells = np.zeros((0, 3), np.int64)
@@ -95,15 +108,18 @@ def grow_and_prune(model: AnchorModel, stats: GrowthStats, *, grow_fraction: flo
     room = max_anchors - m
     if bool(seen_slots.any()) and room > 0 and grow_fraction > 0:
         mean_grad = torch.where(seen_slots, stats.grad_sum / stats.grad_count.clamp_min(1), 0.0)
-        threshold = torch.quantile(mean_grad[seen_slots], 1.0 - grow_fraction)
+        # The (1 - grow_fraction) quantile by sorting (torch.quantile stops at 2^24 values).
+        ranked = torch.sort(mean_grad[seen_slots]).values
+        threshold = ranked[min(int((1.0 - grow_fraction) * len(ranked)), len(ranked) - 1)]
         candidates = torch.nonzero(seen_slots & (mean_grad >= threshold) & (mean_grad > 0))
         candidates = candidates.reshape(-1)
         # Strongest first, so a limited budget goes to the largest gradients.
         candidates = candidates[torch.argsort(mean_grad[candidates], descending=True,
                                               stable=True)]
-        centres = model.slot_positions().reshape(m * k, 3)[candidates].numpy()
+        centres = model.slot_positions().reshape(m * k, 3)[candidates.to(
+            model.positions.device)].cpu().numpy()
         cells = model.grid.cells_of(centres)
-        existing = {tuple(c) for c in model.cells.numpy().tolist()}
+        existing = {tuple(c) for c in model.cells.cpu().numpy().tolist()}
         chosen, chosen_parents = [], []
         for cell, slot in zip(cells.tolist(), candidates.tolist()):
             key = tuple(cell)
@@ -117,11 +133,16 @@ def grow_and_prune(model: AnchorModel, stats: GrowthStats, *, grow_fraction: flo
         if chosen:
             grown_cells = np.asarray(chosen, np.int64)
             parents = torch.as_tensor(chosen_parents, dtype=torch.int64)
-    mean_opacity = stats.opacity_sum / stats.visits.clamp_min(1)
-    prune = (stats.visits > 0) & (mean_opacity < min_opacity)
-    if bool(prune.all()):
-        prune = torch.zeros_like(prune)
+    prune = prune_mask(stats, min_opacity)
     pruned = int(prune.sum())
     if pruned or len(grown_cells):
         model.resize(~prune, grown_cells, parents)
     return len(grown_cells), pruned
+
+
+def prune_mask(stats: GrowthStats, min_opacity: float) -> torch.Tensor:
+    """(M,) bool anchors :func:`grow_and_prune` removes: seen, but with a mean summed opacity
+    per view below ``min_opacity`` (none when that would remove every anchor)."""
+    mean_opacity = stats.opacity_sum / stats.visits.clamp_min(1)
+    prune = (stats.visits > 0) & (mean_opacity < min_opacity)
+    return torch.zeros_like(prune) if bool(prune.all()) else prune

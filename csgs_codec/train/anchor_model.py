@@ -101,8 +101,11 @@ class AnchorModel(nn.Module):
         self.grid = grid
         self.feat_dim, self.n_offsets = feat_dim, n_offsets
         generator = torch.Generator().manual_seed(seed)
-        torch.manual_seed(seed)  # nn.Linear initialisation draws from the global generator
-        self.mlps = ScaffoldMLPs(feat_dim, n_offsets)
+        # nn.Linear initialisation draws from the global generator: seed it inside a fork so
+        # the caller's random state is left alone.
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(seed)
+            self.mlps = ScaffoldMLPs(feat_dim, n_offsets)
         m = len(cells)
         self.register_buffer("cells", torch.from_numpy(np.asarray(cells, np.int64)))
         self.register_buffer("positions", torch.from_numpy(grid.centres(cells)))
@@ -110,7 +113,7 @@ class AnchorModel(nn.Module):
         self.offsets = nn.Parameter(self._initial_offsets(m, generator))
         self.scaling = nn.Parameter(torch.full((m, 6), math.log(grid.voxel)))
         self.mask_logits = nn.Parameter(torch.full((m, n_offsets), INITIAL_MASK_LOGIT))
-        self._generator = generator
+        self.generator = generator
 
     def _initial_offsets(self, m: int, generator: torch.Generator) -> torch.Tensor:
         return (torch.rand(m, self.n_offsets, 3, generator=generator) * 2 - 1) \
@@ -146,7 +149,11 @@ class AnchorModel(nn.Module):
     def render(self, camera: Camera, values: dict[str, torch.Tensor] | None = None,
                background: tuple[float, float, float] | None = None
                ) -> tuple[RasterTensors, NeuralGaussians]:
-        """Render ``camera``'s view differentiably; returns the maps and the Gaussians."""
+        """Render ``camera``'s view differentiably.
+
+        Returns:
+            (maps: image [H, W, 3], alpha [H, W], depth [H, W]; the N neural Gaussians).
+        """
         g = self.spawn(camera, values)
         opacity = g.opacities.clamp(OPACITY_EPS, 1.0 - OPACITY_EPS)
         logits = torch.log(opacity) - torch.log1p(-opacity)
@@ -169,7 +176,7 @@ class AnchorModel(nn.Module):
             a = len(new_cells)
             additions = {
                 "features": self.features[parents.to(self.features.device)].clone(),
-                "offsets": self._initial_offsets(a, self._generator),
+                "offsets": self._initial_offsets(a, self.generator),
                 "scaling": torch.full((a, 6), math.log(self.grid.voxel)),
                 "mask_logits": torch.full((a, self.n_offsets), INITIAL_MASK_LOGIT),
             }

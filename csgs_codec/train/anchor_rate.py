@@ -126,7 +126,10 @@ class AnchorRateModel(nn.Module):
             if name == "offsets":
                 per_value = per_value * mask.repeat_interleave(3, dim=1)
             bits[name] = per_value.sum()
-        coded = m * (self.widths["features"] + self.widths["scaling"]) + 3 * mask.sum()
+        # The count is a normaliser, not a target: a gradient through the straight-through
+        # mask here would push cheap slots on.
+        coded = (m * (self.widths["features"] + self.widths["scaling"])
+                 + 3 * mask.sum()).detach()
         return RateEstimate(bits, coded)
 
     def _carm(self, values: torch.Tensor, mean: torch.Tensor, log_sigma: torch.Tensor

@@ -12,20 +12,21 @@ from __future__ import annotations
 
 import dataclasses
 import io
+import warnings
 from pathlib import Path
 
 import numpy as np
 import torch
 
 from csgs_codec.atomic_write import write_atomically
-from csgs_codec.errors import InputError
+from csgs_codec.errors import CsgsWarning, InputError
 from csgs_codec.train.anchor_growth import GrowthStats
 from csgs_codec.train.anchor_model import AnchorGrid, AnchorModel
 from csgs_codec.train.anchor_rate import AnchorRateModel
 from csgs_codec.train.color_stage import ColorStageSettings, ColorStageState, make_optimizers
 
 #: Format tag stored in every checkpoint.
-CHECKPOINT_FORMAT = "csgs-train-checkpoint/1"
+CHECKPOINT_FORMAT = "csgs-train-checkpoint/2"
 
 
 def save_checkpoint(state: ColorStageState, path: str | Path) -> None:
@@ -44,6 +45,9 @@ def save_checkpoint(state: ColorStageState, path: str | Path) -> None:
         "anchor_optimizer": state.anchor_optimizer.state_dict(),
         "shared_optimizer": state.shared_optimizer.state_dict(),
         "view_generator": state.view_generator.get_state(),
+        "anchor_generator": state.model.generator.get_state(),
+        "view_names": list(state.view_names),
+        "bad_run": state.bad_run,
         "noise_generator": state.noise_generator.get_state(),
         "order": list(state.order),
         "stats": None if stats is None else {f.name: getattr(stats, f.name)
@@ -57,8 +61,13 @@ def save_checkpoint(state: ColorStageState, path: str | Path) -> None:
     write_atomically(path, buffer.getvalue())
 
 
-def load_checkpoint(path: str | Path) -> ColorStageState:
+def load_checkpoint(path: str | Path, device: str | None = None) -> ColorStageState:
     """The :class:`ColorStageState` saved at ``path``, ready to continue training.
+
+    Args:
+        path: the checkpoint file.
+        device: torch device to continue on (default: the one it was saved from); a run
+            checkpointed on a GPU can continue on the CPU and the other way round.
 
     Raises:
         InputError: a missing, unreadable or foreign file, naming it.
@@ -74,16 +83,20 @@ def load_checkpoint(path: str | Path) -> ColorStageState:
     if not isinstance(document, dict) or document.get("format") != CHECKPOINT_FORMAT:
         raise InputError(f"not a {CHECKPOINT_FORMAT} file", file=path)
     try:
-        return _state_from(document)
-    except (KeyError, TypeError, ValueError, RuntimeError) as error:
+        return _state_from(document, device)
+    except InputError as error:
+        raise InputError(f"checkpoint settings: {error.message}", file=path) from None
+    except Exception as error:  # any malformed field: the file is not what it claims
         raise InputError(f"damaged checkpoint: {type(error).__name__}: {error}",
                          file=path) from None
 
 
-def _state_from(document: dict) -> ColorStageState:
+def _state_from(document: dict, device: str | None) -> ColorStageState:
     fields = {f.name for f in dataclasses.fields(ColorStageSettings)}
     values = {k: v for k, v in document["settings"].items() if k in fields}
     values["background"] = tuple(values["background"])
+    if device is not None:
+        values["device"] = device
     settings = ColorStageSettings(**values)
     settings.validate()
     grid = AnchorGrid(document["grid_origin"].numpy(), float(document["grid_voxel"]))
@@ -99,8 +112,19 @@ def _state_from(document: dict) -> ColorStageState:
     state.anchor_optimizer.load_state_dict(document["anchor_optimizer"])
     state.shared_optimizer.load_state_dict(document["shared_optimizer"])
     state.view_generator.set_state(document["view_generator"])
+    state.model.generator.set_state(document["anchor_generator"])
+    state.view_names = [str(name) for name in document["view_names"]]
+    state.bad_run = int(document["bad_run"])
+    noise_state = document["noise_generator"]
     state.noise_generator = torch.Generator(device=settings.device)
-    state.noise_generator.set_state(document["noise_generator"])
+    if noise_state.numel() == state.noise_generator.get_state().numel():
+        state.noise_generator.set_state(noise_state)
+    else:  # saved on another kind of device: its generator state does not carry over
+        state.noise_generator.manual_seed(settings.seed + 2 + state.step)
+        warnings.warn(f"the checkpoint's noise generator belongs to another kind of device "
+                      f"than {settings.device}: training continues with a fresh one, so the "
+                      "result will differ from an uninterrupted run", CsgsWarning,
+                      stacklevel=3)
     state.order = [int(i) for i in document["order"]]
     if document["stats"] is not None:
         state.stats = GrowthStats(**document["stats"])

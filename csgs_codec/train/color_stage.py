@@ -31,7 +31,12 @@ import torch
 from csgs_codec.codec.anchor_encoder import BASE_STEPS, MULTIPLIERS
 from csgs_codec.errors import InputError, ModelError
 from csgs_codec.render.metrics import psnr
-from csgs_codec.train.anchor_growth import GrowthStats, grow_and_prune, view_counts
+from csgs_codec.train.anchor_growth import (
+    GrowthStats,
+    grow_and_prune,
+    prune_mask,
+    view_counts,
+)
 from csgs_codec.train.anchor_model import AnchorModel, grid_for_points
 from csgs_codec.train.anchor_rate import AnchorRateModel
 from csgs_codec.train.losses import photometric_loss
@@ -40,6 +45,8 @@ from csgs_codec.train.views import TrainingView
 
 #: CSGaussian's lambda_rate presets (low, mid, high rate weight).
 RATE_WEIGHT_PRESETS = (0.004, 0.01, 0.02)
+#: Parameter groups of ``ColorStageSettings.learning_rates``.
+LEARNING_RATE_GROUPS = ("features", "offsets", "scaling", "mask_logits", "mlps", "rate")
 #: Consecutive non-finite losses after which the stage gives up.
 MAX_BAD_STEPS = 20
 
@@ -119,6 +126,16 @@ class ColorStageSettings:
             ("grow_fraction", 0.0 <= self.grow_fraction <= 1.0),
             ("grad_clip", self.grad_clip > 0),
             ("threads", 1 <= self.threads <= 256),
+            ("growth_start", 0.0 <= self.growth_start <= 1.0),
+            ("growth_end", self.growth_start <= self.growth_end <= 1.0),
+            ("growth_every", self.growth_every >= 0),
+            ("min_opacity", 0.0 <= self.min_opacity < 1.0),
+            ("ssim_weight", 0.0 <= self.ssim_weight <= 1.0),
+            ("final_lr_ratio", 0.0 < self.final_lr_ratio <= 1.0),
+            ("seed", 0 <= self.seed < 2**63),
+            ("device", self.device in ("cpu", "cuda") or self.device.startswith("cuda:")),
+            ("learning_rates", set(self.learning_rates) == set(LEARNING_RATE_GROUPS)
+             and all(math.isfinite(v) and v > 0 for v in self.learning_rates.values())),
         ]
         for name, ok in checks:
             if not ok:
@@ -134,7 +151,16 @@ class ColorStageSettings:
 
 @dataclass
 class StageProgress:
-    """What the progress callback receives after each step."""
+    """What the progress callback receives after each step.
+
+    Attributes:
+        step: steps done; iterations: steps in the stage.
+        loss: the step's total loss (photometric + weighted rate terms).
+        psnr: PSNR of the step's render against its training image, dB.
+        bits_per_parameter: the rate estimate, bits per coded value (0 before the rate
+            term starts).
+        anchors: anchors M after the step.
+    """
 
     step: int
     iterations: int
@@ -162,7 +188,9 @@ class ColorStageState:
     history: dict[str, list[float]] = field(default_factory=lambda: {
         "loss": [], "psnr": [], "bits_per_parameter": [], "anchors": []})
     skipped_steps: int = 0
+    bad_run: int = 0
     seconds: float = 0.0
+    view_names: list[str] = field(default_factory=list)
 
 
 def initial_state(views: list[TrainingView], points: np.ndarray,
@@ -183,8 +211,11 @@ def initial_state(views: list[TrainingView], points: np.ndarray,
                          "points and cameras do not overlap", property="points")
     model = AnchorModel(cells[seen], grid, feat_dim=settings.feat_dim,
                         n_offsets=settings.n_offsets, seed=settings.seed)
-    rate_model = AnchorRateModel(settings.feat_dim, settings.n_offsets, settings.steps())
+    with torch.random.fork_rng(devices=[]):  # seeded initial weights, caller's RNG untouched
+        torch.manual_seed(settings.seed + 3)
+        rate_model = AnchorRateModel(settings.feat_dim, settings.n_offsets, settings.steps())
     state = ColorStageState(model.to(settings.device), rate_model.to(settings.device), settings)
+    state.view_names = [view.name for view in views]
     state.view_generator.manual_seed(settings.seed + 1)
     state.noise_generator = torch.Generator(device=settings.device).manual_seed(
         settings.seed + 2)
@@ -205,6 +236,29 @@ def make_optimizers(state: ColorStageState, keep_shared: bool = False) -> None:
             [{"params": list(model.mlps.parameters()), "lr": lrs["mlps"], "name": "mlps"},
              {"params": list(state.rate_model.parameters()), "lr": lrs["rate"],
               "name": "rate"}], eps=1e-15)
+
+
+def _resize_anchor_optimizer(state: ColorStageState, old: dict[str, torch.Tensor],
+                             keep: torch.Tensor) -> None:
+    """After growth or pruning, a new per-anchor optimiser whose Adam moments are the old
+    ones of the surviving rows (zeros for new rows), with the step count kept, as Scaffold-GS
+    does; ``old`` holds the parameters before the round, ``keep`` (M_old,) the survivors."""
+    previous = state.anchor_optimizer
+    make_optimizers(state, keep_shared=True)
+    for name, tensor in state.model.anchor_tensors().items():
+        before = previous.state.get(old[name])
+        if not before:
+            continue
+        rows = keep.to(tensor.device)
+        added = tensor.shape[0] - int(rows.sum())
+        moved = {}
+        for key, value in before.items():
+            if key in ("exp_avg", "exp_avg_sq"):
+                moved[key] = torch.cat([value[rows],
+                                        value.new_zeros((added,) + value.shape[1:])])
+            else:
+                moved[key] = value
+        state.anchor_optimizer.state[tensor] = moved
 
 
 def _set_learning_rates(state: ColorStageState) -> None:
@@ -256,10 +310,14 @@ def _train_steps(views: list[TrainingView], state: ColorStageState,
                  progress: Callable[[StageProgress], None] | None,
                  stop_at: int | None) -> ColorStageState:
     s = state.settings
+    names = [view.name for view in views]
+    if state.view_names and names != state.view_names:
+        raise InputError(f"these {len(names)} views are not the {len(state.view_names)} "
+                         "views this stage-1 state was trained on (a checkpoint resumes only "
+                         "with the same dataset and options)", property="views")
     device = torch.device(s.device)
     targets = [torch.from_numpy(v.image).to(device) for v in views]
     seen_cache: dict[int, np.ndarray] = {}
-    bad_run = 0
     began = time.perf_counter()
     end = s.iterations if stop_at is None else min(stop_at, s.iterations)
     model, rate_model = state.model, state.rate_model
@@ -288,19 +346,27 @@ def _train_steps(views: list[TrainingView], state: ColorStageState,
             loss = loss + s.rate_weight * (estimate.bits_per_parameter
                                            + s.mask_weight * mask_loss)
             bits_per_parameter = float(estimate.bits_per_parameter.detach())
-        if not torch.isfinite(loss):
-            bad_run += 1
-            state.skipped_steps += 1
-            if bad_run >= MAX_BAD_STEPS:
-                raise ModelError(f"stage 1 diverged: {bad_run} consecutive non-finite losses "
-                                 f"at step {state.step}", property="loss")
+        if not loss.requires_grad:  # the view sees no Gaussian: nothing to learn from it
             state.step += 1
             continue
-        bad_run = 0
-        loss.backward()
-        parameters = [p for g in state.anchor_optimizer.param_groups for p in g["params"]]
-        parameters += [p for g in state.shared_optimizer.param_groups for p in g["params"]]
-        torch.nn.utils.clip_grad_norm_(parameters, s.grad_clip)
+        finite = bool(torch.isfinite(loss))
+        if finite:
+            loss.backward()
+            parameters = [p for g in state.anchor_optimizer.param_groups for p in g["params"]]
+            parameters += [p for g in state.shared_optimizer.param_groups
+                           for p in g["params"]]
+            norm = torch.nn.utils.clip_grad_norm_(parameters, s.grad_clip)
+            finite = bool(torch.isfinite(norm))
+        if not finite:  # skip the step: nothing is applied
+            state.bad_run += 1
+            state.skipped_steps += 1
+            if state.bad_run >= MAX_BAD_STEPS:
+                raise ModelError(f"stage 1 diverged: {state.bad_run} consecutive steps with a "
+                                 f"non-finite loss or gradient at step {state.step}",
+                                 property="loss")
+            state.step += 1
+            continue
+        state.bad_run = 0
         state.anchor_optimizer.step()
         state.shared_optimizer.step()
         if index not in seen_cache:
@@ -315,11 +381,15 @@ def _train_steps(views: list[TrainingView], state: ColorStageState,
                            ("anchors", float(model.count))):
             state.history[key].append(value)
         if _growth_due(state):
-            grow_and_prune(model, state.stats, grow_fraction=s.grow_fraction,
-                           min_opacity=s.min_opacity, max_anchors=s.max_anchors)
-            make_optimizers(state, keep_shared=True)
+            keep = ~prune_mask(state.stats, s.min_opacity)
+            old = dict(model.anchor_tensors())
+            grown, pruned = grow_and_prune(model, state.stats, grow_fraction=s.grow_fraction,
+                                           min_opacity=s.min_opacity,
+                                           max_anchors=s.max_anchors)
+            if grown or pruned:
+                _resize_anchor_optimizer(state, old, keep)
+                seen_cache.clear()
             state.stats = GrowthStats.empty(model.count, model.n_offsets)
-            seen_cache.clear()
         if progress is not None:
             progress(StageProgress(state.step, s.iterations, float(loss.detach()), quality,
                                    bits_per_parameter, model.count))

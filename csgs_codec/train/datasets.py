@@ -47,8 +47,8 @@ IMAGES_FOLDER = "images"
 
 def load_dataset(path: str | Path, *, downscale: float = 1.0, masks: str | Path | None = None,
                  images: str | Path | None = None, segment_missing: bool = True,
-                 background: tuple[float, float, float] = (0.0, 0.0, 0.0)
-                 ) -> list[TrainingView]:
+                 background: tuple[float, float, float] = (0.0, 0.0, 0.0),
+                 read_masks: bool = True) -> list[TrainingView]:
     """Load every view of a dataset (layouts in the module notes).
 
     Args:
@@ -61,6 +61,8 @@ def load_dataset(path: str | Path, *, downscale: float = 1.0, masks: str | Path 
         segment_missing: without a masks folder, make masks with the built-in segmenter
             (warning that quality depends on masks); False leaves ``mask`` None.
         background: RGB behind transparent image pixels.
+        read_masks: False reads no masks at all (colour-only training): ``mask`` stays None
+            and ``masks`` / ``segment_missing`` are ignored.
 
     Returns:
         One :class:`TrainingView` per camera, in the camera file's order (COLMAP: image name).
@@ -77,7 +79,7 @@ def load_dataset(path: str | Path, *, downscale: float = 1.0, masks: str | Path 
     camera_path = find_camera_file(Path(path))
     cameras = load_cameras(camera_path)
     image_root, image_names = _image_locations(camera_path, cameras, images)
-    mask_root = _mask_folder(image_root, masks)
+    mask_root = _mask_folder(image_root, masks) if read_masks else None
     views = []
     for camera, name in zip(cameras, image_names):
         image_path = find_image(image_root, name)
@@ -88,7 +90,7 @@ def load_dataset(path: str | Path, *, downscale: float = 1.0, masks: str | Path 
         mask = None if mask_root is None else _read_view_mask(mask_root, name, image.shape[:2])
         camera, image, mask = _downscaled(camera, image, mask, float(downscale))
         views.append(TrainingView(image, camera, mask, name=name))
-    if mask_root is None and segment_missing:
+    if mask_root is None and segment_missing and read_masks:
         warnings.warn(f"{path}: no masks folder; making instance masks with the built-in "
                       "graph segmenter. Semantic quality depends on the masks: give SAM-style "
                       "masks in a masks/ folder for good results", CsgsWarning, stacklevel=2)

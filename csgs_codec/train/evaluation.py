@@ -58,11 +58,15 @@ def score_views(scene: AnchorScene, views: list[TrainingView], *,
 
 
 def nearest_labels(positions: np.ndarray, reference_positions: np.ndarray,
-                   reference_labels: np.ndarray, chunk: int = 4096) -> np.ndarray:
+                   reference_labels: np.ndarray, max_pairs: int = 1 << 22) -> np.ndarray:
     """(M,) int32 label of the nearest reference point of each (M, 3) position (a synthetic
-    scene's ground-truth labels carried over to trained anchors)."""
+    scene's ground-truth labels carried over to trained anchors); works in blocks of at most
+    ``max_pairs`` position-reference pairs to bound memory."""
     positions = np.asarray(positions, np.float64)
     reference = np.asarray(reference_positions, np.float64)
+    if len(reference) == 0:
+        raise InputError("no reference points to take labels from", property="labels")
+    chunk = max(1, max_pairs // len(reference))
     labels = np.empty(len(positions), np.int32)
     for start in range(0, len(positions), chunk):
         block = positions[start:start + chunk]

@@ -37,12 +37,12 @@ def read_ply_points(path: str | Path) -> np.ndarray:
     Raises:
         InputError: unreadable file, no vertex element, or x/y/z missing or not finite.
     """
-    from plyfile import PlyData
+    from plyfile import PlyData, PlyParseError
 
     path = Path(path)
     try:
         vertex = PlyData.read(str(path))["vertex"]
-    except (OSError, ValueError, KeyError, IndexError, struct.error) as error:
+    except (OSError, ValueError, KeyError, IndexError, struct.error, PlyParseError) as error:
         raise InputError(f"cannot read points: {error}", file=path) from None
     names = vertex.data.dtype.names or ()
     for axis in "xyz":
@@ -51,6 +51,14 @@ def read_ply_points(path: str | Path) -> np.ndarray:
     points = np.stack([np.asarray(vertex[a], np.float64) for a in "xyz"], axis=1)
     _check_finite(points, path)
     return points
+
+
+def _check_finite(points: np.ndarray, path: Path) -> None:
+    if len(points) == 0:
+        raise InputError("holds no points", file=path, property="points")
+    bad = ~np.isfinite(points).all(axis=1)
+    if bad.any():
+        raise InputError("non-finite point", file=path, index=int(np.flatnonzero(bad)[0]))
 
 
 def read_colmap_points(model: str | Path) -> np.ndarray:
@@ -109,12 +117,6 @@ def _colmap_points_txt(path: Path) -> np.ndarray:
     points = np.asarray(rows, np.float64).reshape(-1, 3)
     _check_finite(points, path)
     return points
-
-
-def _check_finite(points: np.ndarray, path: Path) -> None:
-    bad = ~np.isfinite(points).all(axis=1)
-    if bad.any():
-        raise InputError("non-finite point", file=path, index=int(np.flatnonzero(bad)[0]))
 
 
 def random_points(cameras: list[Camera], count: int = RANDOM_POINT_COUNT, seed: int = 0

@@ -16,7 +16,9 @@ end; with ``resume`` a run continues from that file (stages 2-4 take seconds and
 
 from __future__ import annotations
 
+import dataclasses
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,7 +33,7 @@ from csgs_codec.codec.anchor_encoder import (
     AnchorEncoder,
     AnchorEncodeResult,
 )
-from csgs_codec.errors import InputError
+from csgs_codec.errors import CsgsWarning, InputError, ModelError
 from csgs_codec.model.anchor_hyperprior import STEP_RANGE, FitSettings
 from csgs_codec.model.scaffold import ScaffoldDecoder
 from csgs_codec.scene.anchor_scene import AnchorScene, default_semantic_names
@@ -135,12 +137,16 @@ def train_scene(views: list[TrainingView], points: np.ndarray, settings: TrainSe
     seconds: dict[str, float] = {}
     checkpoint = Path(checkpoint_dir) / CHECKPOINT_FILE if checkpoint_dir else None
     if checkpoint is not None:
-        Path(checkpoint_dir).mkdir(parents=True, exist_ok=True)
+        try:
+            Path(checkpoint_dir).mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise InputError(f"cannot use as checkpoint folder: {error.strerror or error}",
+                             file=checkpoint_dir) from None
     if resume:
         if checkpoint is None or not checkpoint.is_file():
             raise InputError("nothing to resume: no stage-1 checkpoint", file=checkpoint)
-        state = load_checkpoint(checkpoint)
-        state.settings.device = settings.color.device
+        state = load_checkpoint(checkpoint, device=settings.color.device)
+        _check_resumable(state.settings, settings.color, checkpoint)
     else:
         state = initial_state(views, points, settings.color)
     report("stage 1: colour", None)
@@ -156,13 +162,21 @@ def train_scene(views: list[TrainingView], points: np.ndarray, settings: TrainSe
 
     quality = state.settings.quality
     anchors = state.model.to_anchor_scene()
+    if len(anchors) == 0:
+        raise ModelError("stage 1 masked every Gaussian slot, leaving no anchor to encode: "
+                         "train with a smaller rate weight (--lambda)", property="lambda")
     began = time.perf_counter()
     color = AnchorEncoder(quality, semantic="none",
                           fit=settings.encoder_fit).encode_with_report(anchors)
     seconds["colour_encode"] = time.perf_counter() - began
 
     semantic = None
-    if views and all(v.mask is not None for v in views):
+    with_masks = sum(v.mask is not None for v in views)
+    if 0 < with_masks < len(views):
+        warnings.warn(f"only {with_masks} of {len(views)} views have instance masks: the "
+                      "semantic stages need every view's, so the file has no semantic layer",
+                      CsgsWarning, stacklevel=2)
+    if views and with_masks == len(views):
         report("stages 2-3: semantics", None)
         began = time.perf_counter()
         semantic = _semantic_stages(views, color, settings)
@@ -176,6 +190,23 @@ def train_scene(views: list[TrainingView], points: np.ndarray, settings: TrainSe
     final = AnchorEncoder(quality, fit=settings.encoder_fit).encode_with_report(anchors)
     seconds["encode"] = time.perf_counter() - began
     return TrainResult(final.data, final, state, semantic, seconds)
+
+
+#: Settings that may differ between a checkpoint and the run resuming it.
+RESUMABLE_CHANGES = ("device", "threads")
+
+
+def _check_resumable(saved: ColorStageSettings, asked: ColorStageSettings,
+                     checkpoint: Path) -> None:
+    """InputError naming the checkpoint when ``asked`` differs from the settings the
+    checkpoint was trained with in anything but :data:`RESUMABLE_CHANGES`."""
+    differ = [f"{name} {getattr(saved, name)!r} (asked {getattr(asked, name)!r})"
+              for name in (f.name for f in dataclasses.fields(ColorStageSettings))
+              if name not in RESUMABLE_CHANGES and getattr(saved, name) != getattr(asked, name)]
+    if differ:
+        raise InputError("the checkpoint was trained with other settings: "
+                         + "; ".join(differ) + ". Resume with the same options, or start "
+                         "again without --resume", file=checkpoint)
 
 
 def _semantic_stages(views: list[TrainingView], color: AnchorEncodeResult,
@@ -210,7 +241,9 @@ def _semantic_steps(views: list[TrainingView], color: AnchorEncodeResult,
     if settings.stage3_iterations > 0:
         cells = torch.from_numpy(np.rint((scene.positions - scene.positions.min(axis=0))
                                          / _voxel(scene)).astype(np.int64))
-        prior = PositionalFeaturePrior(cells, settings.semantic_dim)
+        with torch.random.fork_rng(devices=[]):  # seeded weights, caller's RNG untouched
+            torch.manual_seed(seed + 4)
+            prior = PositionalFeaturePrior(cells, settings.semantic_dim)
         stage2_losses = result.losses
         result = train_semantic_features(
             prepared, m, color_steps=color.steps["f"], dim=settings.semantic_dim,
