@@ -6,9 +6,11 @@ that saw it. A round then
 
 * **grows**: slots whose mean screen-space gradient is in the top ``grow_fraction`` of the slots
   that were seen spawn an anchor at their centre's voxel when that voxel holds none yet (the new
-  anchor starts from its parent's feature). Scaffold-GS compares the gradient with an absolute
-  threshold; its scale depends on the loss normalisation and the image size, so a quantile is
-  used instead;
+  anchor starts from its parent's feature). Stage 1 puts its initial anchors on every second
+  cell of the grid, so growth adds anchors at half their spacing, as Scaffold-GS's finer
+  growth levels do, and new anchors must pass the view-frequency rule too. Scaffold-GS
+  compares the gradient with an absolute threshold; its scale depends on the loss
+  normalisation and the image size, so a quantile is used instead;
 * **prunes**: anchors seen in at least one view whose mean summed opacity per view is below
   ``min_opacity`` (Scaffold-GS's rule), unless that would leave none.
 
@@ -19,6 +21,7 @@ generalise and cost bits all the same).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -96,11 +99,15 @@ class GrowthStats:
 
 
 def grow_and_prune(model: AnchorModel, stats: GrowthStats, *, grow_fraction: float,
-                   min_opacity: float, max_anchors: int) -> tuple[int, int]:
+                   min_opacity: float, max_anchors: int,
+                   accept: Callable[[np.ndarray], np.ndarray] | None = None
+                   ) -> tuple[int, int]:
     """One round (module notes) on ``model``, in place; returns (grown, pruned) counts.
 
-    The caller learns which rows survived from :func:`prune_mask` (computed before the
-    round) and that grown anchors are appended after them."""
+    ``accept`` maps candidate anchor positions (A, 3) to an (A,) bool mask of those that may
+    be added (stage 1 passes the view-frequency rule). The caller learns which rows survived
+    from :func:`prune_mask` (computed before the round) and that grown anchors are appended
+    after them."""
     m, k = model.count, model.n_offsets
     seen_slots = stats.grad_count > 0
     grown_cells = np.zeros((0, 3), np.int64)
@@ -119,6 +126,9 @@ def grow_and_prune(model: AnchorModel, stats: GrowthStats, *, grow_fraction: flo
         centres = model.slot_positions().reshape(m * k, 3)[candidates.to(
             model.positions.device)].cpu().numpy()
         cells = model.grid.cells_of(centres)
+        if accept is not None and len(cells):
+            allowed = np.asarray(accept(model.grid.centres(cells)), bool)
+            cells, candidates = cells[allowed], candidates[torch.from_numpy(allowed)]
         existing = {tuple(c) for c in model.cells.cpu().numpy().tolist()}
         chosen, chosen_parents = [], []
         for cell, slot in zip(cells.tolist(), candidates.tolist()):

@@ -91,10 +91,14 @@ class AnchorModel(nn.Module):
         grid: the voxel grid.
         feat_dim: F; n_offsets: K.
         seed: seeds the initial offsets and MLP weights.
+        initial_log_scale: the initial anchors' log scaling (default: log of the voxel; stage
+            1 starts coarse anchors on a finer grid, so that growth can add anchors between
+            them, and gives them the coarse voxel's scale). Grown anchors get the grid's.
     """
 
     def __init__(self, cells: np.ndarray, grid: AnchorGrid, *, feat_dim: int = 32,
-                 n_offsets: int = 10, seed: int = 0) -> None:
+                 n_offsets: int = 10, seed: int = 0,
+                 initial_log_scale: float | None = None) -> None:
         super().__init__()
         if len(cells) == 0:
             raise InputError("stage 1 needs at least one anchor", property="anchors")
@@ -111,7 +115,8 @@ class AnchorModel(nn.Module):
         self.register_buffer("positions", torch.from_numpy(grid.centres(cells)))
         self.features = nn.Parameter(torch.zeros(m, feat_dim))
         self.offsets = nn.Parameter(self._initial_offsets(m, generator))
-        self.scaling = nn.Parameter(torch.full((m, 6), math.log(grid.voxel)))
+        log_scale = math.log(grid.voxel) if initial_log_scale is None else initial_log_scale
+        self.scaling = nn.Parameter(torch.full((m, 6), float(log_scale)))
         self.mask_logits = nn.Parameter(torch.full((m, n_offsets), INITIAL_MASK_LOGIT))
         self.generator = generator
 

@@ -37,7 +37,7 @@ from csgs_codec.train.anchor_growth import (
     prune_mask,
     view_counts,
 )
-from csgs_codec.train.anchor_model import AnchorModel, grid_for_points
+from csgs_codec.train.anchor_model import AnchorGrid, AnchorModel, grid_for_points
 from csgs_codec.train.anchor_rate import AnchorRateModel
 from csgs_codec.train.losses import photometric_loss
 from csgs_codec.train.quantization import add_quantization_noise
@@ -47,6 +47,8 @@ from csgs_codec.train.views import TrainingView
 RATE_WEIGHT_PRESETS = (0.004, 0.01, 0.02)
 #: Parameter groups of ``ColorStageSettings.learning_rates``.
 LEARNING_RATE_GROUPS = ("features", "offsets", "scaling", "mask_logits", "mlps", "rate")
+#: Growth adds anchors on a grid this many halvings finer than the initial anchors'.
+GROWTH_LEVELS = 1
 #: Consecutive non-finite losses after which the stage gives up.
 MAX_BAD_STEPS = 20
 
@@ -202,15 +204,18 @@ def initial_state(views: list[TrainingView], points: np.ndarray,
         raise InputError("stage 1 needs at least one training view", property="views")
     for view in views:
         view.validate()
-    grid = grid_for_points(points, settings.initial_anchors)
-    cells = np.unique(grid.cells_of(points), axis=0)
+    coarse = grid_for_points(points, settings.initial_anchors)
+    cells = np.unique(coarse.cells_of(points), axis=0)
     min_views = min(settings.min_views, len(views))
-    seen = view_counts(grid.centres(cells), [v.camera for v in views]) >= min_views
+    seen = view_counts(coarse.centres(cells), [v.camera for v in views]) >= min_views
     if not seen.any():
         raise InputError(f"no initial anchor is seen by {min_views} training views: the "
                          "points and cameras do not overlap", property="points")
-    model = AnchorModel(cells[seen], grid, feat_dim=settings.feat_dim,
-                        n_offsets=settings.n_offsets, seed=settings.seed)
+    refine = 2 ** GROWTH_LEVELS
+    grid = AnchorGrid(coarse.origin, coarse.voxel / refine)
+    model = AnchorModel(cells[seen] * refine, grid, feat_dim=settings.feat_dim,
+                        n_offsets=settings.n_offsets, seed=settings.seed,
+                        initial_log_scale=math.log(coarse.voxel))
     with torch.random.fork_rng(devices=[]):  # seeded initial weights, caller's RNG untouched
         torch.manual_seed(settings.seed + 3)
         rate_model = AnchorRateModel(settings.feat_dim, settings.n_offsets, settings.steps())
@@ -324,6 +329,12 @@ def _train_steps(views: list[TrainingView], state: ColorStageState,
     steps = s.steps()
     if state.stats is None:
         state.stats = GrowthStats.empty(model.count, model.n_offsets)
+    cameras = [view.camera for view in views]
+    min_views = min(s.min_views, len(views))
+
+    def seen_enough(centres: np.ndarray) -> np.ndarray:
+        return view_counts(centres, cameras) >= min_views
+
     while state.step < end:
         index = _next_view(state, len(views))
         camera = views[index].camera
@@ -383,9 +394,9 @@ def _train_steps(views: list[TrainingView], state: ColorStageState,
         if _growth_due(state):
             keep = ~prune_mask(state.stats, s.min_opacity)
             old = dict(model.anchor_tensors())
-            grown, pruned = grow_and_prune(model, state.stats, grow_fraction=s.grow_fraction,
-                                           min_opacity=s.min_opacity,
-                                           max_anchors=s.max_anchors)
+            grown, pruned = grow_and_prune(
+                model, state.stats, grow_fraction=s.grow_fraction, min_opacity=s.min_opacity,
+                max_anchors=s.max_anchors, accept=seen_enough)
             if grown or pruned:
                 _resize_anchor_optimizer(state, old, keep)
                 seen_cache.clear()

@@ -67,7 +67,7 @@ def test_a_growth_round_keeps_the_adam_state_of_the_surviving_anchors():
     # only when the round changed the anchors, and then carry exp_avg / exp_avg_sq[keep]
     # over (zeros for new rows) and keep "step".
     state = _state(iterations=31, growth_every=30, growth_start=0.0, growth_end=1.0,
-                   rate_start=1.0)
+                   rate_start=1.0, grow_fraction=0.0, min_opacity=0.0)
     data = tiny_dataset()
     count = state.model.count
     train_color_stage(data.views, state)
@@ -305,3 +305,21 @@ def test_growth_carries_adam_moments_of_the_survivors_and_zeros_new_rows():
     torch.testing.assert_close(after["exp_avg"][:-1], before["exp_avg"][keep])
     assert after["exp_avg"][-1].abs().sum() == 0
     assert int(after["step"]) == int(before["step"])
+
+
+def test_growth_adds_anchors_between_the_initial_ones_that_views_see():
+    """Initial anchors sit on every second cell of the grid, so growth has room between them;
+    each grown anchor lies on the grid and is seen by at least min_views training views."""
+    from csgs_codec.train.anchor_growth import view_counts
+
+    data = tiny_dataset()
+    state = _state(iterations=61, growth_every=30, growth_start=0.0, growth_end=1.0,
+                   rate_start=1.0, grow_fraction=0.2)
+    initial = state.model.count
+    assert (state.model.cells.numpy() % 2 == 0).all()
+    train_color_stage(data.views, state)
+    cells = state.model.cells.numpy()
+    assert state.model.count > initial
+    assert (cells % 2 != 0).any(axis=1).any()  # some between the initial ones
+    counts = view_counts(state.model.positions.numpy(), [v.camera for v in data.views])
+    assert (counts >= state.settings.min_views).all()
