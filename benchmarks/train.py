@@ -7,9 +7,11 @@
 
 Every 4th view is held out. Per lambda it reports the wall and CPU time of each stage, the
 held-out PSNR/SSIM of the decoded file (colour layer, rendered per view), the file size and
-the bytes of each layer, the semantic share, and the click-selection mIoU of the decoded
-semantic features against the synthetic ground truth (each anchor labelled by its nearest
-ground-truth Gaussian; every object clicked at its projected centre in every held-out view).
+the bytes of each layer, the semantic share (payload bytes of the semantic chunks over the
+file's bytes; ``csgs info`` counts chunk frames too, a few bytes more), and the
+click-selection mIoU of the decoded semantic features against the synthetic ground truth
+(each anchor labelled by its nearest ground-truth Gaussian; every object clicked at its
+projected centre in every held-out view).
 It also reports the 2D protocol of the papers (``image_miou_decoded``): each ground-truth
 instance of each held-out view clicked at an interior pixel, the selected anchors rendered,
 and the covered pixels compared with the instance mask. The targets of issue #9: decoded

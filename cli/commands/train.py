@@ -107,6 +107,7 @@ def run(args) -> int:
     from tqdm import tqdm
 
     from csgs_codec.atomic_write import write_atomically
+    from csgs_codec.codec.describe import describe_bitstream
     from csgs_codec.train.color_stage import ColorStageSettings
     from csgs_codec.train.datasets import load_dataset
     from csgs_codec.train.evaluation import score_views, split_views
@@ -174,11 +175,9 @@ def run(args) -> int:
         bar.close()
     write_atomically(args.output, result.data)
     scene = result.encode.reconstruction
-    semantic = sum(size for chunk, size in result.encode.chunk_bytes.items()
-                   if chunk in ("SHYP", "ASEM", "SEML"))
+    share = describe_bitstream(result.data)["semantic_share_percent"]  # as csgs info says
     print(f"{args.output}: {len(result.data):,} bytes, {len(scene):,} anchors, "
-          f"{scene.active_offsets():,} Gaussian slots, semantic layer "
-          f"{100.0 * semantic / len(result.data):.1f}% of the file")
+          f"{scene.active_offsets():,} Gaussian slots, semantic layer {share:.1f}% of the file")
     timings = ", ".join(f"{k} {v:.1f} s" for k, v in result.seconds.items())
     print(f"time: {timings}")
     if test_views:
