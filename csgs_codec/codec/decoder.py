@@ -7,6 +7,7 @@ torch is not installed.
 from __future__ import annotations
 
 import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -24,7 +25,7 @@ from csgs_codec.codec.streams import SceneStreams, join_streams
 from csgs_codec.entropy.categorical import decode_categorical
 from csgs_codec.entropy.geometry import decode_positions
 from csgs_codec.entropy.residual import decode_symbols
-from csgs_codec.errors import FormatError
+from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format import read_layers
 from csgs_codec.format.primitives import ByteReader
 from csgs_codec.scene.gaussian_scene import GaussianScene
@@ -61,12 +62,18 @@ class Decoder:
         max_gaussians: refuse files declaring more Gaussians than this.
         max_gaussians_per_byte: refuse files declaring more Gaussians per byte of the file
             than this (a scene of many identical Gaussians may need it raised).
+        threads: threads decoding the geometry and the colour streams side by side (default
+            2, or 1 on a one-core machine); the output is the same for any count.
     """
 
     def __init__(self, *, max_gaussians: int = MAX_GAUSSIANS,
-                 max_gaussians_per_byte: int = MAX_GAUSSIANS_PER_BYTE) -> None:
+                 max_gaussians_per_byte: int = MAX_GAUSSIANS_PER_BYTE,
+                 threads: int | None = None) -> None:
         self.max_gaussians = max_gaussians
         self.max_gaussians_per_byte = max_gaussians_per_byte
+        self.threads = min(2, os.cpu_count() or 1) if threads is None else int(threads)
+        if self.threads < 1:
+            raise InputError(f"threads must be at least 1, got {threads}", property="threads")
 
     def decode(self, source, layers="color") -> GaussianScene:
         """Decode ``source`` (bytes, a path or a seekable binary file).
@@ -87,8 +94,17 @@ class Decoder:
             container = read_layers(source, layers=wanted)
             header = SceneHeader.from_bytes(*_payload(container, "SCNE"))
             self._check_count(header, container.source_size)
-            positions = self._positions(container, header)
-            streams = self._colour_streams(container, header)
+            if self.threads > 1:
+                with ThreadPoolExecutor(self.threads) as pool:
+                    # Geometry and each attribute stream are independent: decode them side by
+                    # side (numpy releases the GIL). Results are taken in a fixed order, so
+                    # the output and the first error raised do not depend on scheduling.
+                    positions_job = pool.submit(self._positions, container, header)
+                    streams = self._colour_streams(container, header, pool)
+                    positions = positions_job.result()
+            else:
+                positions = self._positions(container, header)
+                streams = self._colour_streams(container, header)
             scene = join_streams(streams, positions)
             if "semantic" in wanted:
                 self._semantic(container, header, scene)
@@ -139,7 +155,8 @@ class Decoder:
         return positions
 
     # ------------------------------------------------------------------ colour layer
-    def _colour_streams(self, container, header: SceneHeader) -> SceneStreams:
+    def _colour_streams(self, container, header: SceneHeader,
+                        pool: ThreadPoolExecutor | None = None) -> SceneStreams:
         names = ["dc"] + [f"rest{b}" for b in range(1, header.sh_degree_coded + 1)]
         names += ["opacity", "scale", "rot"]
         present = {e.type for e in container.toc}
@@ -147,22 +164,13 @@ class Decoder:
         if extra:
             raise FormatError(f"unexpected colour chunk(s) {sorted(extra)} for SH degree "
                               f"{header.sh_degree_coded}", chunk=sorted(extra)[0])
-        decoded = {}
-        rot_axis = None
-        for name in names:
-            code = STREAM_CHUNKS[name]
-            data, offset = _payload(container, code)
-            r = ByteReader(data, base_offset=offset, chunk=code)
-            if name == "rot":
-                axis_stream = r.byte_string("axis_stream")
-                rot_axis = decode_categorical(axis_stream, header.count, chunk=code,
-                                              base_offset=r.offset - len(axis_stream))
-                if rot_axis.size and rot_axis.max() > 3:
-                    raise r.error("dropped-component index above 3")
-            values = read_float_stream(r, header.count, STREAM_CHANNELS[name])
-            r.expect_end(f"the {name} stream")
-            check_finite(values, code)
-            decoded[name] = values
+        if pool is None:
+            results = [_colour_stream(container, header, name) for name in names]
+        else:
+            jobs = [pool.submit(_colour_stream, container, header, name) for name in names]
+            results = [job.result() for job in jobs]  # in order: the first error wins
+        decoded = {name: values for name, (values, _) in zip(names, results)}
+        rot_axis = results[-1][1]
         return SceneStreams(decoded, rot_axis.astype(np.uint8), header.sh_degree_stored)
 
     # ------------------------------------------------------------------ semantic layer
@@ -190,6 +198,26 @@ class Decoder:
             if labels.size and (labels.min() < -(1 << 31) or labels.max() >= 1 << 31):
                 raise r.error("label outside the int32 range")
             scene.labels = labels.astype(np.int32)
+
+
+def _colour_stream(container, header: SceneHeader, name: str
+                   ) -> tuple[np.ndarray, np.ndarray | None]:
+    """(values (N, C) float32, dropped-component index per Gaussian for "rot" else None) of
+    one colour stream."""
+    code = STREAM_CHUNKS[name]
+    data, offset = _payload(container, code)
+    r = ByteReader(data, base_offset=offset, chunk=code)
+    rot_axis = None
+    if name == "rot":
+        axis_stream = r.byte_string("axis_stream")
+        rot_axis = decode_categorical(axis_stream, header.count, chunk=code,
+                                      base_offset=r.offset - len(axis_stream))
+        if rot_axis.size and rot_axis.max() > 3:
+            raise r.error("dropped-component index above 3")
+    values = read_float_stream(r, header.count, STREAM_CHANNELS[name])
+    r.expect_end(f"the {name} stream")
+    check_finite(values, code)
+    return values, rot_axis
 
 
 def _payload(container, code: str) -> tuple[bytes, int]:
