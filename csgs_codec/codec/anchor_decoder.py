@@ -16,6 +16,7 @@ from csgs_codec.codec.anchor_payloads import (
     AnchorHeader,
     mlps_from_bytes,
 )
+from csgs_codec.codec.container_access import parse_layers, single_payload
 from csgs_codec.codec.payloads import names_from_bytes
 from csgs_codec.entropy.anchor_attributes import (
     FRAC_BITS,
@@ -43,26 +44,6 @@ def is_anchor_file(source) -> bool:
     return any(e.type == "ANCH" for e in read_layers(source, layers="base").toc)
 
 
-def _layers(layers) -> set[str]:
-    names = set(layers.split(",")) if isinstance(layers, str) else set(layers)
-    names = {n.strip() for n in names if n.strip()}
-    unknown = names - {"color", "semantic", "base"}
-    if unknown:
-        raise FormatError(f"unknown layer(s) {sorted(unknown)}; choose from color, semantic")
-    return (names | {"color"}) - {"base"}
-
-
-def _payload(container, code: str) -> tuple[bytes, int]:
-    """(payload, absolute payload offset) of the single chunk ``code``; FormatError if not."""
-    entries = [e for e in container.toc if e.type == code]
-    if len(entries) != 1:
-        raise FormatError("required chunk is missing" if not entries
-                          else f"chunk appears {len(entries)} times", chunk=code)
-    entry = entries[0]
-    if entry.index not in container.payloads:
-        raise FormatError("chunk is cut off (stream truncated)", chunk=code,
-                          offset=entry.offset)
-    return bytes(container.payloads[entry.index]), entry.offset + 8
 
 
 def _streams(data: bytes, offset: int, chunk: str, count: int) -> list[tuple[bytes, int]]:
@@ -98,7 +79,7 @@ class AnchorDecoder:
         Raises:
             FormatError: a malformed, missing or inconsistent chunk, naming it and the offset.
         """
-        wanted = _layers(layers)
+        wanted = parse_layers(layers)
         try:
             container = read_layers(source, layers=wanted)
             return self._decode(container, wanted)
@@ -108,9 +89,9 @@ class AnchorDecoder:
             raise
 
     def _decode(self, container, wanted: set[str]) -> AnchorScene:
-        header = AnchorHeader.from_bytes(*_payload(container, "ANCH"))
+        header = AnchorHeader.from_bytes(*single_payload(container, "ANCH"))
         m, f, k = header.count, header.feat_dim, header.n_offsets
-        data, offset = _payload(container, "GEOM")
+        data, offset = single_payload(container, "GEOM")
         try:
             cells = decode_positions(data, max_points=m).astype(np.int64)
         except FormatError as err:
@@ -127,24 +108,24 @@ class AnchorDecoder:
         if not np.all(np.isfinite(positions)):
             raise FormatError("anchor positions overflow float32", chunk="ANCH")
         hyper = self._position_net(container, "AHYP", pos_bits)
-        data, offset = _payload(container, "ACRM")
+        data, offset = single_payload(container, "ACRM")
         carm = [IntDenseMLP.from_bytes(d, chunk="ACRM", base_offset=o)
                 for d, o in _streams(data, offset, "ACRM", header.carm_groups - 1)]
-        data, offset = _payload(container, "AMSK")
+        data, offset = single_payload(container, "AMSK")
         mask = decode_masks(data, m, k, chunk="AMSK", base_offset=offset)
         mlps = None
         if header.has_mlps:
-            data, offset = _payload(container, "AMLP")
+            data, offset = single_payload(container, "AMLP")
             mlps = mlps_from_bytes(data, f, k, offset)
 
         p_f, p_off, p_scl = hyper_params(hyper, cells, [f, 3 * k, 6], "AHYP")
-        data, offset = _payload(container, "AFEA")
+        data, offset = single_payload(container, "AFEA")
         features = decode_features(_streams(data, offset, "AFEA", header.carm_groups), p_f,
                                    carm, chunk="AFEA")
-        data, offset = _payload(container, "AOFF")
+        data, offset = single_payload(container, "AOFF")
         kept = decode_block(data, masked_params(p_off, mask), chunk="AOFF",
                             base_offset=offset)
-        data, offset = _payload(container, "ASCL")
+        data, offset = single_payload(container, "ASCL")
         scaling = decode_block(data, p_scl, chunk="ASCL", base_offset=offset)
         offsets = np.zeros((m, k, 3), dtype=np.float32)
         offsets[mask] = _floats(kept)
@@ -160,7 +141,7 @@ class AnchorDecoder:
         return scene
 
     def _position_net(self, container, code: str, pos_bits: int) -> IntMLP:
-        data, offset = _payload(container, code)
+        data, offset = single_payload(container, code)
         net = IntMLP.from_bytes(data, chunk=code, base_offset=offset)
         if net.pos_bits != pos_bits:
             raise FormatError(f"network pos_bits {net.pos_bits} differs from the grid's "
@@ -176,7 +157,7 @@ class AnchorDecoder:
                               chunk="ASEM" if "ASEM" not in present else "SHYP")
         if "ASEM" in present:
             hyper = self._position_net(container, "SHYP", pos_bits)
-            data, offset = _payload(container, "ASEM")
+            data, offset = single_payload(container, "ASEM")
             r = ByteReader(data, base_offset=offset, chunk="ASEM")
             names = names_from_bytes(r, MAX_SEMANTIC_CHANNELS)
             stream = r.byte_string("stream")
@@ -188,7 +169,7 @@ class AnchorDecoder:
             if not np.all(np.isfinite(scene.semantic)):
                 raise FormatError("decoded semantic features overflow float32", chunk="ASEM")
         if "SEML" in present:
-            data, offset = _payload(container, "SEML")
+            data, offset = single_payload(container, "SEML")
             r = ByteReader(data, base_offset=offset, chunk="SEML")
             base = r.svarint("label_base")
             at = r.offset

@@ -11,6 +11,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from csgs_codec.codec.container_access import parse_layers, single_payload
 from csgs_codec.codec.float_stream import read_float_stream
 from csgs_codec.codec.payloads import (
     CHUNK_STREAMS,
@@ -30,23 +31,6 @@ from csgs_codec.format import read_layers
 from csgs_codec.format.primitives import ByteReader
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.scene.position_grid import PositionGrid
-
-LAYER_CHOICES = ("color", "color,semantic")
-
-
-def parse_layers(layers) -> set[str]:
-    """Normalise a layers argument ("color", "color,semantic", or an iterable) to a set.
-
-    Raises:
-        FormatError: an unknown layer name (the colour layer is always decoded).
-    """
-    names = set(layers.split(",")) if isinstance(layers, str) else set(layers)
-    names = {n.strip() for n in names if n.strip()}
-    unknown = names - {"color", "semantic", "base"}
-    if unknown:
-        raise FormatError(f"unknown layer(s) {sorted(unknown)}; choose from color, semantic")
-    return (names | {"color"}) - {"base"}
-
 
 #: Decoder limits against decompression bombs (FORMAT §10.1): a file may declare at most
 #: this many Gaussians, and at most this many per byte of the file (real files hold well
@@ -92,7 +76,7 @@ class Decoder:
         wanted = parse_layers(layers)
         try:
             container = read_layers(source, layers=wanted)
-            header = SceneHeader.from_bytes(*_payload(container, "SCNE"))
+            header = SceneHeader.from_bytes(*single_payload(container, "SCNE"))
             self._check_count(header, container.source_size)
             if self.threads > 1:
                 with ThreadPoolExecutor(self.threads) as pool:
@@ -127,7 +111,7 @@ class Decoder:
     # ------------------------------------------------------------------ base layer
     def _positions(self, container, header: SceneHeader) -> np.ndarray:
         grid_count = header.count - header.far_count
-        data, offset = _payload(container, "GEOM")
+        data, offset = single_payload(container, "GEOM")
         try:
             cells = decode_positions(data, max_points=grid_count)
         except FormatError as err:
@@ -142,7 +126,7 @@ class Decoder:
         grid = PositionGrid(header.grid_origin, header.grid_cell, max(header.grid_bits, 1))
         positions = grid.dequantize(cells)
         if header.far_count:
-            data, offset = _payload(container, "OUTL")
+            data, offset = single_payload(container, "OUTL")
             r = ByteReader(data, base_offset=offset, chunk="OUTL")
             n = r.varint("far_count", maximum=header.far_count)
             if n != header.far_count:
@@ -177,7 +161,7 @@ class Decoder:
     def _semantic(self, container, header: SceneHeader, scene: GaussianScene) -> None:
         present = {e.type for e in container.toc}
         if "SEMF" in present:
-            data, offset = _payload(container, "SEMF")
+            data, offset = single_payload(container, "SEMF")
             r = ByteReader(data, base_offset=offset, chunk="SEMF")
             names = names_from_bytes(r, MAX_SEMANTIC_CHANNELS)
             values = read_float_stream(r, header.count, len(names))
@@ -185,7 +169,7 @@ class Decoder:
             check_finite(values, "SEMF")
             scene.semantic, scene.semantic_names = values, names
         if "SEML" in present:
-            data, offset = _payload(container, "SEML")
+            data, offset = single_payload(container, "SEML")
             r = ByteReader(data, base_offset=offset, chunk="SEML")
             base = r.svarint("label_base")
             table = r.fixed("u8", "scale_index")
@@ -205,7 +189,7 @@ def _colour_stream(container, header: SceneHeader, name: str
     """(values (N, C) float32, dropped-component index per Gaussian for "rot" else None) of
     one colour stream."""
     code = STREAM_CHUNKS[name]
-    data, offset = _payload(container, code)
+    data, offset = single_payload(container, code)
     r = ByteReader(data, base_offset=offset, chunk=code)
     rot_axis = None
     if name == "rot":
@@ -218,18 +202,3 @@ def _colour_stream(container, header: SceneHeader, name: str
     r.expect_end(f"the {name} stream")
     check_finite(values, code)
     return values, rot_axis
-
-
-def _payload(container, code: str) -> tuple[bytes, int]:
-    """(payload, absolute offset of the payload) of the one chunk of type ``code``."""
-    entries = [e for e in container.toc if e.type == code]
-    if not entries:
-        raise FormatError(f"required chunk {code} is missing", chunk=code)
-    if len(entries) > 1:
-        raise FormatError(f"chunk {code} appears {len(entries)} times", chunk=code,
-                          offset=entries[1].offset)
-    entry = entries[0]
-    if entry.index not in container.payloads:
-        raise FormatError(f"chunk {code} is cut off (stream truncated)", chunk=code,
-                          offset=entry.offset)
-    return bytes(container.payloads[entry.index]), entry.offset + 8
