@@ -129,14 +129,25 @@ def write_float_stream(out: ByteWriter, values: np.ndarray, step: float) -> np.n
     return recon
 
 
+FIT_ROWS = 1 << 17
+"""Most rows a prediction fit reads: beyond this the coefficients barely move and the
+least-squares solve would grow the encode time faster than linearly with the scene."""
+
+
+def _fit_rows(count: int) -> slice:
+    """Evenly spaced rows (a stride over the canonical, spatially sorted order) for the fit."""
+    return slice(None, None, max(1, -(-count // FIT_ROWS)))
+
+
 def _fit_prediction(previous: np.ndarray, k: np.ndarray):
     """Least-squares integer coefficients predicting ``k`` from ``previous``, or None."""
     if previous.shape[1] == 0 or not np.any(previous):
         return None
     if np.abs(previous).max() >= INDEX_LIMIT or np.abs(k).max() >= INDEX_LIMIT:
         return None
-    x = np.column_stack([previous.astype(np.float64), np.ones(len(k))])
-    solution, *_ = np.linalg.lstsq(x, k.astype(np.float64), rcond=None)
+    rows = _fit_rows(len(k))
+    x = np.column_stack([previous[rows].astype(np.float64), np.ones(len(k[rows]))])
+    solution, *_ = np.linalg.lstsq(x, k[rows].astype(np.float64), rcond=None)
     scale = float(1 << COEF_FRAC_BITS)
     coefs = np.clip(np.rint(solution[:-1] * scale), -COEF_LIMIT + 1, COEF_LIMIT - 1)
     bias = int(np.clip(np.rint(solution[-1] * scale + scale / 2), -BIAS_LIMIT + 1,
