@@ -66,7 +66,19 @@ def predict(previous: np.ndarray, coefs: np.ndarray, bias: int) -> np.ndarray:
         previous: (N, m) int64 indices of the earlier channels, each |k| < 2^31.
         coefs: (m,) int64, each |A| < 2^15.
     """
-    total = previous.astype(np.int64, copy=False) @ coefs.astype(np.int64) + np.int64(bias)
+    return predict_rows(previous.T, coefs, bias)
+
+
+def predict_rows(previous: np.ndarray, coefs: np.ndarray, bias: int) -> np.ndarray:
+    """:func:`predict` with the earlier channels as rows: ``previous`` (m, N) int64.
+
+    Integer multiply-adds are exact, so the order of the sum does not change the result;
+    summing one contiguous row at a time is what makes it fast.
+    """
+    total = np.full(previous.shape[1], np.int64(bias), np.int64)
+    for row, coef in zip(previous, coefs.astype(np.int64)):
+        if coef:
+            total += row.astype(np.int64, copy=False) * coef
     return total >> COEF_FRAC_BITS
 
 
@@ -81,7 +93,7 @@ def write_float_stream(out: ByteWriter, values: np.ndarray, step: float) -> np.n
     out.fixed("u8", channels)
     out.fixed("u8", f)
     recon = np.empty((n, channels), np.float32)
-    indices = np.zeros((n, channels), np.int64)
+    indices = np.zeros((channels, n), np.int64)  # channels as rows, as in the reader
     step_idx = int(step_index(np.array([step * 2.0**f]))[0])
     steps = np.full(n, step_idx, np.int64)
     for c in range(channels):
@@ -96,13 +108,13 @@ def write_float_stream(out: ByteWriter, values: np.ndarray, step: float) -> np.n
         mean = int(np.rint(np.median(grid)))
         mean_arr = np.full(n, mean, np.int64)
         k = quantize(grid, mean_arr, steps)
-        indices[:, c] = k
+        indices[c] = k
         candidates = [(float(table_costs(k).min()), MODE_FACTORIZED, k, None, 0),
                       (histogram_cost(k), MODE_HISTOGRAM, k, None, 0)]
-        fitted = _fit_prediction(indices[:, :c], k)
+        fitted = _fit_prediction(indices[:c].T, k)
         if fitted is not None:
             coefs, bias = fitted
-            r = k - predict(indices[:, :c], coefs, bias)
+            r = k - predict_rows(indices[:c], coefs, bias)
             overhead = 8 * (3 * c + 6)  # coefficient bytes, at most
             candidates += [(float(table_costs(r).min()) + overhead, MODE_PREDICTED, r, coefs,
                             bias),
@@ -171,13 +183,15 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None) ->
     f = r.fixed("u8", "frac_bits")
     if f > MAX_FRAC_BITS:
         raise r.error(f"frac_bits {f} exceeds {MAX_FRAC_BITS}")
-    out = np.empty((n, c_count), np.float32)
-    indices = np.zeros((n, c_count), np.int64)
+    # Channels as rows: every per-channel pass below reads and writes contiguous memory.
+    out = np.empty((c_count, n), np.float32)
+    indices = np.zeros((c_count, n), np.int64)
+    peak = 0  # largest |index| of the channels decoded so far
     tables = gaussian_family().count
     for c in range(c_count):
         mode = r.fixed("u8", "mode")
         if mode == MODE_CONSTANT:
-            out[:, c] = np.float32(r.fixed("f32", "constant_value"))
+            out[c] = np.float32(r.fixed("f32", "constant_value"))
             continue
         if mode not in (MODE_FACTORIZED, MODE_PREDICTED, MODE_HISTOGRAM):
             raise r.error(f"channel {c} has unknown mode {mode}")
@@ -200,9 +214,9 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None) ->
             bias = r.svarint("bias")
             if (m and np.abs(coefs).max() >= COEF_LIMIT) or abs(bias) >= BIAS_LIMIT:
                 raise r.error(f"channel {c}: prediction coefficient out of range")
-            if np.abs(indices[:, :c]).max(initial=0) >= INDEX_LIMIT:
+            if peak >= INDEX_LIMIT:
                 raise r.error(f"channel {c}: earlier indices too large to predict from")
-            prediction = predict(indices[:, :c], coefs, bias)
+            prediction = predict_rows(indices[:c], coefs, bias)
         stream = r.byte_string("residual_stream")
         if mode == MODE_HISTOGRAM:
             k = decode_histogram(stream, n, chunk=r.chunk,
@@ -211,9 +225,11 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None) ->
             k = decode_symbols(stream, np.full(n, table, np.int64), chunk=r.chunk,
                                base_offset=r.offset - len(stream)) + prediction
         q = int(step_size(np.array([step]))[0])
-        if n and np.abs(k).max() > ((1 << 53) - abs(mean)) // q:
+        top = int(np.abs(k).max()) if n else 0
+        if top > ((1 << 53) - abs(mean)) // q:
             raise r.error(f"channel {c}: decoded value exceeds 2^53 on its grid")
-        indices[:, c] = k
+        peak = max(peak, top)
+        indices[c] = k
         values = k * np.int64(q) + np.int64(mean)  # mu + q k, bounded by 2^53 just above
-        out[:, c] = from_grid(values, f).astype(np.float32)
-    return out
+        out[c] = from_grid(values, f)
+    return np.ascontiguousarray(out.T)

@@ -1,4 +1,4 @@
-"""The channel-prediction fit reads a stride of rows on large streams; coding stays exact."""
+"""Channel prediction of float streams: the row-wise predictor and the subsampled fit."""
 
 import numpy as np
 
@@ -35,3 +35,16 @@ def test_subsampled_fit_round_trips_and_costs_little(monkeypatch):
     assert np.array_equal(recon, decoded)
     assert np.abs(decoded - values).max() <= 0.01
     assert len(data) <= len(full) * 1.01
+
+
+def test_row_wise_prediction_equals_the_exact_formula():
+    rng = np.random.default_rng(5)
+    previous = rng.integers(-(2**30), 2**30, size=(1000, 7), dtype=np.int64)
+    coefs = rng.integers(-(2**14), 2**14, size=7, dtype=np.int64)
+    coefs[2] = 0
+    bias = -12345
+    exact = [(int(row @ coefs) + bias) // (1 << float_stream.COEF_FRAC_BITS)
+             for row in previous]
+    got = float_stream.predict_rows(np.ascontiguousarray(previous.T), coefs, bias)
+    assert got.tolist() == [int(v) for v in exact]
+    assert np.array_equal(float_stream.predict(previous, coefs, bias), got)
