@@ -18,9 +18,8 @@ HELP = ("train a scene from images + cameras (+ instance masks) through the thre
 
 def add_arguments(parser) -> None:
     """Arguments of ``csgs train``."""
-    from csgs_codec.train.color_stage import RATE_WEIGHT_PRESETS, ColorStageSettings
-
-    defaults = ColorStageSettings()
+    from csgs_codec.train import defaults
+    from csgs_codec.train.defaults import RATE_WEIGHT_PRESETS
     parser.add_argument("data", help="dataset: a folder with transforms.json, cameras.json "
                                      "(+ images/) or a COLMAP model, or the camera file itself")
     parser.add_argument("-o", "--output", required=True, metavar="CSGS",
@@ -30,25 +29,35 @@ def add_arguments(parser) -> None:
                         help="stage-1 rate weight lambda_rate (paper presets "
                              f"{', '.join(str(v) for v in RATE_WEIGHT_PRESETS)}; larger: "
                              f"smaller files; default {RATE_WEIGHT_PRESETS[0]})")
-    parser.add_argument("--iterations", type=int, default=defaults.iterations, metavar="N",
-                        help=f"stage-1 steps, one view each (default {defaults.iterations})")
-    parser.add_argument("--semantic-iterations", type=int, default=150, metavar="N",
-                        help="stage-2 steps (stage 3 runs two thirds as many; default 150)")
+    parser.add_argument("--iterations", type=int, default=defaults.ITERATIONS, metavar="N",
+                        help=f"stage-1 steps, one view each (default {defaults.ITERATIONS})")
+    parser.add_argument("--semantic-iterations", type=int, default=defaults.SEMANTIC_ITERATIONS,
+                        metavar="N", help="stage-2 steps (stage 3 runs two thirds as many; "
+                                          f"default {defaults.SEMANTIC_ITERATIONS})")
+    parser.add_argument("--semantic-margin", type=float,
+                        default=defaults.CONTRASTIVE_MARGIN, metavar="M",
+                        help="contrastive margin between masks' mean features, in quantization "
+                             "steps (smaller: a smaller semantic layer, masks less apart; "
+                             f"default {defaults.CONTRASTIVE_MARGIN:g})")
+    parser.add_argument("--semantic-rate", type=float,
+                        default=defaults.FEATURE_RATE_WEIGHT, metavar="W",
+                        help="stage-3 weight of the semantic features' estimated bits "
+                             f"(default {defaults.FEATURE_RATE_WEIGHT:g})")
     parser.add_argument("--resolution", type=int, metavar="R",
                         help="downscale images so their longer side is at most R pixels")
-    parser.add_argument("--quality", type=int, default=defaults.quality, choices=range(1, 10),
+    parser.add_argument("--quality", type=int, default=defaults.QUALITY, choices=range(1, 10),
                         metavar="Q", help="encoder quality 1..9 whose quantization steps "
-                                          f"training simulates (default {defaults.quality})")
-    parser.add_argument("--anchors", type=int, default=defaults.initial_anchors, metavar="M",
+                                          f"training simulates (default {defaults.QUALITY})")
+    parser.add_argument("--anchors", type=int, default=defaults.INITIAL_ANCHORS, metavar="M",
                         help="initial anchors (about; default "
-                             f"{defaults.initial_anchors}); growth may add up to "
+                             f"{defaults.INITIAL_ANCHORS}); growth may add up to "
                              f"--max-anchors")
-    parser.add_argument("--max-anchors", type=int, default=defaults.max_anchors, metavar="M",
-                        help=f"anchor limit of growth (default {defaults.max_anchors})")
-    parser.add_argument("--features", type=int, default=defaults.feat_dim, metavar="F",
-                        help=f"anchor feature width (default {defaults.feat_dim})")
-    parser.add_argument("--offsets", type=int, default=defaults.n_offsets, metavar="K",
-                        help=f"Gaussians per anchor (default {defaults.n_offsets})")
+    parser.add_argument("--max-anchors", type=int, default=defaults.MAX_ANCHORS, metavar="M",
+                        help=f"anchor limit of growth (default {defaults.MAX_ANCHORS})")
+    parser.add_argument("--features", type=int, default=defaults.FEAT_DIM, metavar="F",
+                        help=f"anchor feature width (default {defaults.FEAT_DIM})")
+    parser.add_argument("--offsets", type=int, default=defaults.N_OFFSETS, metavar="K",
+                        help=f"Gaussians per anchor (default {defaults.N_OFFSETS})")
     parser.add_argument("--points", metavar="PLY",
                         help="initial point cloud (default: the dataset's, else random)")
     parser.add_argument("--masks", metavar="DIR",
@@ -67,7 +76,7 @@ def add_arguments(parser) -> None:
                         help="continue from the checkpoint in --checkpoint-dir")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"),
                         help="torch device to train on (default cpu)")
-    parser.add_argument("--threads", type=int, default=defaults.threads, metavar="N",
+    parser.add_argument("--threads", type=int, default=defaults.THREADS, metavar="N",
                         help="torch CPU threads (default 1: the same file on every machine; "
                              "more can be faster for large scenes on a quiet machine)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
@@ -124,6 +133,12 @@ def run(args) -> int:
         if getattr(args, name) < 1:
             raise InputError(f"--{name.replace('_', '-')} must be at least 1",
                              property=name)
+    if not (math.isfinite(args.semantic_margin) and args.semantic_margin > 0):
+        raise InputError(f"--semantic-margin must be a finite number > 0, got "
+                         f"{args.semantic_margin}", property="semantic-margin")
+    if not (math.isfinite(args.semantic_rate) and args.semantic_rate >= 0):
+        raise InputError(f"--semantic-rate must be a finite number >= 0, got "
+                         f"{args.semantic_rate}", property="semantic-rate")
     if args.resume and not args.checkpoint_dir:
         raise InputError("--resume needs --checkpoint-dir", property="resume")
     if args.max_anchors < args.anchors:
@@ -152,6 +167,8 @@ def run(args) -> int:
                                          points=args.points, seed=args.seed)
     settings = TrainSettings(color, semantic_iterations=args.semantic_iterations,
                              stage3_iterations=max(1, 2 * args.semantic_iterations // 3),
+                             feature_rate_weight=args.semantic_rate,
+                             contrastive_margin=args.semantic_margin,
                              checkpoint_every=args.checkpoint_every)
     if not args.quiet:
         print(f"{len(train_views)} training views, {len(test_views)} held out, "

@@ -31,6 +31,7 @@ import torch
 from csgs_codec.codec.anchor_encoder import BASE_STEPS, MULTIPLIERS
 from csgs_codec.errors import InputError, ModelError
 from csgs_codec.render.metrics import psnr
+from csgs_codec.train import defaults
 from csgs_codec.train.anchor_growth import (
     GrowthStats,
     grow_and_prune,
@@ -43,8 +44,8 @@ from csgs_codec.train.losses import photometric_loss
 from csgs_codec.train.quantization import add_quantization_noise
 from csgs_codec.train.views import TrainingView
 
-#: CSGaussian's lambda_rate presets (low, mid, high rate weight).
-RATE_WEIGHT_PRESETS = (0.004, 0.01, 0.02)
+RATE_WEIGHT_PRESETS = defaults.RATE_WEIGHT_PRESETS
+
 #: Parameter groups of ``ColorStageSettings.learning_rates``.
 LEARNING_RATE_GROUPS = ("features", "offsets", "scaling", "mask_logits", "mlps", "rate")
 #: Growth adds anchors on a grid this many halvings finer than the initial anchors'.
@@ -86,14 +87,14 @@ class ColorStageSettings:
         background: RGB behind the scene, as in the training images.
     """
 
-    iterations: int = 2000
-    rate_weight: float = RATE_WEIGHT_PRESETS[0]
+    iterations: int = defaults.ITERATIONS
+    rate_weight: float = defaults.RATE_WEIGHT_PRESETS[0]
     mask_weight: float = 0.25
-    quality: int = 5
-    feat_dim: int = 32
-    n_offsets: int = 10
-    initial_anchors: int = 2000
-    max_anchors: int = 20000
+    quality: int = defaults.QUALITY
+    feat_dim: int = defaults.FEAT_DIM
+    n_offsets: int = defaults.N_OFFSETS
+    initial_anchors: int = defaults.INITIAL_ANCHORS
+    max_anchors: int = defaults.MAX_ANCHORS
     min_views: int = 2
     rate_start: float = 0.3
     growth_start: float = 0.1
@@ -110,7 +111,7 @@ class ColorStageSettings:
     seed: int = 0
     device: str = "cpu"
     background: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    threads: int = 1
+    threads: int = defaults.THREADS
 
     def validate(self) -> None:
         """Raise InputError naming the first setting out of range."""

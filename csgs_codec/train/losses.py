@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import torch
 
 from csgs_codec.errors import InputError
+from csgs_codec.train import defaults
 
 SSIM_WINDOW = 11
 SSIM_SIGMA = 1.5
@@ -41,7 +42,7 @@ SSIM_C2 = 0.03**2
 #: Weight of the (1 - SSIM) term in :func:`photometric_loss` (3DGS's lambda_dssim).
 SSIM_LOSS_WEIGHT = 0.2
 #: Default margin of :func:`inter_mask_contrastive_loss`, in feature units.
-CONTRASTIVE_MARGIN = 6.0
+CONTRASTIVE_MARGIN = defaults.CONTRASTIVE_MARGIN
 
 
 def l1_loss(rendered: torch.Tensor, target: torch.Tensor) -> torch.Tensor:

@@ -37,6 +37,7 @@ from csgs_codec.errors import CsgsWarning, InputError, ModelError
 from csgs_codec.model.anchor_hyperprior import STEP_RANGE, FitSettings
 from csgs_codec.model.scaffold import ScaffoldDecoder
 from csgs_codec.scene.anchor_scene import AnchorScene, default_semantic_names
+from csgs_codec.train import defaults
 from csgs_codec.train.anchor_rate import cell_embedding
 from csgs_codec.train.checkpoint import load_checkpoint, save_checkpoint
 from csgs_codec.train.color_stage import (
@@ -46,6 +47,7 @@ from csgs_codec.train.color_stage import (
     initial_state,
     train_color_stage,
 )
+from csgs_codec.train.losses import CONTRASTIVE_MARGIN
 from csgs_codec.train.semantic_stage import (
     SEMANTIC_DIM,
     SemanticResult,
@@ -71,15 +73,18 @@ class TrainSettings:
         feature_rate_weight: lambda_feature_rate of stage 3 (bits per anchor vs the stage-2
             loss).
         semantic_dim: width of s.
+        contrastive_margin: margin of L_c in quantization steps of s (it sets how far apart
+            the masks' mean features sit, so also the semantic layer's size).
         checkpoint_every: stage-1 steps between checkpoints (with a checkpoint folder).
         encoder_fit: the anchor encoder's hyperprior fitting settings (default its own).
     """
 
     color: ColorStageSettings = field(default_factory=ColorStageSettings)
-    semantic_iterations: int = 150
+    semantic_iterations: int = defaults.SEMANTIC_ITERATIONS
     stage3_iterations: int = 100
-    feature_rate_weight: float = 0.1
+    feature_rate_weight: float = defaults.FEATURE_RATE_WEIGHT
     semantic_dim: int = SEMANTIC_DIM
+    contrastive_margin: float = CONTRASTIVE_MARGIN
     checkpoint_every: int = 500
     encoder_fit: FitSettings | None = None
 
@@ -237,7 +242,8 @@ def _semantic_steps(views: list[TrainingView], color: AnchorEncodeResult,
     result = train_semantic_features(prepared, m, color_steps=color.steps["f"],
                                      dim=settings.semantic_dim,
                                      iterations=settings.semantic_iterations, seed=seed,
-                                     device=device, step_range=step_range)
+                                     device=device, step_range=step_range,
+                                     margin=settings.contrastive_margin)
     if settings.stage3_iterations > 0:
         cells = torch.from_numpy(np.rint((scene.positions - scene.positions.min(axis=0))
                                          / _voxel(scene)).astype(np.int64))
@@ -249,7 +255,7 @@ def _semantic_steps(views: list[TrainingView], color: AnchorEncodeResult,
             prepared, m, color_steps=color.steps["f"], dim=settings.semantic_dim,
             iterations=settings.stage3_iterations, rate_weight=settings.feature_rate_weight,
             rate_model=prior, seed=seed + 1, device=device, initial_features=result.features,
-            step_range=step_range)
+            step_range=step_range, margin=settings.contrastive_margin)
         result.losses = np.concatenate([stage2_losses, result.losses])
     return result
 
