@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/train.py [--lambdas 0.004 0.01 0.02] [--iterations 1500]
         [--anchors 1500] [--max-anchors 6000] [--objects 5] [--gaussians 1500] [--views 24]
         [--size 128x96] [--features 32] [--offsets 10] [--semantic-iterations 150]
-        [--feature-rate-weight 0.1] [--threads 1] [--out FILE]
+        [--feature-rate-weight 1.0] [--contrastive-margin 4] [--threads 1] [--out FILE]
 
 Every 4th view is held out. Per lambda it reports the wall and CPU time of each stage, the
 held-out PSNR/SSIM of the decoded file (colour layer, rendered per view), the file size and
@@ -55,7 +55,8 @@ def run_one(data, train, test, weight: float, args) -> dict:
         threads=args.threads, seed=args.seed)
     settings = TrainSettings(color, semantic_iterations=args.semantic_iterations,
                              stage3_iterations=max(1, 2 * args.semantic_iterations // 3),
-                             feature_rate_weight=args.feature_rate_weight)
+                             feature_rate_weight=args.feature_rate_weight,
+                             contrastive_margin=args.contrastive_margin)
     cpu, wall = time.process_time(), time.perf_counter()
     result = train_scene(train, data.scene.positions, settings)
     cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
@@ -98,6 +99,8 @@ def main() -> int:
     parser.add_argument("--semantic-iterations", type=int, default=150)
     parser.add_argument("--feature-rate-weight", type=float,
                         default=TrainSettings().feature_rate_weight)
+    parser.add_argument("--contrastive-margin", type=float,
+                        default=TrainSettings().contrastive_margin)
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out")
