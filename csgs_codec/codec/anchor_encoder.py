@@ -215,7 +215,7 @@ class AnchorEncoder:
         chunks.append(Chunk("AMSK", "base", encode_masks(mask)))
         mlps = None
         if s.mlps is not None:
-            payload, mlps = mlps_to_bytes(s.mlps)
+            payload, mlps = mlps_to_bytes(s.mlps, self.step("f") / BASE_STEPS["f"])
             chunks.append(Chunk("AMLP", "base", payload))
         chunks += [Chunk(name, "color", payload) for name, payload in best.layer.items()]
         recon = AnchorScene(grid.positions(cells), best.features, best.offsets, best.scaling,

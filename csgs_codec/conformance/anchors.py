@@ -14,6 +14,7 @@ import numpy as np
 
 from csgs_codec.codec.anchor_decoder import AnchorDecoder
 from csgs_codec.codec.anchor_encoder import AnchorEncoder
+from csgs_codec.codec.anchor_payloads import MLP_VERSION_F16, mlps_to_bytes
 from csgs_codec.errors import CsgsError
 from csgs_codec.format import Chunk, read_layers, write_container
 from csgs_codec.model.anchor_hyperprior import FitSettings
@@ -79,6 +80,14 @@ def _without(data: bytes, code: str) -> bytes:
                                   e.tile) for e in container.toc if e.type != code])
 
 
+def _replaced(data: bytes, code: str, payload: bytes) -> bytes:
+    """``data`` with chunk ``code``'s payload replaced by ``payload``."""
+    container = read_layers(data, layers="color,semantic")
+    return write_container([Chunk(e.type, e.layer, payload if e.type == code
+                                  else bytes(container.payloads[e.index]), e.tile)
+                            for e in container.toc])
+
+
 def generate(out_dir: Path) -> None:
     """Write the anchor vectors into ``out_dir``."""
     scene = vector_scene()
@@ -91,6 +100,11 @@ def generate(out_dir: Path) -> None:
     _write(out_dir, "anchors_colour_q8", colour,
            "the same anchors at quality 8 without CARM and without a semantic layer",
            AnchorDecoder().decode(colour))
+    legacy = _replaced(colour, "AMLP",
+                       mlps_to_bytes(scene.mlps, version=MLP_VERSION_F16)[0])
+    _write(out_dir, "anchors_colour_q8_mlp_float16", legacy,
+           "anchors_colour_q8 with its MLP weights in AMLP version 1 (float16)",
+           AnchorDecoder().decode(legacy))
     _write(out_dir, "anchors_missing_features", _without(full, "AFEA"),
            "anchors_semantic_q5 without its AFEA chunk: every read fails naming AFEA")
     _write(out_dir, "anchors_missing_semantic_features", _without(full, "ASEM"),
