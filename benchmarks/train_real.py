@@ -9,7 +9,8 @@ so this stands in for a real capture: the scene is rendered from ``--views`` cam
 elevations (half at 15, half at 45 degrees), every 4th view is held out, and each view's
 instance mask comes from :func:`csgs_codec.train.segmentation.segment_image` (what
 ``csgs train`` does when a dataset has no masks). Stage 1 starts from random points in the
-ball the cameras look into, not from the scene's own positions. Per lambda it reports the
+ball the cameras look into, or (the default) from a seeded subset of the scene's own centres,
+standing in for the sparse SfM points a real capture comes with. Per lambda it reports the
 held-out PSNR/SSIM of the decoded file against the renders of the original, the file and
 layer sizes, anchors, the semantic share, and the 2D click mIoU against the segmenter's masks
 of the held-out views (consistency with the masks trained on; there is no ground truth).
@@ -97,6 +98,12 @@ def main() -> int:
     parser.add_argument("--iterations", type=int, default=2000)
     parser.add_argument("--anchors", type=int, default=2000)
     parser.add_argument("--max-anchors", type=int, default=8000)
+    parser.add_argument("--initial-points", choices=("scene", "random"), default="scene",
+                        help="scene: a seeded subset of the scene's centres, standing in for "
+                             "the sparse SfM points a capture comes with; random: in the "
+                             "cameras' view ball")
+    parser.add_argument("--points", type=int, default=5000,
+                        help="initial points taken from the scene")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out")
     args = parser.parse_args()
@@ -106,7 +113,12 @@ def main() -> int:
     views = rendered_views(scene, args.views, width, height)
     render_seconds = time.perf_counter() - began
     train, test = split_views(views, 4)
-    points = random_points([v.camera for v in train], seed=args.seed)
+    if args.initial_points == "scene":
+        rng = np.random.default_rng(args.seed)
+        chosen = rng.choice(len(scene), size=min(args.points, len(scene)), replace=False)
+        points = scene.positions[np.sort(chosen)].astype(np.float64)
+    else:
+        points = random_points([v.camera for v in train], seed=args.seed)
     results = []
     for weight in args.lambdas:
         results.append(run_one(train, test, points, weight, args))
@@ -119,7 +131,7 @@ def main() -> int:
                            "views": len(views), "train_views": len(train),
                            "test_views": len(test), "width": width, "height": height,
                            "masks": "segment_image (classical fallback)",
-                           "initial_points": "random in the cameras' view ball",
+                           "initial_points": args.initial_points,
                            "render_seconds": round(render_seconds, 2)}), args.out)
     return 0
 
