@@ -18,7 +18,22 @@ VECTORS = sorted((VECTORS_DIR / "anchors").glob("*.json"))
 
 def test_the_anchor_vector_set_is_present():
     assert {p.stem for p in VECTORS} >= {"anchors_semantic_q5", "anchors_colour_q8",
+                                         "anchors_colour_q8_mlp_float16",
                                          "anchors_missing_features"}
+
+
+def test_the_vectors_cover_both_mlp_payload_versions():
+    from csgs_codec.format import read_layers
+
+    versions = set()
+    for meta_path in VECTORS:
+        data = meta_path.with_suffix(".csgs").read_bytes()
+        if not json.loads(meta_path.read_text())["valid"]:
+            continue
+        container = read_layers(data, layers="color")
+        versions |= {bytes(container.payloads[e.index])[0] for e in container.toc
+                     if e.type == "AMLP"}
+    assert versions == {1, 2}
 
 
 @pytest.mark.parametrize("meta_path", VECTORS, ids=lambda p: p.stem)
