@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.entropy.intnet import IntLayer, IntMLP
+from csgs_codec.entropy.intnet_bytes import INTNET_VERSION, INTNET_VERSION_RAW, intnet_to_bytes
 from csgs_codec.entropy.residual import decode_residuals, encode_residuals
 from csgs_codec.entropy.tables import (
     DATA_DIR,
@@ -139,18 +140,28 @@ def generate(out_dir: Path) -> None:
             **outcome})
     net = _network()
     positions = _positions()
-    payload = net.to_bytes()
+    payload = intnet_to_bytes(net, INTNET_VERSION_RAW)
     outputs = IntMLP.from_bytes(payload).forward(np.array(positions), path="int64")
     assert (outputs == net.forward(np.array(positions), path="float64")).all()
     _write(out_dir, "intnet_small", payload, {
         "description": "3-layer network, L = 2, widths 12-16-16-3, 8-bit weights, "
-                       "act_bits 10; outputs (mean, scale index, step index).",
+                       "act_bits 10; outputs (mean, scale index, step index); payload "
+                       "version 1 (fixed-width weights and biases).",
+        "kind": "intnet", "outcome": "ok", "positions": positions,
+        "embedding_first_row": net.embed(np.array(positions[:1]))[0].tolist(),
+        "outputs": outputs.tolist()})
+    coded = intnet_to_bytes(net, INTNET_VERSION)
+    assert coded[0] == 2 and (IntMLP.from_bytes(coded).forward(np.array(positions),
+                                                               path="int64") == outputs).all()
+    _write(out_dir, "intnet_small_v2", coded, {
+        "description": "intnet_small in payload version 2 (entropy-coded weights, varint "
+                       "biases): the same network, the same outputs.",
         "kind": "intnet", "outcome": "ok", "positions": positions,
         "embedding_first_row": net.embed(np.array(positions[:1]))[0].tolist(),
         "outputs": outputs.tolist()})
     for name, text, blob in (
-            ("intnet_bad_version", "intnet_small with version byte 2.",
-             b"\x02" + payload[1:]),
+            ("intnet_bad_version", "intnet_small with version byte 3.",
+             b"\x03" + payload[1:]),
             ("intnet_truncated", "intnet_small cut inside the second layer's weights.",
              payload[:400]),
             ("intnet_over_bound",
