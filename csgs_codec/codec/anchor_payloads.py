@@ -11,6 +11,7 @@ import numpy as np
 from csgs_codec.codec.float_stream import read_float_stream, write_float_stream
 from csgs_codec.entropy.anchor_attributes import FRAC_BITS, MEAN_BITS
 from csgs_codec.entropy.morton import MAX_BITS
+from csgs_codec.entropy.residual import coded_value_limit
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format.primitives import ByteReader, ByteWriter
 from csgs_codec.scene.anchor_scene import MLPWeights, ScaffoldMLPWeights
@@ -27,10 +28,6 @@ MLP_VERSION = 2
 MLP_RELATIVE_STEP = 1.0 / 128
 #: Smallest step used (arrays of equal values are coded as constants whatever the step).
 MLP_MIN_STEP = 2.0**-20
-#: Version 2 bounds a decoder's allocation by the bytes it was given: an array may hold at
-#: most this many values per payload byte left at its start, plus MLP_VALUE_SLACK.
-MLP_VALUES_PER_BYTE = 4
-MLP_VALUE_SLACK = 1 << 16
 #: Decoder limits.
 MAX_ANCHORS = 1 << 26
 #: Most coded values (anchors x (F + 3K + 6)) a decoder accepts.
@@ -171,23 +168,18 @@ def mlps_to_bytes(mlps: ScaffoldMLPWeights, multiplier: float = 1.0, *,
         out.varint(mlps.appearance.shape[1])
         appearance = coded(mlps.appearance, "appearance")
     payload = out.getvalue()
-    if any(count > _value_limit(len(payload) - start) for start, count in starts):
+    if any(count > coded_value_limit(len(payload) - start) for start, count in starts):
         # Huge arrays of nearly equal values code in fewer bytes than a decoder may trust.
         return mlps_to_bytes(mlps, multiplier, version=MLP_VERSION_F16)
     return payload, ScaffoldMLPWeights(appearance=appearance, **rounded)
-
-
-def _value_limit(payload_bytes_left: int) -> int:
-    """Most values a version-2 array may hold with this many payload bytes left at its start."""
-    return MLP_VALUES_PER_BYTE * payload_bytes_left + MLP_VALUE_SLACK
 
 
 def _weights(r: ByteReader, version: int, count: int, name: str) -> np.ndarray:
     """``count`` weights as (count,) float32: float16 (version 1) or a float stream."""
     if version == MLP_VERSION_F16:
         return r.array(count, "<f2", name).astype(np.float32)
-    if count > _value_limit(r.remaining):  # refuse before allocating
-        raise r.error(f"{name}: {count} weights exceed the {_value_limit(r.remaining)} "
+    if count > coded_value_limit(r.remaining):  # refuse before allocating
+        raise r.error(f"{name}: {count} weights exceed the {coded_value_limit(r.remaining)} "
                       f"allowed with {r.remaining} payload bytes left")
     return read_float_stream(r, count, 1)[:, 0]
 

@@ -60,17 +60,11 @@ def frac_bits_for(values: np.ndarray) -> int:
 
 
 def predict(previous: np.ndarray, coefs: np.ndarray, bias: int) -> np.ndarray:
-    """Predicted indices (N,) int64: floor((previous @ coefs + bias) / 2^12), exact.
+    """Predicted indices (N,) int64: floor((sum_j coefs_j previous_j + bias) / 2^12), exact.
 
     Args:
-        previous: (N, m) int64 indices of the earlier channels, each |k| < 2^31.
+        previous: (m, N) int64 indices of the earlier channels, one row each, |k| < 2^31.
         coefs: (m,) int64, each |A| < 2^15.
-    """
-    return predict_rows(previous.T, coefs, bias)
-
-
-def predict_rows(previous: np.ndarray, coefs: np.ndarray, bias: int) -> np.ndarray:
-    """:func:`predict` with the earlier channels as rows: ``previous`` (m, N) int64.
 
     Integer multiply-adds are exact, so the order of the sum does not change the result;
     summing one contiguous row at a time is what makes it fast.
@@ -114,7 +108,7 @@ def write_float_stream(out: ByteWriter, values: np.ndarray, step: float) -> np.n
         fitted = _fit_prediction(indices[:c].T, k)
         if fitted is not None:
             coefs, bias = fitted
-            r = k - predict_rows(indices[:c], coefs, bias)
+            r = k - predict(indices[:c], coefs, bias)
             overhead = 8 * (3 * c + 6)  # coefficient bytes, at most
             candidates += [(float(table_costs(r).min()) + overhead, MODE_PREDICTED, r, coefs,
                             bias),
@@ -216,7 +210,7 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None) ->
                 raise r.error(f"channel {c}: prediction coefficient out of range")
             if peak >= INDEX_LIMIT:
                 raise r.error(f"channel {c}: earlier indices too large to predict from")
-            prediction = predict_rows(indices[:c], coefs, bias)
+            prediction = predict(indices[:c], coefs, bias)
         stream = r.byte_string("residual_stream")
         if mode == MODE_HISTOGRAM:
             k = decode_histogram(stream, n, chunk=r.chunk,

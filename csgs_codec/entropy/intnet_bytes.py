@@ -10,8 +10,9 @@
 
 Version 2 entropy-codes the weights (a 10-bit weight takes about 7.5 bits instead of 16) and
 writes biases as varints (a few bytes instead of 8): on a trained 1,850-anchor scene the
-hyperprior network shrinks by about 40%. Encoders write 2 unless an array breaks its
-allocation bound (:data:`VALUES_PER_BYTE`), then 1; decoders read both.
+hyperprior network shrinks by about 40%. Encoders write 2 unless a layer breaks the
+allocation bound (:func:`~csgs_codec.entropy.residual.coded_value_limit`), then 1; decoders
+read both.
 
 Every size is checked against its limit and against the bytes that remain before anything is
 allocated; a payload whose network breaks a range or the exactness bound is a FormatError.
@@ -33,7 +34,7 @@ from csgs_codec.entropy.intnet import (
     IntLayer,
     IntMLP,
 )
-from csgs_codec.entropy.residual import decode_symbols, encode_symbols
+from csgs_codec.entropy.residual import coded_value_limit, decode_symbols, encode_symbols
 from csgs_codec.entropy.table_choice import best_table
 from csgs_codec.entropy.tables import gaussian_family
 from csgs_codec.errors import FormatError, ModelError
@@ -41,10 +42,6 @@ from csgs_codec.format.primitives import ByteReader, ByteWriter
 
 INTNET_VERSION_RAW = 1
 INTNET_VERSION = 2
-#: Version 2 bounds a decoder's allocation by its input: a layer may hold at most this many
-#: weights per payload byte left where its weights start, plus VALUE_SLACK.
-VALUES_PER_BYTE = 4
-VALUE_SLACK = 1 << 16
 
 
 def weight_dtype(weight_bits: int) -> str:
@@ -83,15 +80,9 @@ def intnet_to_bytes(net: IntMLP, version: int = INTNET_VERSION) -> bytes:
         out.svarint(lo)
         out.svarint(hi)
     payload = out.getvalue()
-    if any(count > value_limit(len(payload) - start) for start, count in starts):
+    if any(count > coded_value_limit(len(payload) - start) for start, count in starts):
         return intnet_to_bytes(net, INTNET_VERSION_RAW)
     return payload
-
-
-def value_limit(bytes_left: int) -> int:
-    """Most weights a version-2 layer may hold with ``bytes_left`` payload bytes left where
-    its weights start."""
-    return VALUES_PER_BYTE * bytes_left + VALUE_SLACK
 
 
 def _bounded(reader: ByteReader, field: str, low: int, high: int) -> int:
@@ -105,9 +96,9 @@ def _bounded(reader: ByteReader, field: str, low: int, high: int) -> int:
 def _coded_weights(reader: ByteReader, i: int, count: int, bits: int) -> np.ndarray:
     """Version 2: a layer's ``count`` weights, each within ``bits`` signed bits."""
     start = reader.offset
-    if count > value_limit(reader.remaining):  # refuse before allocating
+    if count > coded_value_limit(reader.remaining):  # refuse before allocating
         raise reader.error(f"layer {i}: {count} weights exceed the "
-                           f"{value_limit(reader.remaining)} allowed with "
+                           f"{coded_value_limit(reader.remaining)} allowed with "
                            f"{reader.remaining} payload bytes left", at=start)
     table = _bounded(reader, f"layer {i} table", 0, gaussian_family().count - 1)
     stream = reader.byte_string(f"layer {i} weight stream")

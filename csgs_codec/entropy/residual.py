@@ -31,6 +31,17 @@ RESIDUAL_LIMIT = 1 << 62
 STEP_COUNT = 176
 #: Most values one stream may hold (a decoder limit; 2^32 - 1).
 MAX_COUNT = (1 << 32) - 1
+#: Where a payload's value count is not fixed by data decoded before it (network weights,
+#: MLP weights), it may be at most this many values per payload byte left, plus
+#: CODED_VALUE_SLACK: a decoder's allocation then stays bounded by the bytes it was given.
+CODED_VALUES_PER_BYTE = 4
+CODED_VALUE_SLACK = 1 << 16
+
+
+def coded_value_limit(bytes_left: int) -> int:
+    """Most values an array coded in the rest of a payload may hold (see
+    :data:`CODED_VALUES_PER_BYTE`); encoders whose arrays exceed it use a fixed-width form."""
+    return CODED_VALUES_PER_BYTE * bytes_left + CODED_VALUE_SLACK
 
 
 def step_size(step_idx: np.ndarray) -> np.ndarray:

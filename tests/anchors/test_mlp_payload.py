@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from csgs_codec.codec import anchor_payloads as ap
+from csgs_codec.entropy.residual import CODED_VALUE_SLACK
 from csgs_codec.errors import FormatError
 from csgs_codec.format.primitives import ByteWriter
 from csgs_codec.scene.anchor_scene import MLPWeights, ScaffoldMLPWeights
@@ -65,7 +66,7 @@ def test_version_1_files_still_decode_as_float16():
 
 
 def test_huge_near_constant_arrays_fall_back_to_float16():
-    appearance = np.zeros((ap.MLP_VALUE_SLACK // 4 + 1, 8), np.float32)  # > the slack
+    appearance = np.zeros((CODED_VALUE_SLACK // 4 + 1, 8), np.float32)  # > the slack
     payload, recon = ap.mlps_to_bytes(_mlps(appearance=appearance), 3.0)
     assert payload[0] == ap.MLP_VERSION_F16
     assert np.array_equal(recon.appearance, appearance)

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from csgs_codec.entropy import intnet_bytes as nb
+from csgs_codec.entropy import residual
 from csgs_codec.entropy.intnet import IntLayer, IntMLP
 from csgs_codec.errors import FormatError
 from csgs_codec.format.primitives import ByteWriter
@@ -52,7 +53,8 @@ def test_version_2_is_the_default_and_smaller_on_trained_like_weights():
 
 
 def test_a_near_constant_layer_beyond_the_bound_falls_back_to_version_1(monkeypatch):
-    monkeypatch.setattr(nb, "VALUE_SLACK", 0)  # stands in for a layer of > 65,536 zeros
+    # stands in for a layer of more than 65,536 zeros
+    monkeypatch.setattr(residual, "CODED_VALUE_SLACK", 0)
     layers = (IntLayer(np.zeros((16, 12), np.int64), np.zeros(16, np.int64), 4, 8),
               IntLayer(np.zeros((1, 16), np.int64), np.zeros(1, np.int64), 4, 8))
     net = IntMLP(16, 2, 12, layers, np.zeros(1, np.int64), np.ones(1, np.int64))
@@ -71,7 +73,8 @@ def _header(out_width: int, bits: int = 8) -> ByteWriter:
 
 
 def test_a_layer_too_large_for_the_bytes_left_is_refused_before_decoding(monkeypatch):
-    monkeypatch.setattr(nb, "VALUE_SLACK", 0)  # 4096 x 12 weights, nothing left to hold them
+    # 4096 x 12 weights with nothing left to hold them
+    monkeypatch.setattr(residual, "CODED_VALUE_SLACK", 0)
     with pytest.raises(FormatError, match="weights exceed"):
         IntMLP.from_bytes(_header(4096).getvalue())
 
