@@ -11,8 +11,9 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from csgs_codec.codec.colour_prior import channel_priors, prior_cells, prior_from_bytes
 from csgs_codec.codec.container_access import parse_layers, single_payload
-from csgs_codec.codec.float_stream import read_float_stream
+from csgs_codec.codec.float_stream import ChannelPrior, read_float_stream
 from csgs_codec.codec.payloads import (
     CHUNK_STREAMS,
     MAX_SEMANTIC_CHANNELS,
@@ -78,17 +79,27 @@ class Decoder:
             container = read_layers(source, layers=wanted)
             header = SceneHeader.from_bytes(*single_payload(container, "SCNE"))
             self._check_count(header, container.source_size)
-            if self.threads > 1:
-                with ThreadPoolExecutor(self.threads) as pool:
-                    # Geometry and each attribute stream are independent: decode them side by
-                    # side (numpy releases the GIL). Results are taken in a fixed order, so
-                    # the output and the first error raised do not depend on scheduling.
+            with_prior = any(e.type == "CHYP" for e in container.toc)
+            pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
+            try:
+                if with_prior:
+                    # The hyperprior reads the decoded cells: geometry comes first.
+                    positions, cells = self._positions(container, header)
+                    priors = self._colour_priors(container, header, cells)
+                    streams = self._colour_streams(container, header, pool, priors)
+                elif pool is not None:
+                    # Geometry and each attribute stream are independent: decode them side
+                    # by side (numpy releases the GIL). Results are taken in a fixed order,
+                    # so the output and the first error raised do not depend on scheduling.
                     positions_job = pool.submit(self._positions, container, header)
                     streams = self._colour_streams(container, header, pool)
-                    positions = positions_job.result()
-            else:
-                positions = self._positions(container, header)
-                streams = self._colour_streams(container, header)
+                    positions, _ = positions_job.result()
+                else:
+                    positions, _ = self._positions(container, header)
+                    streams = self._colour_streams(container, header)
+            finally:
+                if pool is not None:
+                    pool.shutdown()
             scene = join_streams(streams, positions)
             if "semantic" in wanted:
                 self._semantic(container, header, scene)
@@ -109,7 +120,8 @@ class Decoder:
                 "it)", chunk="SCNE")
 
     # ------------------------------------------------------------------ base layer
-    def _positions(self, container, header: SceneHeader) -> np.ndarray:
+    def _positions(self, container, header: SceneHeader) -> tuple[np.ndarray, np.ndarray]:
+        """(positions (N, 3) float32, grid cells (N - far_count, 3)) of the base layer."""
         grid_count = header.count - header.far_count
         data, offset = single_payload(container, "GEOM")
         try:
@@ -136,22 +148,39 @@ class Decoder:
             check_finite(far, "OUTL")
             positions = np.concatenate([positions, far])
         check_finite(positions, "GEOM")
-        return positions
+        return positions, cells
 
     # ------------------------------------------------------------------ colour layer
+    def _colour_priors(self, container, header: SceneHeader, cells: np.ndarray
+                       ) -> dict[str, dict[int, ChannelPrior]]:
+        """The hyperprior's per-channel priors from the CHYP chunk and the decoded cells."""
+        data, offset = single_payload(container, "CHYP")
+        pos_bits = max(header.grid_bits, 1)
+        if pos_bits > 32 or (len(cells) and int(cells.max()) >= 1 << pos_bits):
+            raise FormatError(f"the colour hyperprior needs cells below 2^{pos_bits} and a "
+                              "grid of at most 32 bits", chunk="CHYP", offset=offset)
+        prior = prior_from_bytes(data, base_offset=offset, names=_stream_names(header),
+                                 pos_bits=pos_bits)
+        return channel_priors(prior, prior_cells(cells, header.far_count),
+                              _stream_names(header))
+
     def _colour_streams(self, container, header: SceneHeader,
-                        pool: ThreadPoolExecutor | None = None) -> SceneStreams:
-        names = ["dc"] + [f"rest{b}" for b in range(1, header.sh_degree_coded + 1)]
-        names += ["opacity", "scale", "rot"]
+                        pool: ThreadPoolExecutor | None = None,
+                        priors: dict[str, dict[int, ChannelPrior]] | None = None
+                        ) -> SceneStreams:
+        names = _stream_names(header)
+        priors = priors or {}
         present = {e.type for e in container.toc}
         extra = present & set(CHUNK_STREAMS) - {STREAM_CHUNKS[n] for n in names}
         if extra:
             raise FormatError(f"unexpected colour chunk(s) {sorted(extra)} for SH degree "
                               f"{header.sh_degree_coded}", chunk=sorted(extra)[0])
         if pool is None:
-            results = [_colour_stream(container, header, name) for name in names]
+            results = [_colour_stream(container, header, name, priors.get(name))
+                       for name in names]
         else:
-            jobs = [pool.submit(_colour_stream, container, header, name) for name in names]
+            jobs = [pool.submit(_colour_stream, container, header, name, priors.get(name))
+                    for name in names]
             results = [job.result() for job in jobs]  # in order: the first error wins
         decoded = {name: values for name, (values, _) in zip(names, results)}
         rot_axis = results[-1][1]
@@ -184,10 +213,17 @@ class Decoder:
             scene.labels = labels.astype(np.int32)
 
 
-def _colour_stream(container, header: SceneHeader, name: str
+def _stream_names(header: SceneHeader) -> list[str]:
+    """The colour streams a scene with this header has, in order."""
+    return (["dc"] + [f"rest{b}" for b in range(1, header.sh_degree_coded + 1)]
+            + ["opacity", "scale", "rot"])
+
+
+def _colour_stream(container, header: SceneHeader, name: str,
+                   priors: dict[int, ChannelPrior] | None = None
                    ) -> tuple[np.ndarray, np.ndarray | None]:
     """(values (N, C) float32, dropped-component index per Gaussian for "rot" else None) of
-    one colour stream."""
+    one colour stream; ``priors`` are the hyperprior's for its modelled channels."""
     code = STREAM_CHUNKS[name]
     data, offset = single_payload(container, code)
     r = ByteReader(data, base_offset=offset, chunk=code)
@@ -198,7 +234,7 @@ def _colour_stream(container, header: SceneHeader, name: str
                                       base_offset=r.offset - len(axis_stream))
         if rot_axis.size and rot_axis.max() > 3:
             raise r.error("dropped-component index above 3")
-    values = read_float_stream(r, header.count, STREAM_CHANNELS[name])
+    values = read_float_stream(r, header.count, STREAM_CHANNELS[name], priors)
     r.expect_end(f"the {name} stream")
     check_finite(values, code)
     return values, rot_axis

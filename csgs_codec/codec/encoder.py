@@ -13,13 +13,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from csgs_codec.codec.float_stream import write_float_stream
+from csgs_codec.codec.colour_prior import prior_cells
+from csgs_codec.codec.colour_prior_choice import PriorChoice, choose_prior
+from csgs_codec.codec.float_stream import (
+    plan_float_stream,
+    write_float_stream,
+    write_planned_stream,
+)
 from csgs_codec.codec.payloads import (
     STREAM_CHUNKS,
     SceneHeader,
     names_to_bytes,
 )
-from csgs_codec.codec.presets import DEFAULT_QUALITY, Preset, preset
+from csgs_codec.codec.presets import DEFAULT_QUALITY, Preset, preset, scaled_preset
 from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
 from csgs_codec.entropy.categorical import encode_categorical
 from csgs_codec.entropy.geometry import canonical_order, encode_positions
@@ -76,10 +82,12 @@ class Encoder:
         lambda_: instead of a quality or target, the encode minimising J = D + lambda * R on
             the probe views: D the foreground MSE in squared 8-bit levels, R the file's bits
             per Gaussian (:func:`~csgs_codec.codec.rate_control.encode_for_lambda`).
-        fast: shorter searches: target PSNR with fewer trial encodes and a looser
-            tolerance (the target is still met; the file may be larger), lambda with fewer
-            encodes on half the probe views. A preset encode is one pass already and is the
-            same either way.
+        fast: no colour hyperprior fit, and shorter searches: target PSNR with fewer trial
+            encodes and a looser tolerance (the target is still met; the file may be
+            larger), lambda with fewer encodes on half the probe views.
+        hyperprior: fit the colour layer's INR hyperprior (a few seconds; scenes of at
+            least 8,192 Gaussians) and use it for the channels where it makes the file
+            smaller. It changes the rate only: the decoded scene is the same either way.
         semantic: "auto" writes the semantic layer when the scene has semantic channels or
             labels; "none" never writes it.
         prune_opacity: drop Gaussians whose opacity sigmoid(logit) is below this (lossy,
@@ -89,7 +97,8 @@ class Encoder:
 
     def __init__(self, quality: int | None = None, *, target_psnr: float | None = None,
                  lambda_: float | None = None, fast: bool = False, semantic: str = "auto",
-                 prune_opacity: float | None = None, progress=None) -> None:
+                 prune_opacity: float | None = None, hyperprior: bool = True,
+                 progress=None) -> None:
         if lambda_ is not None and (quality is not None or target_psnr is not None):
             raise InputError("lambda excludes quality and target PSNR: give one of them",
                              property="lambda")
@@ -112,6 +121,7 @@ class Encoder:
             raise InputError(f"prune_opacity must be in [0, 1), got {prune_opacity}")
         self.semantic = semantic
         self.prune_opacity = prune_opacity
+        self.hyperprior = bool(hyperprior) and not self.fast
         self.progress = progress or (lambda step: None)
 
     def encode(self, scene: GaussianScene) -> bytes:
@@ -153,7 +163,9 @@ class Encoder:
                  else rc.RenderProbe(original))
 
         def encode(settings: Preset) -> EncodeResult:
-            return self._encode(scene, settings)
+            # The hyperprior changes the rate only, so the search (which scores renders)
+            # runs without its fit; the kept settings are encoded once more with it below.
+            return self._encode(scene, settings, hyperprior=False)
 
         if self.lambda_ is not None:
             steps = rc.FAST_LAMBDA_STEPS if self.fast else rc.LAMBDA_STEPS
@@ -164,11 +176,18 @@ class Encoder:
                       if self.fast else {})
             result, report = rc.encode_to_target(encode, scene, self.target_psnr, probe=probe,
                                                  progress=self.progress, **search)
+        if self.hyperprior:
+            self.progress("final encode")
+            final = self._encode(scene, scaled_preset(report.multiplier))
+            if len(final.data) < len(result.data):
+                result = final
         result.rate_control = report
         return result
 
-    def _encode(self, scene: GaussianScene, settings: Preset) -> EncodeResult:
-        """Encode a validated (and pruned) scene with ``settings``."""
+    def _encode(self, scene: GaussianScene, settings: Preset, *,
+                hyperprior: bool | None = None) -> EncodeResult:
+        """Encode a validated (and pruned) scene with ``settings`` (and the colour
+        hyperprior when ``hyperprior``, default: the encoder's setting)."""
         start = time.perf_counter()
         self.progress("geometry")
         grid = PositionGrid.fit(scene.positions, settings.position_bits)
@@ -193,7 +212,11 @@ class Encoder:
             chunks.append(Chunk("OUTL", "base", _outliers_payload(scene.positions[far_idx])))
 
         self.progress("colour")
-        decoded_streams = self._colour_chunks(streams, chunks, settings)
+        use_prior = self.hyperprior if hyperprior is None else hyperprior
+        cells_in_order = (prior_cells(cells[inside_idx][perm], len(far_idx)) if use_prior
+                          else None)
+        decoded_streams = self._colour_chunks(streams, chunks, settings, cells_in_order,
+                                              max(grid.bits, 1))
         reconstruction = join_streams(decoded_streams, positions)
 
         if self.semantic == "auto" and (ordered.semantic is not None or
@@ -209,18 +232,28 @@ class Encoder:
             seconds=time.perf_counter() - start)
 
     # ------------------------------------------------------------------ layers
-    def _colour_chunks(self, streams: SceneStreams, chunks: list[Chunk],
-                       p: Preset) -> SceneStreams:
+    def _colour_chunks(self, streams: SceneStreams, chunks: list[Chunk], p: Preset,
+                       cells: np.ndarray | None, pos_bits: int) -> SceneStreams:
+        """Append the colour layer (CHYP when the hyperprior pays, then one chunk per
+        stream); ``cells`` (N, 3) are the hyperprior's inputs, None to skip it."""
         steps = {"dc": p.dc_step, "rest1": p.rest_step, "rest2": p.rest_step,
                  "rest3": p.rest_step, "opacity": p.opacity_step, "scale": p.scale_step,
                  "rot": p.rotation_step}
-        decoded = {}
-        for name, values in streams.float_streams.items():
+        plans = {name: plan_float_stream(values, steps[name])
+                 for name, values in streams.float_streams.items()}
+        choice = PriorChoice()
+        if cells is not None:
+            self.progress("colour hyperprior")
+            choice = choose_prior(plans, cells, pos_bits)
+        if choice.payload is not None:
+            chunks.append(Chunk("CHYP", "color", choice.payload))
+        for name, plan in plans.items():
             out = ByteWriter()
             if name == "rot":
                 out.byte_string(encode_categorical(streams.rot_axis, 4))
-            decoded[name] = write_float_stream(out, values, steps[name])
+            write_planned_stream(out, plan, choice.channels.get(name))
             chunks.append(Chunk(STREAM_CHUNKS[name], "color", out.getvalue()))
+        decoded = {name: plan.recon for name, plan in plans.items()}
         return SceneStreams(decoded, streams.rot_axis.copy(), streams.sh_degree_stored)
 
     def _semantic_chunks(self, ordered: GaussianScene, reconstruction: GaussianScene,

@@ -11,12 +11,17 @@ Each channel c is one of:
 - histogram (mode 4): k or k - P (with or without the prediction) coded with a frequency
   table of its own (:mod:`csgs_codec.entropy.histogram`) instead of a frozen Gaussian table,
   for channels whose distribution is not Gaussian.
+- hyperprior (mode 5): k or k - P (the *base residual* b) coded per Gaussian with the mean
+  and scale-table index the colour layer's INR hyperprior predicts from the Gaussian's
+  position (:class:`ChannelPrior`): the symbol b - mean is coded with that scale's table.
 
 The value decodes as ``float32((mu + q * k) * 2^-F)``. The encoder picks, per channel, the mode
 that codes smallest (counting the coefficients), so prediction is used only where it pays.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -40,6 +45,7 @@ MODE_CONSTANT = 0
 MODE_FACTORIZED = 1
 MODE_PREDICTED = 2
 MODE_HISTOGRAM = 4
+MODE_HYPERPRIOR = 5
 #: Fractional bits of prediction coefficients and bias.
 COEF_FRAC_BITS = 12
 #: |A_j| must stay below this; |B| below BIAS_LIMIT.
@@ -76,26 +82,85 @@ def predict(previous: np.ndarray, coefs: np.ndarray, bias: int) -> np.ndarray:
     return total >> COEF_FRAC_BITS
 
 
+@dataclass
+class ChannelPlan:
+    """The encoder's analysis of one channel before any hyperprior: what it codes without one.
+
+    Attributes:
+        mode: the best mode without the hyperprior (constant, factorized, predicted or
+            histogram).
+        cost: its coded size in bits (estimate, coefficients included).
+        mean: the channel's grid mean (constant: unused).
+        base: (N,) int64 base residual: the quantization index k, or k minus the channel
+            prediction when ``coefs`` is set.
+        coefs, bias: the channel prediction, or None.
+        constant: the float32 value of a constant channel.
+    """
+
+    mode: int
+    cost: float
+    mean: int = 0
+    base: np.ndarray | None = None
+    coefs: np.ndarray | None = None
+    bias: int = 0
+    constant: float = 0.0
+
+
+@dataclass
+class StreamPlan:
+    """A float stream quantized and analysed, ready to write (see :func:`plan_float_stream`).
+
+    Attributes:
+        count, frac_bits, step_idx: N, the grid's fractional bits and the step index.
+        channels: one :class:`ChannelPlan` per channel.
+        recon: (N, C) float32 values the decoder will reconstruct (whatever the modes).
+    """
+
+    count: int
+    frac_bits: int
+    step_idx: int
+    channels: list[ChannelPlan]
+    recon: np.ndarray
+
+
+@dataclass(frozen=True)
+class ChannelPrior:
+    """Per-Gaussian entropy parameters of one channel from the colour hyperprior.
+
+    Attributes:
+        mean: (N,) int64 rounded mean of the base residual, in steps.
+        scale: (N,) int64 scale-table indices in [0, 63].
+    """
+
+    mean: np.ndarray
+    scale: np.ndarray
+
+
 def write_float_stream(out: ByteWriter, values: np.ndarray, step: float) -> np.ndarray:
     """Append a float stream body for ``values`` (N, C) quantized with ``step`` (value units).
 
     Returns the (N, C) float32 values the decoder will reconstruct.
     """
+    plan = plan_float_stream(values, step)
+    write_planned_stream(out, plan)
+    return plan.recon
+
+
+def plan_float_stream(values: np.ndarray, step: float) -> StreamPlan:
+    """Quantize ``values`` (N, C) with ``step`` (value units) and choose each channel's best
+    mode without a hyperprior."""
     n, channels = values.shape
     f = frac_bits_for(values)
-    out.varint(n)
-    out.fixed("u8", channels)
-    out.fixed("u8", f)
     recon = np.empty((n, channels), np.float32)
     indices = np.zeros((channels, n), np.int64)  # channels as rows, as in the reader
     step_idx = int(step_index(np.array([step * 2.0**f]))[0])
     steps = np.full(n, step_idx, np.int64)
+    plans = []
     for c in range(channels):
         column = values[:, c].astype(np.float32)
         if n == 0 or np.all(column == column[0]):
             value = float(column[0]) if n else 0.0
-            out.fixed("u8", MODE_CONSTANT)
-            out.fixed("f32", value)
+            plans.append(ChannelPlan(MODE_CONSTANT, 0.0, constant=value))
             recon[:, c] = np.float32(value)
             continue
         grid = to_grid(column.astype(np.float64), f)
@@ -113,26 +178,51 @@ def write_float_stream(out: ByteWriter, values: np.ndarray, step: float) -> np.n
             candidates += [(float(table_costs(r).min()) + overhead, MODE_PREDICTED, r, coefs,
                             bias),
                            (histogram_cost(r) + overhead, MODE_HISTOGRAM, r, coefs, bias)]
-        _, mode, residuals, coefs, bias = min(candidates, key=lambda cand: cand[0])
-        out.fixed("u8", mode)
-        out.svarint(mean)
-        if mode != MODE_HISTOGRAM:
-            table = int(np.argmin(table_costs(residuals)))
-            out.fixed("u8", table)
-        out.fixed("u8", step_idx)
-        if mode == MODE_PREDICTED or (mode == MODE_HISTOGRAM and coefs is not None):
-            out.varint(c)
-            for a in coefs:
-                out.svarint(int(a))
-            out.svarint(int(bias))
-        elif mode == MODE_HISTOGRAM:
-            out.varint(0)
-        if mode == MODE_HISTOGRAM:
-            out.byte_string(encode_histogram(residuals))
-        else:
-            out.byte_string(encode_symbols(residuals, np.full(n, table, np.int64)))
+        cost, mode, base, coefs, bias = min(candidates, key=lambda cand: cand[0])
+        plans.append(ChannelPlan(mode, cost, mean, base, coefs, bias))
         recon[:, c] = from_grid(reconstruct(mean_arr, k, steps), f).astype(np.float32)
-    return recon
+    return StreamPlan(n, f, step_idx, plans, recon)
+
+
+def prior_stream(plan: ChannelPlan, prior: ChannelPrior) -> bytes:
+    """The residual stream of ``plan``'s channel coded with the hyperprior (mode 5)."""
+    return encode_symbols(plan.base - prior.mean, prior.scale)
+
+
+def write_planned_stream(out: ByteWriter, plan: StreamPlan,
+                         priors: dict[int, tuple[ChannelPrior, bytes]] | None = None) -> None:
+    """Append the stream body of ``plan``; channels in ``priors`` (channel -> (prior, its
+    :func:`prior_stream`)) are written in the hyperprior mode, the others in their plan's."""
+    priors = priors or {}
+    out.varint(plan.count)
+    out.fixed("u8", len(plan.channels))
+    out.fixed("u8", plan.frac_bits)
+    for c, ch in enumerate(plan.channels):
+        if ch.mode == MODE_CONSTANT:
+            out.fixed("u8", MODE_CONSTANT)
+            out.fixed("f32", ch.constant)
+            continue
+        mode = MODE_HYPERPRIOR if c in priors else ch.mode
+        out.fixed("u8", mode)
+        out.svarint(ch.mean)
+        if mode in (MODE_FACTORIZED, MODE_PREDICTED):
+            table = int(np.argmin(table_costs(ch.base)))
+            out.fixed("u8", table)
+        out.fixed("u8", plan.step_idx)
+        if mode == MODE_PREDICTED:
+            out.varint(c)
+        elif mode != MODE_FACTORIZED:
+            out.varint(0 if ch.coefs is None else c)
+        if ch.coefs is not None:
+            for a in ch.coefs:
+                out.svarint(int(a))
+            out.svarint(int(ch.bias))
+        if mode == MODE_HYPERPRIOR:
+            out.byte_string(priors[c][1])
+        elif mode == MODE_HISTOGRAM:
+            out.byte_string(encode_histogram(ch.base))
+        else:
+            out.byte_string(encode_symbols(ch.base, np.full(plan.count, table, np.int64)))
 
 
 FIT_ROWS = 1 << 17
@@ -161,8 +251,12 @@ def _fit_prediction(previous: np.ndarray, k: np.ndarray):
     return coefs.astype(np.int64), bias
 
 
-def read_float_stream(r: ByteReader, count: int, channels: int | None = None) -> np.ndarray:
+def read_float_stream(r: ByteReader, count: int, channels: int | None = None,
+                      priors: dict[int, ChannelPrior] | None = None) -> np.ndarray:
     """Read a float stream body written by :func:`write_float_stream`: (count, C) float32.
+
+    ``priors`` holds the hyperprior's parameters of the channels it models (channel index ->
+    :class:`ChannelPrior`); a channel in mode 5 without one is an error.
 
     Raises:
         FormatError: count or channel mismatch, a bad mode, table, step or coefficient, an
@@ -187,16 +281,22 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None) ->
         if mode == MODE_CONSTANT:
             out[c] = np.float32(r.fixed("f32", "constant_value"))
             continue
-        if mode not in (MODE_FACTORIZED, MODE_PREDICTED, MODE_HISTOGRAM):
+        if mode not in (MODE_FACTORIZED, MODE_PREDICTED, MODE_HISTOGRAM, MODE_HYPERPRIOR):
             raise r.error(f"channel {c} has unknown mode {mode}")
+        prior = None
+        if mode == MODE_HYPERPRIOR:
+            prior = (priors or {}).get(c)
+            if prior is None:
+                raise r.error(f"channel {c} uses the colour hyperprior, which does not model "
+                              "it (no CHYP chunk, or its channel mask leaves it out)")
         mean = r.svarint("mean")
-        table = 0 if mode == MODE_HISTOGRAM else r.fixed("u8", "scale_index")
+        table = 0 if mode in (MODE_HISTOGRAM, MODE_HYPERPRIOR) else r.fixed("u8", "scale_index")
         step = r.fixed("u8", "step_index")
         if abs(mean) > 1 << 53 or table >= tables or step >= STEP_COUNT:
             raise r.error(f"channel {c}: mean, scale index or step index out of range")
         prediction = 0
         m = 0
-        if mode == MODE_HISTOGRAM:
+        if mode in (MODE_HISTOGRAM, MODE_HYPERPRIOR):
             m = r.varint("coefficient_count", maximum=c_count)
             if m not in (0, c):
                 raise r.error(f"channel {c} has {m} coefficients, expected 0 or {c}")
@@ -212,7 +312,10 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None) ->
                 raise r.error(f"channel {c}: earlier indices too large to predict from")
             prediction = predict(indices[:c], coefs, bias)
         stream = r.byte_string("residual_stream")
-        if mode == MODE_HISTOGRAM:
+        if mode == MODE_HYPERPRIOR:
+            k = decode_symbols(stream, prior.scale, chunk=r.chunk,
+                               base_offset=r.offset - len(stream)) + prior.mean + prediction
+        elif mode == MODE_HISTOGRAM:
             k = decode_histogram(stream, n, chunk=r.chunk,
                                  base_offset=r.offset - len(stream)) + prediction
         else:

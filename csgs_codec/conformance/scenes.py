@@ -95,7 +95,9 @@ def generate(out_dir: Path) -> None:
     r = REVISION
     donut = read_ply(DONUT)
     for quality in (3, 7):
-        data = Encoder(quality=quality).encode(donut)
+        # Written without the colour hyperprior, as when they landed; the prior has its own
+        # vectors (_colour_prior_vectors).
+        data = Encoder(quality=quality, hyperprior=False).encode(donut)
         _write(out_dir, f"donut_q{quality}{r}", data,
                f"samples/donut.ply (45,624 Gaussians, SH 0) at quality {quality}",
                _reads(data))
@@ -113,4 +115,24 @@ def generate(out_dir: Path) -> None:
     bad = _invalid(data, cut="OPAC")
     _write(out_dir, f"truncated_opacity_payload{r}", bad,
            "semantic_small_r2 with the OPAC payload cut in half (frame and CRC rewritten)",
+           _reads(bad))
+    _colour_prior_vectors(out_dir, donut)
+
+
+def _colour_prior_vectors(out_dir: Path, donut: GaussianScene) -> None:
+    """A file with the colour hyperprior (CHYP, channel mode 5) and the same file without its
+    CHYP chunk. A short fit on 4,000 Gaussians, kept even where the network costs more than
+    it saves, so the vector stays small."""
+    from csgs_codec.codec.colour_prior_choice import fit_overrides
+    from csgs_codec.model.colour_hyperprior import ColourFitSettings
+
+    head = donut.subset(np.arange(4000))
+    with fit_overrides(ColourFitSettings(steps=300), min_gaussians=0, keep_when_larger=True):
+        data = Encoder(quality=3).encode(head)
+    _write(out_dir, "colour_prior_q3", data,
+           "the first 4,000 Gaussians of samples/donut.ply at quality 3 with the colour "
+           "hyperprior (CHYP; mode-5 channels)", _reads(data))
+    bad = _invalid(data, drop="CHYP")
+    _write(out_dir, "colour_prior_missing_chyp", bad,
+           "colour_prior_q3 without its CHYP chunk: mode-5 channels have no prior",
            _reads(bad))

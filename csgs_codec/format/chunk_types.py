@@ -61,6 +61,8 @@ _TABLE = (
               "Scene header: Gaussian count, SH degrees, position grid, far-outlier count."),
     ChunkType("GEOM", Layer.BASE, "Quantized positions: the octree geometry stream."),
     ChunkType("OUTL", Layer.BASE, "Far outliers: exact float32 positions outside the grid."),
+    ChunkType("CHYP", Layer.COLOR,
+              "Colour hyperprior: channel mask and integer network on the Gaussians' cells."),
     ChunkType("SHDC", Layer.COLOR, "SH degree-0 colour coefficients (float stream, 3 ch)."),
     ChunkType("SHBA", Layer.COLOR, "SH band 1 coefficients (float stream, 9 ch)."),
     ChunkType("SHBB", Layer.COLOR, "SH band 2 coefficients (float stream, 15 ch)."),

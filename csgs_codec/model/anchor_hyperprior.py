@@ -23,7 +23,6 @@ which involves no training and always exports. Each restart or fallback emits a
 
 from __future__ import annotations
 
-import copy
 import math
 import warnings
 from dataclasses import dataclass, replace
@@ -45,6 +44,13 @@ from csgs_codec.entropy.residual import STEP_COUNT, step_index
 from csgs_codec.entropy.tables import SIGMA_MAX, SIGMA_MIN
 from csgs_codec.errors import CsgsWarning, ModelError
 from csgs_codec.model.dense_export import export_dense_mlp, export_position_mlp
+from csgs_codec.model.fit_tools import (
+    Adam,
+    clip_gradients,
+    gaussian_bin_bits,
+    mlp,
+    scaled_outputs,
+)
 from csgs_codec.model.intnet_export import float_embedding
 
 #: Scale and step outputs are trained in units of 1/8 index (so Adam moves them gently).
@@ -124,27 +130,9 @@ def num_freqs_for(pos_bits: int) -> int:
     return max(1, min(10, pos_bits - 1))
 
 
-def _mlp(sizes: list[int]) -> torch.nn.Sequential:
-    layers: list[torch.nn.Module] = []
-    for i in range(len(sizes) - 1):
-        layers.append(torch.nn.Linear(sizes[i], sizes[i + 1]))
-        if i < len(sizes) - 2:
-            layers.append(torch.nn.ReLU())
-    return torch.nn.Sequential(*layers)
-
-
 def _step_value(j: torch.Tensor) -> torch.Tensor:
     """Smooth step (value units) of a continuous step index (exact on the 1/8-octave grid)."""
     return torch.pow(2.0, (j + 17.0) / 8.0 - FRAC_BITS)
-
-
-def _bits(values, mean, scale_idx, step, noise) -> torch.Tensor:
-    """Estimated bits of each value: -log2 of the Gaussian mass over its noisy bin."""
-    ratio = math.log(SIGMA_MAX / SIGMA_MIN) / SCALE_MAX
-    s = SIGMA_MIN * torch.exp(torch.clamp(scale_idx, 0.0, float(SCALE_MAX)) * ratio)
-    y = (values - mean) / step + noise
-    mass = torch.special.ndtr((y + 0.5) / s) - torch.special.ndtr((y - 0.5) / s)
-    return -torch.log2(torch.clamp(mass, min=1e-9))
 
 
 class _Prior(torch.nn.Module):
@@ -155,10 +143,10 @@ class _Prior(torch.nn.Module):
         # Per target: (base step index, lowest and highest step index the fit may use).
         self.step_bounds = [_step_bounds(t) for t in targets]
         widths = [2 * t.channels + 1 for t in targets]
-        self.hyper = _mlp([in_width, settings.hidden, settings.hidden, sum(widths)])
+        self.hyper = mlp([in_width, settings.hidden, settings.hidden, sum(widths)])
         self.bounds = group_bounds(targets[0].channels, groups) if groups > 1 else []
         self.carm = torch.nn.ModuleList(
-            _mlp([lo, settings.carm_hidden, 2 * (hi - lo)]) for lo, hi in self.bounds[1:])
+            mlp([lo, settings.carm_hidden, 2 * (hi - lo)]) for lo, hi in self.bounds[1:])
         last = self.hyper[-1]
         with torch.no_grad():
             last.weight.mul_(0.1)
@@ -200,7 +188,7 @@ class _Prior(torch.nn.Module):
                     means.append(mean[:, lo:hi] + delta[:, :hi - lo])
                     scales.append(scale[:, lo:hi] + delta[:, hi - lo:] * INDEX_UNIT)
                 mean, scale = torch.cat(means, dim=1), torch.cat(scales, dim=1)
-            bits = _bits(values[i], mean, scale, q, noise)
+            bits = gaussian_bin_bits(values[i], mean, scale, q, noise)
             total = total + (weights[i] * (bits + lams[i] * q * q / 12.0)).sum()
             col += 2 * c + 1
         return total / emb.shape[0]
@@ -221,43 +209,6 @@ def _step_bounds(target: AttributeTarget) -> tuple[int, int, int]:
     return j0, max(0, j0 - STEP_RANGE), min(STEP_COUNT - 1, j0 + STEP_RANGE)
 
 
-class _Adam:
-    """Adam (Kingma & Ba) in plain tensor ops: torch.optim imports torch._dynamo on first
-    use, which costs seconds of encoder start-up for nothing here."""
-
-    def __init__(self, params, lr: float, betas=(0.9, 0.999), eps: float = 1e-8) -> None:
-        self.params = list(params)
-        self.lr, self.betas, self.eps, self.t = lr, betas, eps, 0
-        self.m = [torch.zeros_like(p) for p in self.params]
-        self.v = [torch.zeros_like(p) for p in self.params]
-
-    def zero_grad(self) -> None:
-        for p in self.params:
-            p.grad = None
-
-    def step(self) -> None:
-        b1, b2 = self.betas
-        self.t += 1
-        c1, c2 = 1 - b1 ** self.t, 1 - b2 ** self.t
-        with torch.no_grad():
-            for p, m, v in zip(self.params, self.m, self.v):
-                if p.grad is None:
-                    continue
-                m.mul_(b1).add_(p.grad, alpha=1 - b1)
-                v.mul_(b2).addcmul_(p.grad, p.grad, value=1 - b2)
-                p.addcdiv_(m / c1, (v / c2).sqrt_().add_(self.eps), value=-self.lr)
-
-
-def _folded(net: torch.nn.Sequential, row_scale: np.ndarray) -> torch.nn.Sequential:
-    """A copy whose last layer outputs ``row_scale`` times the original outputs."""
-    out = copy.deepcopy(net)
-    scale = torch.from_numpy(row_scale).float()
-    with torch.no_grad():
-        out[-1].weight.mul_(scale[:, None])
-        out[-1].bias.mul_(scale)
-    return out
-
-
 def _hyper_export(prior: _Prior, cells: np.ndarray, pos_bits: int, num_freqs: int) -> IntMLP:
     scales, lo, hi = [], [], []
     for t, (_, j_lo, j_hi) in zip(prior.targets, prior.step_bounds):
@@ -265,7 +216,7 @@ def _hyper_export(prior: _Prior, cells: np.ndarray, pos_bits: int, num_freqs: in
         scales += [2.0 ** MEAN_BITS] * c + [INDEX_UNIT] * (c + 1)
         lo += [-MEAN_LIMIT] * c + [0] * c + [j_lo]
         hi += [MEAN_LIMIT] * c + [SCALE_MAX] * c + [j_hi]
-    return export_position_mlp(_folded(prior.hyper, np.array(scales)), pos_bits=pos_bits,
+    return export_position_mlp(scaled_outputs(prior.hyper, np.array(scales)), pos_bits=pos_bits,
                                num_freqs=num_freqs, calibration_positions=cells,
                                out_lo=np.array(lo), out_hi=np.array(hi),
                                weight_bits=HYPER_WEIGHT_BITS)
@@ -278,7 +229,7 @@ def _carm_export(prior: _Prior, feature_grid: np.ndarray) -> list[IntDenseMLP]:
         scales = np.array([2.0 ** MEAN_BITS] * c + [INDEX_UNIT] * c)
         limits = np.array([CARM_DELTA_LIMIT] * c + [SCALE_MAX] * c)
         nets.append(export_dense_mlp(
-            _folded(net, scales), input_shift=CARM_INPUT_SHIFT, input_bits=CARM_INPUT_BITS,
+            scaled_outputs(net, scales), input_shift=CARM_INPUT_SHIFT, input_bits=CARM_INPUT_BITS,
             input_frac_bits=MEAN_BITS, calibration_inputs=feature_grid[:, :lo],
             out_lo=-limits, out_hi=limits, weight_bits=CARM_WEIGHT_BITS))
     return nets
@@ -360,7 +311,7 @@ def _train(emb: torch.Tensor, targets: list[AttributeTarget], carm_groups: int,
     values = [torch.from_numpy(t.values).float() for t in targets]
     weights = [torch.from_numpy(t.weights).float() for t in targets]
     lams = [6.0 / (math.log(2.0) * t.base_step ** 2) for t in targets]
-    optimizer = _Adam(prior.parameters(), lr=settings.learning_rate)
+    optimizer = Adam(prior.parameters(), lr=settings.learning_rate)
     m = emb.shape[0]
     for step in range(settings.steps):
         if step == settings.steps * 3 // 4:
@@ -372,23 +323,9 @@ def _train(emb: torch.Tensor, targets: list[AttributeTarget], carm_groups: int,
         if not torch.isfinite(loss):
             raise _DivergedError(f"non-finite loss at step {step}")
         loss.backward()
-        if not math.isfinite(_clip_gradients(optimizer.params, GRAD_CLIP_NORM)):
+        if not math.isfinite(clip_gradients(optimizer.params, GRAD_CLIP_NORM)):
             raise _DivergedError(f"non-finite gradient at step {step}")
         optimizer.step()
     if not all(torch.isfinite(p).all() for p in prior.parameters()):
         raise _DivergedError("non-finite weights after the fit")
     return prior
-
-
-def _clip_gradients(params: list[torch.Tensor], max_norm: float) -> float:
-    """Scale the gradients of ``params`` down to total L2 norm ``max_norm`` if above it;
-    returns the norm before clipping (inf or nan when a gradient is not finite)."""
-    grads = [p.grad for p in params if p.grad is not None]
-    if not grads:
-        return 0.0
-    norm = float(torch.sqrt(sum((g.double() ** 2).sum() for g in grads)))
-    if math.isfinite(norm) and norm > max_norm:
-        with torch.no_grad():
-            for g in grads:
-                g.mul_(max_norm / norm)
-    return norm

@@ -1,0 +1,107 @@
+"""Encoder side of the colour hyperprior: fit it on the planned streams and keep it only for
+the channels, and only when, it makes the file smaller (the network's bytes counted)."""
+
+from __future__ import annotations
+
+import warnings
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from csgs_codec.codec.colour_prior import (
+    MEAN_BITS,
+    MEAN_LIMIT,
+    ColourPrior,
+    channel_priors,
+    keep_outputs,
+    prior_to_bytes,
+    stream_layout,
+)
+from csgs_codec.codec.float_stream import MODE_CONSTANT, ChannelPrior, StreamPlan, prior_stream
+from csgs_codec.errors import CsgsWarning, ModelError
+
+#: Scenes with fewer Gaussians skip the fit: its network (about 3 KB) would cost more than
+#: the 1-3 bits per Gaussian it saves on the scenes measured (benchmarks/rd.py).
+MIN_GAUSSIANS = 8192
+
+
+@dataclass
+class _Overrides:
+    settings: object = None
+    min_gaussians: int = MIN_GAUSSIANS
+    keep_when_larger: bool = False
+
+
+_OVERRIDES = _Overrides()
+
+
+@contextmanager
+def fit_overrides(settings=None, min_gaussians: int = MIN_GAUSSIANS,
+                  keep_when_larger: bool = False):
+    """Within the block, encoders fit the colour hyperprior with ``settings`` (a
+    ColourFitSettings) on scenes of at least ``min_gaussians``, and (``keep_when_larger``)
+    write it for every channel where it codes smaller even when the network costs more than
+    it saves. For tests and conformance vectors that need the CHYP path on small scenes."""
+    global _OVERRIDES
+    previous = _OVERRIDES
+    _OVERRIDES = _Overrides(settings, min_gaussians, keep_when_larger)
+    try:
+        yield
+    finally:
+        _OVERRIDES = previous
+
+
+@dataclass
+class PriorChoice:
+    """What the encoder writes: the CHYP payload (None: no hyperprior) and, per stream, the
+    channels coded with it (channel -> (prior, residual stream))."""
+
+    payload: bytes | None = None
+    channels: dict[str, dict[int, tuple[ChannelPrior, bytes]]] = field(default_factory=dict)
+
+
+def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int) -> PriorChoice:
+    """Fit the colour hyperprior on ``plans`` (stream -> plan, in stream order) and keep it
+    where it pays.
+
+    Args:
+        cells: (N, 3) int64 network inputs (:func:`~csgs_codec.codec.colour_prior.prior_cells`).
+        pos_bits: the grid's bits per axis.
+    """
+    settings = _OVERRIDES.settings
+    names = list(plans)
+    layout = stream_layout(names)
+    coded = np.array([plans[s].channels[c].mode != MODE_CONSTANT for s, c in layout], bool)
+    if len(cells) < _OVERRIDES.min_gaussians or not coded.any():
+        return PriorChoice()
+    from csgs_codec.model.colour_hyperprior import fit_colour_prior
+
+    bases = np.column_stack([plans[s].channels[c].base
+                             for (s, c), on in zip(layout, coded) if on])
+    try:
+        net = fit_colour_prior(cells, pos_bits, bases, settings, mean_bits=MEAN_BITS,
+                               mean_limit=MEAN_LIMIT)
+    except ModelError as err:
+        warnings.warn(f"the colour hyperprior was not used ({err.message}); the file decodes "
+                      "exactly but is larger", CsgsWarning, stacklevel=3)
+        return PriorChoice()
+    prior = ColourPrior(coded, net)
+    priors = channel_priors(prior, cells, names)
+    keep, saved, streams = [], 0.0, {}
+    for s, c in (lc for lc, on in zip(layout, coded) if on):
+        plan = plans[s].channels[c]
+        stream = prior_stream(plan, priors[s][c])
+        overhead = 8 * (3 * c + 6) if plan.coefs is not None else 0
+        gain = plan.cost - (8 * len(stream) + overhead)
+        keep.append(gain > 0)
+        if gain > 0:
+            saved += gain
+            streams.setdefault(s, {})[c] = (priors[s][c], stream)
+    if not any(keep):
+        return PriorChoice()
+    kept = keep_outputs(prior, np.array(keep))
+    payload = prior_to_bytes(kept)
+    if saved <= 8 * len(payload) and not _OVERRIDES.keep_when_larger:
+        return PriorChoice()
+    return PriorChoice(payload, streams)
