@@ -50,6 +50,11 @@ def stream_layout(names: list[str]) -> list[tuple[str, int]]:
     return [(name, c) for name in names for c in range(STREAM_CHANNELS[name])]
 
 
+def modelled_streams(prior: ColourPrior, names: list[str]) -> set[str]:
+    """The streams among ``names`` with at least one channel the prior models."""
+    return {name for (name, _), on in zip(stream_layout(names), prior.mask) if on}
+
+
 def prior_cells(cells: np.ndarray, far_count: int) -> np.ndarray:
     """The network input of every Gaussian in decoded order: (N, 3) int64, the grid cells of
     the first N - far_count and (0, 0, 0) for the far outliers after them."""

@@ -24,6 +24,9 @@ from csgs_codec.errors import CsgsWarning, ModelError
 #: Scenes with fewer Gaussians skip the fit: its network (about 3 KB) would cost more than
 #: the 1-3 bits per Gaussian it saves on the scenes measured (benchmarks/rd.py).
 MIN_GAUSSIANS = 8192
+#: The prior must save at least this share of the colour layer's bits: below it, the network
+#: evaluation at decode (about 0.3-0.5 s per 250k Gaussians on one core) is not worth it.
+MIN_SAVING_SHARE = 0.01
 
 
 @dataclass
@@ -102,6 +105,8 @@ def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int)
         return PriorChoice()
     kept = keep_outputs(prior, np.array(keep))
     payload = prior_to_bytes(kept)
-    if saved <= 8 * len(payload) and not _OVERRIDES.keep_when_larger:
+    colour_bits = sum(plans[s].channels[c].cost for s, c in layout)
+    pays = saved - 8 * len(payload) > MIN_SAVING_SHARE * colour_bits
+    if not pays and not _OVERRIDES.keep_when_larger:
         return PriorChoice()
     return PriorChoice(payload, streams)

@@ -7,11 +7,17 @@ torch is not installed.
 from __future__ import annotations
 
 import os
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 
 import numpy as np
 
-from csgs_codec.codec.colour_prior import channel_priors, prior_cells, prior_from_bytes
+from csgs_codec.codec.colour_prior import (
+    ColourPrior,
+    channel_priors,
+    modelled_streams,
+    prior_cells,
+    prior_from_bytes,
+)
 from csgs_codec.codec.container_access import parse_layers, single_payload
 from csgs_codec.codec.float_stream import ChannelPrior, read_float_stream
 from csgs_codec.codec.payloads import (
@@ -79,24 +85,17 @@ class Decoder:
             container = read_layers(source, layers=wanted)
             header = SceneHeader.from_bytes(*single_payload(container, "SCNE"))
             self._check_count(header, container.source_size)
-            with_prior = any(e.type == "CHYP" for e in container.toc)
+            prior = (self._colour_prior(container, header)
+                     if any(e.type == "CHYP" for e in container.toc) else None)
             pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
             try:
-                if with_prior:
-                    # The hyperprior reads the decoded cells: geometry comes first.
-                    positions, cells = self._positions(container, header)
-                    priors = self._colour_priors(container, header, cells)
-                    streams = self._colour_streams(container, header, pool, priors)
-                elif pool is not None:
-                    # Geometry and each attribute stream are independent: decode them side
-                    # by side (numpy releases the GIL). Results are taken in a fixed order,
-                    # so the output and the first error raised do not depend on scheduling.
-                    positions_job = pool.submit(self._positions, container, header)
-                    streams = self._colour_streams(container, header, pool)
-                    positions, _ = positions_job.result()
-                else:
-                    positions, _ = self._positions(container, header)
-                    streams = self._colour_streams(container, header)
+                # Geometry and each attribute stream are independent, except that streams
+                # with hyperprior channels need the decoded cells: decode side by side
+                # (numpy releases the GIL). Results are taken in a fixed order, so the
+                # output and the first error raised do not depend on scheduling.
+                positions_job = _submit(pool, self._positions, container, header)
+                streams = self._colour_streams(container, header, pool, prior, positions_job)
+                positions, _ = positions_job.result()
             finally:
                 if pool is not None:
                     pool.shutdown()
@@ -151,37 +150,38 @@ class Decoder:
         return positions, cells
 
     # ------------------------------------------------------------------ colour layer
-    def _colour_priors(self, container, header: SceneHeader, cells: np.ndarray
-                       ) -> dict[str, dict[int, ChannelPrior]]:
-        """The hyperprior's per-channel priors from the CHYP chunk and the decoded cells."""
+    def _colour_prior(self, container, header: SceneHeader) -> ColourPrior:
+        """The colour hyperprior of the CHYP chunk (parsed, not yet evaluated)."""
         data, offset = single_payload(container, "CHYP")
         pos_bits = max(header.grid_bits, 1)
-        if pos_bits > 32 or (len(cells) and int(cells.max()) >= 1 << pos_bits):
-            raise FormatError(f"the colour hyperprior needs cells below 2^{pos_bits} and a "
-                              "grid of at most 32 bits", chunk="CHYP", offset=offset)
-        prior = prior_from_bytes(data, base_offset=offset, names=_stream_names(header),
-                                 pos_bits=pos_bits)
-        return channel_priors(prior, prior_cells(cells, header.far_count),
-                              _stream_names(header))
+        if pos_bits > 32:
+            raise FormatError(f"the colour hyperprior needs a grid of at most 32 bits, the "
+                              f"header has {pos_bits}", chunk="CHYP", offset=offset)
+        return prior_from_bytes(data, base_offset=offset, names=_stream_names(header),
+                                pos_bits=pos_bits)
 
-    def _colour_streams(self, container, header: SceneHeader,
-                        pool: ThreadPoolExecutor | None = None,
-                        priors: dict[str, dict[int, ChannelPrior]] | None = None
-                        ) -> SceneStreams:
+    def _colour_streams(self, container, header: SceneHeader, pool: ThreadPoolExecutor | None,
+                        prior: ColourPrior | None, positions_job: Future) -> SceneStreams:
+        """Decode the colour streams; those with hyperprior channels after the geometry
+        (``positions_job``) and the network's evaluation, the others right away."""
         names = _stream_names(header)
-        priors = priors or {}
         present = {e.type for e in container.toc}
         extra = present & set(CHUNK_STREAMS) - {STREAM_CHUNKS[n] for n in names}
         if extra:
             raise FormatError(f"unexpected colour chunk(s) {sorted(extra)} for SH degree "
                               f"{header.sh_degree_coded}", chunk=sorted(extra)[0])
-        if pool is None:
-            results = [_colour_stream(container, header, name, priors.get(name))
-                       for name in names]
-        else:
-            jobs = [pool.submit(_colour_stream, container, header, name, priors.get(name))
-                    for name in names]
-            results = [job.result() for job in jobs]  # in order: the first error wins
+        modelled = modelled_streams(prior, names) if prior is not None else set()
+        jobs = {name: _submit(pool, _colour_stream, container, header, name)
+                for name in names if name not in modelled}
+        if modelled:
+            _, cells = positions_job.result()
+            if len(cells) and int(cells.max()) >= 1 << prior.net.pos_bits:
+                raise FormatError(f"the colour hyperprior needs cells below "
+                                  f"2^{prior.net.pos_bits}", chunk="CHYP")
+            priors = channel_priors(prior, prior_cells(cells, header.far_count), names)
+            jobs.update({name: _submit(pool, _colour_stream, container, header, name,
+                                       priors[name]) for name in modelled})
+        results = [jobs[name].result() for name in names]  # in order: the first error wins
         decoded = {name: values for name, (values, _) in zip(names, results)}
         rot_axis = results[-1][1]
         return SceneStreams(decoded, rot_axis.astype(np.uint8), header.sh_degree_stored)
@@ -211,6 +211,19 @@ class Decoder:
             if labels.size and (labels.min() < -(1 << 31) or labels.max() >= 1 << 31):
                 raise r.error("label outside the int32 range")
             scene.labels = labels.astype(np.int32)
+
+
+def _submit(pool: ThreadPoolExecutor | None, fn, *args) -> Future:
+    """``fn(*args)`` on the pool, or run now (no pool) as a completed future holding its
+    result or its exception."""
+    if pool is not None:
+        return pool.submit(fn, *args)
+    future = Future()
+    try:
+        future.set_result(fn(*args))
+    except BaseException as exc:  # re-raised by .result(), in the caller's order
+        future.set_exception(exc)
+    return future
 
 
 def _stream_names(header: SceneHeader) -> list[str]:

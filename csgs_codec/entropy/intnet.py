@@ -35,7 +35,7 @@ MAX_SHIFT = 62
 BIAS_LIMIT = 1 << 52
 OUTPUT_LIMIT = 1 << 53
 EMBED_LIMIT = 1 << SINE_AMPLITUDE_BITS
-_ROWS_PER_BLOCK = 2048
+_ROWS_PER_BLOCK = 16384
 
 
 def positional_embedding(positions: np.ndarray, pos_bits: int, num_freqs: int) -> np.ndarray:
