@@ -1,7 +1,7 @@
 """AnchorEncoder: a Scaffold-GS AnchorScene -> a layered .csgs bitstream (orchestration).
 
 Base layer: ``ANCH`` header, ``GEOM`` anchor cells (lossless, canonical order), ``AHYP``
-hyperprior, ``ACRM`` CARM networks, ``AMSK`` offset masks, ``AMLP`` Scaffold MLPs (float16).
+hyperprior, ``ACRM`` CARM networks, ``AMSK`` offset masks, ``AMLP`` Scaffold MLPs (float streams).
 Colour layer: ``AFEA`` features (one residual stream per CARM group), ``AOFF`` kept offsets,
 ``ASCL`` scaling. Semantic layer: ``SHYP`` semantic hyperprior, ``ASEM`` semantic features,
 ``SEML`` labels. Everything after the cells is in the decoded (canonical) order, and the

@@ -15,8 +15,10 @@ import numpy as np
 from csgs_codec.codec.anchor_decoder import AnchorDecoder
 from csgs_codec.codec.anchor_encoder import AnchorEncoder
 from csgs_codec.codec.anchor_payloads import MLP_VERSION_F16, mlps_to_bytes
+from csgs_codec.entropy.intnet_dense import DENSE_VERSION_RAW, IntDenseMLP
 from csgs_codec.errors import CsgsError
 from csgs_codec.format import Chunk, read_layers, write_container
+from csgs_codec.format.primitives import ByteReader, ByteWriter
 from csgs_codec.model.anchor_hyperprior import FitSettings
 from csgs_codec.scene.anchor_scene import AnchorScene
 from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene
@@ -80,6 +82,20 @@ def _without(data: bytes, code: str) -> bytes:
                                   e.tile) for e in container.toc if e.type != code])
 
 
+def _acrm_version_1(data: bytes) -> bytes:
+    """The ACRM payload of ``data`` with every network rewritten in dense version 1."""
+    container = read_layers(data, layers="color")
+    entry = next(e for e in container.toc if e.type == "ACRM")
+    r = ByteReader(bytes(container.payloads[entry.index]), chunk="ACRM")
+    out = ByteWriter()
+    count = r.varint("network_count")
+    out.varint(count)
+    for _ in range(count):
+        net = IntDenseMLP.from_bytes(r.byte_string("network"))
+        out.byte_string(net.to_bytes(DENSE_VERSION_RAW))
+    return out.getvalue()
+
+
 def _replaced(data: bytes, code: str, payload: bytes) -> bytes:
     """``data`` with chunk ``code``'s payload replaced by ``payload``."""
     container = read_layers(data, layers="color,semantic")
@@ -105,6 +121,10 @@ def generate(out_dir: Path) -> None:
     _write(out_dir, "anchors_colour_q8_mlp_float16", legacy,
            "anchors_colour_q8 with its MLP weights in AMLP version 1 (float16)",
            AnchorDecoder().decode(legacy))
+    acrm_v1 = _replaced(full, "ACRM", _acrm_version_1(full))
+    _write(out_dir, "anchors_semantic_q5_acrm_v1", acrm_v1,
+           "anchors_semantic_q5 with its CARM networks in dense network version 1 (fixed-width "
+           "weights)", AnchorDecoder().decode(acrm_v1, layers="color,semantic"))
     _write(out_dir, "anchors_missing_features", _without(full, "AFEA"),
            "anchors_semantic_q5 without its AFEA chunk: every read fails naming AFEA")
     _write(out_dir, "anchors_missing_semantic_features", _without(full, "ASEM"),

@@ -35,7 +35,14 @@ MAX_SHIFT = 62
 BIAS_LIMIT = 1 << 52
 OUTPUT_LIMIT = 1 << 53
 EMBED_LIMIT = 1 << SINE_AMPLITUDE_BITS
-_ROWS_PER_BLOCK = 16384
+#: Rows evaluated per block: 2,048, or a sixteenth of the rows for large inputs (fewer calls
+#: of small matrix products), at most 16,384 and at most what keeps the block's float64 work
+#: arrays within _BLOCK_VALUES values (8 MiB) whatever widths a network declares (at least
+#: 64 rows). Work memory thus stays a small share of the input's own arrays.
+_BASE_BLOCK_ROWS = 2048
+_BLOCK_VALUES = 1 << 20
+_MAX_BLOCK_ROWS = 16384
+_MIN_BLOCK_ROWS = 64
 
 
 def positional_embedding(positions: np.ndarray, pos_bits: int, num_freqs: int) -> np.ndarray:
@@ -172,9 +179,13 @@ class IntMLP:
         out = np.empty((x.shape[0], self.out_width), dtype=np.int64)
         pairs = _sine_pairs(path)
         # Work arrays reused by every block of this call (per call, so threads never share).
-        buffers = [np.empty((_ROWS_PER_BLOCK, layer.weights.shape[0])) for layer in self.layers]
-        for start in range(0, x.shape[0], _ROWS_PER_BLOCK):
-            emb = _embed(x[start:start + _ROWS_PER_BLOCK], self.pos_bits, self.num_freqs, pairs)
+        widths = sum(layer.weights.shape[0] for layer in self.layers) + self.in_width
+        n = x.shape[0]
+        block = min(max(_BASE_BLOCK_ROWS, n // 16), _MAX_BLOCK_ROWS,
+                    max(_MIN_BLOCK_ROWS, _BLOCK_VALUES // widths), max(n, 1))
+        buffers = [np.empty((block, layer.weights.shape[0])) for layer in self.layers]
+        for start in range(0, x.shape[0], block):
+            emb = _embed(x[start:start + block], self.pos_bits, self.num_freqs, pairs)
             rows = slice(start, start + emb.shape[0])
             if path == "float64":
                 out[rows] = self._forward_float64(emb, buffers)

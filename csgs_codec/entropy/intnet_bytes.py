@@ -71,9 +71,7 @@ def intnet_to_bytes(net: IntMLP, version: int = INTNET_VERSION) -> bytes:
             out.array(layer.biases, "<i8")
             continue
         starts.append((len(out.getvalue()), weights.size))
-        table = best_table(weights)
-        out.fixed("u8", table)
-        out.byte_string(encode_symbols(weights, np.full(weights.size, table, np.int64)))
+        write_coded_weights(out, weights)
         for b in layer.biases.tolist():
             out.svarint(b)
     for lo, hi in zip(net.out_lo.tolist(), net.out_hi.tolist()):
@@ -85,6 +83,14 @@ def intnet_to_bytes(net: IntMLP, version: int = INTNET_VERSION) -> bytes:
     return payload
 
 
+def write_coded_weights(out: ByteWriter, weights: np.ndarray) -> None:
+    """Append (N,) int64 weights as version 2 codes them: the best frozen table's index (u8)
+    and a residual stream (byte string) with that table for every weight."""
+    table = best_table(weights)
+    out.fixed("u8", table)
+    out.byte_string(encode_symbols(weights, np.full(weights.size, table, np.int64)))
+
+
 def _bounded(reader: ByteReader, field: str, low: int, high: int) -> int:
     start = reader.offset
     value = reader.fixed("u8", field)
@@ -93,8 +99,9 @@ def _bounded(reader: ByteReader, field: str, low: int, high: int) -> int:
     return value
 
 
-def _coded_weights(reader: ByteReader, i: int, count: int, bits: int) -> np.ndarray:
-    """Version 2: a layer's ``count`` weights, each within ``bits`` signed bits."""
+def read_coded_weights(reader: ByteReader, i: int, count: int, bits: int) -> np.ndarray:
+    """Version 2 (also of dense networks): layer ``i``'s ``count`` weights, a table index and a
+    residual stream, each weight within ``bits`` signed bits; FormatError otherwise."""
     start = reader.offset
     if count > coded_value_limit(reader.remaining):  # refuse before allocating
         raise reader.error(f"layer {i}: {count} weights exceed the "
@@ -152,7 +159,7 @@ def intnet_from_bytes(data: bytes, *, chunk: str | None = None,
                                    f"layer {i} weights").astype(np.int64)
             biases = reader.array(out_width, "<i8", f"layer {i} biases").astype(np.int64)
         else:
-            weights = _coded_weights(reader, i, out_width * width, bits)
+            weights = read_coded_weights(reader, i, out_width * width, bits)
             biases = _varint_biases(reader, i, out_width)
         layers.append(IntLayer(weights.reshape(out_width, width), biases, shift, bits))
         width = out_width

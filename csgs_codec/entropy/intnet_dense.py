@@ -12,12 +12,17 @@ path and the int64 reference path agree bit for bit on every machine and thread 
 
 Payload (spec/FORMAT.md §17.5):
 
-    u8 version (= 1) | varint in_width | u8 input_shift | u8 input_bits | u8 act_bits
-    | u8 layer_count
+    u8 version (2; 1 still reads) | varint in_width | u8 input_shift | u8 input_bits
+    | u8 act_bits | u8 layer_count
     per layer: varint out_width | u8 weight_bits | u8 shift
-               | out x in weights (i8 / i16 / i32 by weight_bits, row-major)
+               | weights: version 2: u8 table + residual stream (row-major);
+                          version 1: out x in i8 / i16 / i32 by weight_bits
                | out biases (svarint each)
     per output: svarint lo | svarint hi
+
+A version-2 layer holds at most 4 weights per payload byte left + 65,536
+(:func:`~csgs_codec.entropy.residual.coded_value_limit`); an encoder whose network would
+break that writes version 1.
 """
 
 from __future__ import annotations
@@ -42,11 +47,13 @@ from csgs_codec.entropy.intnet import (
     validate_layers,
     worst_case_sums,
 )
-from csgs_codec.entropy.intnet_bytes import weight_dtype
+from csgs_codec.entropy.intnet_bytes import read_coded_weights, weight_dtype, write_coded_weights
+from csgs_codec.entropy.residual import coded_value_limit
 from csgs_codec.errors import FormatError, InputError, ModelError
 from csgs_codec.format.primitives import ByteReader, ByteWriter
 
-DENSE_VERSION = 1
+DENSE_VERSION = 2
+DENSE_VERSION_RAW = 1
 #: Largest input_bits (inputs are clipped to +-(2^input_bits - 1) after the shift).
 MAX_INPUT_BITS = 30
 #: Largest input_shift.
@@ -126,24 +133,36 @@ class IntDenseMLP:
     def _float64(self, h: np.ndarray) -> np.ndarray:
         return layers_float64(self.layers, h, self.act_bits, self.out_lo, self.out_hi)
 
-    def to_bytes(self) -> bytes:
-        """The network payload (module docstring)."""
+    def to_bytes(self, version: int = DENSE_VERSION) -> bytes:
+        """The network payload (module docstring) in ``version`` 2 (coded weights) or 1 (fixed
+        width); version 2 falls back to 1 when a layer has more weights than it may hold."""
+        if version not in (DENSE_VERSION_RAW, DENSE_VERSION):
+            raise ValueError(f"unknown dense network version {version}")
         out = ByteWriter()
-        out.fixed("u8", DENSE_VERSION)
+        out.fixed("u8", version)
         out.varint(self.in_width)
         for value in (self.input_shift, self.input_bits, self.act_bits, len(self.layers)):
             out.fixed("u8", value)
+        starts = []  # (payload offset, weight count) of each version-2 layer
         for layer in self.layers:
             out.varint(int(layer.weights.shape[0]))
             out.fixed("u8", layer.weight_bits)
             out.fixed("u8", layer.shift)
-            out.array(layer.weights.reshape(-1), weight_dtype(layer.weight_bits))
+            weights = layer.weights.reshape(-1).astype(np.int64)
+            if version == DENSE_VERSION_RAW:
+                out.array(weights, weight_dtype(layer.weight_bits))
+            else:
+                starts.append((len(out.getvalue()), weights.size))
+                write_coded_weights(out, weights)
             for b in layer.biases.tolist():
                 out.svarint(b)
         for lo, hi in zip(self.out_lo.tolist(), self.out_hi.tolist()):
             out.svarint(lo)
             out.svarint(hi)
-        return out.getvalue()
+        payload = out.getvalue()
+        if any(count > coded_value_limit(len(payload) - start) for start, count in starts):
+            return self.to_bytes(DENSE_VERSION_RAW)
+        return payload
 
     @classmethod
     def from_bytes(cls, data: bytes, *, chunk: str | None = None,
@@ -173,8 +192,9 @@ def read_dense(reader: ByteReader) -> IntDenseMLP:
     """Read one network payload that fills what remains of ``reader``."""
     start = reader.offset
     version = reader.fixed("u8", "version")
-    if version != DENSE_VERSION:
-        raise reader.error(f"dense network version {version} is not {DENSE_VERSION}", at=start)
+    if version not in (DENSE_VERSION_RAW, DENSE_VERSION):
+        raise reader.error(f"dense network version {version} is not {DENSE_VERSION_RAW} or "
+                           f"{DENSE_VERSION}", at=start)
     in_width = reader.varint("in_width", maximum=MAX_WIDTH)
     if in_width == 0:
         raise reader.error("in_width is 0")
@@ -189,7 +209,10 @@ def read_dense(reader: ByteReader) -> IntDenseMLP:
             raise reader.error(f"layer {i} out_width is 0")
         bits = _bounded(reader, f"layer {i} weight_bits", 2, MAX_WEIGHT_BITS)
         shift = _bounded(reader, f"layer {i} shift", 0, MAX_SHIFT)
-        weights = reader.array(out_width * width, weight_dtype(bits), f"layer {i} weights")
+        if version == DENSE_VERSION_RAW:
+            weights = reader.array(out_width * width, weight_dtype(bits), f"layer {i} weights")
+        else:
+            weights = read_coded_weights(reader, i, out_width * width, bits)
         if out_width > reader.remaining:  # each bias takes at least one byte
             raise reader.error(f"truncated: layer {i} biases")
         biases = [_signed(reader, f"layer {i} bias", BIAS_LIMIT) for _ in range(out_width)]

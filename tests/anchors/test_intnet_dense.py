@@ -83,3 +83,43 @@ def test_tiny_hidden_activations_under_large_weights_still_export():
     with torch.no_grad():
         expected = mlp(torch.from_numpy(np.ldexp(x.astype(np.float64), -12)).float())
     assert np.abs(net.forward(x) - expected.numpy()).max() <= 1.5
+
+
+@pytest.mark.parametrize("version", [1, 2])
+def test_both_payload_versions_round_trip(version):
+    net = random_dense(4)
+    payload = net.to_bytes(version)
+    assert payload[0] == version
+    back = IntDenseMLP.from_bytes(payload)
+    x = np.random.default_rng(1).integers(-9999, 9999, (100, 20))
+    assert np.array_equal(back.forward(x, "int64"), net.forward(x, "int64"))
+    assert all(np.array_equal(a.weights, b.weights) and np.array_equal(a.biases, b.biases)
+               for a, b in zip(back.layers, net.layers))
+
+
+def test_version_2_is_the_default_and_smaller_on_trained_like_weights():
+    rng = np.random.default_rng(5)
+    layers = (IntLayer(np.clip(np.rint(rng.normal(0, 20, (16, 20))), -128, 127).astype(int),
+                       rng.integers(-999, 999, 16), 9, 8),
+              IntLayer(np.clip(np.rint(rng.normal(0, 90, (6, 16))), -512, 511).astype(int),
+                       rng.integers(-999, 999, 6), 12, 10))
+    net = IntDenseMLP(20, 3, 14, 14, layers, np.full(6, -500), np.full(6, 500))
+    assert net.to_bytes()[0] == 2
+    assert len(net.to_bytes()) < 0.8 * len(net.to_bytes(1))
+
+
+def test_a_dense_layer_beyond_the_coded_bound_falls_back_to_version_1(monkeypatch):
+    from csgs_codec.entropy import residual
+
+    monkeypatch.setattr(residual, "CODED_VALUE_SLACK", 0)  # stands in for > 65,536 zeros
+    layers = (IntLayer(np.zeros((16, 20), np.int64), np.zeros(16, np.int64), 4, 8),
+              IntLayer(np.zeros((2, 16), np.int64), np.zeros(2, np.int64), 4, 8))
+    net = IntDenseMLP(20, 3, 14, 14, layers, np.zeros(2, np.int64), np.ones(2, np.int64))
+    assert net.to_bytes()[0] == 1
+    assert IntDenseMLP.from_bytes(net.to_bytes()).to_bytes() == net.to_bytes()
+
+
+def test_unknown_dense_versions_are_refused():
+    payload = random_dense(2).to_bytes()
+    with pytest.raises(FormatError, match="version 3"):
+        IntDenseMLP.from_bytes(bytes([3]) + payload[1:])
