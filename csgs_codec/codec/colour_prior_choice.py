@@ -26,7 +26,7 @@ from csgs_codec.errors import CsgsWarning, ModelError
 MIN_GAUSSIANS = 8192
 #: The prior must save at least this share of the colour layer's bits: below it, the network
 #: evaluation at decode (about 0.3-0.5 s per 250k Gaussians on one core) is not worth it.
-MIN_SAVING_SHARE = 0.01
+MIN_SAVING_SHARE = 0.02
 
 
 @dataclass
