@@ -68,11 +68,14 @@ def channel_priors(prior: ColourPrior, cells: np.ndarray, names: list[str]
     out = prior.net.forward(cells)
     modelled = [lc for lc, on in zip(stream_layout(names), prior.mask) if on]
     m = len(modelled)
-    means = (out[:, :m] + (1 << (MEAN_BITS - 1))) >> MEAN_BITS
+    # Round the means in place and hand out column views: at millions of Gaussians, copies
+    # of these (N, 2M) outputs would cost as much memory and time as the network itself.
+    means = out[:, :m]
+    means += 1 << (MEAN_BITS - 1)
+    means >>= MEAN_BITS
     result: dict[str, dict[int, ChannelPrior]] = {name: {} for name in names}
     for j, (name, c) in enumerate(modelled):
-        result[name][c] = ChannelPrior(np.ascontiguousarray(means[:, j]),
-                                       np.ascontiguousarray(out[:, m + j]))
+        result[name][c] = ChannelPrior(out[:, j], out[:, m + j])
     return result
 
 

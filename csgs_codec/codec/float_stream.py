@@ -128,8 +128,8 @@ class ChannelPrior:
     """Per-Gaussian entropy parameters of one channel from the colour hyperprior.
 
     Attributes:
-        mean: (N,) int64 rounded mean of the base residual, in steps.
-        scale: (N,) int64 scale-table indices in [0, 63].
+        mean: (N,) int64 rounded mean of the base residual, in steps (may be a strided view).
+        scale: (N,) int64 scale-table indices in [0, 63] (may be a strided view).
     """
 
     mean: np.ndarray
