@@ -70,10 +70,23 @@ def run(args) -> int:
         bar.set_postfix_str(stage)
         bar.update(1)
 
+    fit_bar = []
+
+    def fit_progress(done: int, total: int) -> None:
+        if not fit_bar:
+            fit_bar.append(tqdm(total=total, desc="colour hyperprior fit", unit="step",
+                                disable=args.quiet, leave=False))
+        fit_bar[0].update(done - fit_bar[0].n)
+        if done == total:
+            fit_bar.pop().close()
+
     encoder.progress = progress
+    encoder.fit_progress = fit_progress
     try:
         result = encoder.encode_with_report(scene)
     finally:
+        for open_bar in fit_bar:
+            open_bar.close()
         bar.close()
     write_atomically(args.output, result.data)
     n = len(result.reconstruction)

@@ -64,13 +64,15 @@ class PriorChoice:
     channels: dict[str, dict[int, tuple[ChannelPrior, bytes]]] = field(default_factory=dict)
 
 
-def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int) -> PriorChoice:
+def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int,
+                 on_step=None) -> PriorChoice:
     """Fit the colour hyperprior on ``plans`` (stream -> plan, in stream order) and keep it
     where it pays.
 
     Args:
         cells: (N, 3) int64 network inputs (:func:`~csgs_codec.codec.colour_prior.prior_cells`).
         pos_bits: the grid's bits per axis.
+        on_step: optional ``on_step(done, total)`` told of the fit's training steps.
     """
     settings = _OVERRIDES.settings
     names = list(plans)
@@ -84,7 +86,7 @@ def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int)
                              for (s, c), on in zip(layout, coded) if on])
     try:
         net = fit_colour_prior(cells, pos_bits, bases, settings, mean_bits=MEAN_BITS,
-                               mean_limit=MEAN_LIMIT)
+                               mean_limit=MEAN_LIMIT, on_step=on_step)
     except ModelError as err:
         warnings.warn(f"the colour hyperprior was not used ({err.message}); the file decodes "
                       "exactly but is larger", CsgsWarning, stacklevel=3)

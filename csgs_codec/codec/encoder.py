@@ -93,12 +93,14 @@ class Encoder:
         prune_opacity: drop Gaussians whose opacity sigmoid(logit) is below this (lossy,
             opt-in); None keeps every Gaussian.
         progress: a callable ``progress(step_name)`` told of each stage, or None.
+        fit_progress: a callable ``fit_progress(done, total)`` told of the colour hyperprior
+            fit's training steps (it takes seconds), or None.
     """
 
     def __init__(self, quality: int | None = None, *, target_psnr: float | None = None,
                  lambda_: float | None = None, fast: bool = False, semantic: str = "auto",
                  prune_opacity: float | None = None, hyperprior: bool = True,
-                 progress=None) -> None:
+                 progress=None, fit_progress=None) -> None:
         if lambda_ is not None and (quality is not None or target_psnr is not None):
             raise InputError("lambda excludes quality and target PSNR: give one of them",
                              property="lambda")
@@ -123,6 +125,7 @@ class Encoder:
         self.prune_opacity = prune_opacity
         self.hyperprior = bool(hyperprior) and not self.fast
         self.progress = progress or (lambda step: None)
+        self.fit_progress = fit_progress
 
     def encode(self, scene: GaussianScene) -> bytes:
         """The .csgs bytes of ``scene``."""
@@ -244,7 +247,7 @@ class Encoder:
         choice = PriorChoice()
         if cells is not None:
             self.progress("colour hyperprior")
-            choice = choose_prior(plans, cells, pos_bits)
+            choice = choose_prior(plans, cells, pos_bits, self.fit_progress)
         if choice.payload is not None:
             chunks.append(Chunk("CHYP", "color", choice.payload))
         for name, plan in plans.items():

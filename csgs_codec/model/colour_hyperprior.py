@@ -64,7 +64,7 @@ def num_freqs_for(pos_bits: int) -> int:
 
 def fit_colour_prior(cells: np.ndarray, pos_bits: int, residuals: np.ndarray,
                      settings: ColourFitSettings | None = None, *, mean_bits: int,
-                     mean_limit: int) -> IntMLP:
+                     mean_limit: int, on_step=None) -> IntMLP:
     """Fit and export the colour hyperprior.
 
     Args:
@@ -74,6 +74,7 @@ def fit_colour_prior(cells: np.ndarray, pos_bits: int, residuals: np.ndarray,
         settings: training settings.
         mean_bits, mean_limit: the format's mean outputs are in units of 2^-mean_bits steps
             and clamped to +-mean_limit (csgs_codec/codec/colour_prior.py).
+        on_step: optional ``on_step(done, total)`` told of the training steps (every 50).
 
     Returns:
         An IntMLP with 2T outputs: T mean indices, then T scale-table indices in [0, 63].
@@ -88,7 +89,7 @@ def fit_colour_prior(cells: np.ndarray, pos_bits: int, residuals: np.ndarray,
         with torch.random.fork_rng(devices=[]):
             num_freqs = num_freqs_for(pos_bits)
             emb = float_embedding(cells, pos_bits, num_freqs)
-            net = _train(emb, residuals.astype(np.float64), settings)
+            net = _train(emb, residuals.astype(np.float64), settings, on_step)
             rows = slice(None, None, max(1, -(-len(cells) // settings.calibration_rows)))
             t = residuals.shape[1]
             scales = np.array([2.0 ** mean_bits] * t + [INDEX_UNIT] * t)
@@ -107,7 +108,8 @@ def _initial_scale_index(std: np.ndarray) -> np.ndarray:
     return np.clip(np.log(np.maximum(std, SIGMA_MIN) / SIGMA_MIN) / ratio, 0, SCALE_MAX)
 
 
-def _train(emb: torch.Tensor, residuals: np.ndarray, s: ColourFitSettings) -> torch.nn.Module:
+def _train(emb: torch.Tensor, residuals: np.ndarray, s: ColourFitSettings,
+           on_step=None) -> torch.nn.Module:
     """Train the float network; it starts as the factorized model (per-channel mean and
     scale in the output biases, small output weights)."""
     torch.manual_seed(s.seed)
@@ -135,4 +137,6 @@ def _train(emb: torch.Tensor, residuals: np.ndarray, s: ColourFitSettings) -> to
         if not math.isfinite(clip_gradients(optimizer.params, GRAD_CLIP_NORM)):
             raise ModelError(f"the colour hyperprior fit diverged at step {step}")
         optimizer.step()
+        if on_step is not None and ((step + 1) % 50 == 0 or step + 1 == s.steps):
+            on_step(step + 1, s.steps)
     return net

@@ -156,3 +156,11 @@ def test_damaged_chyp_only_raises_format_error(small_pair):
             Decoder().decode(rebuilt(data, {"CHYP": bytes(damaged)}))
     with pytest.raises(FormatError):
         Decoder().decode(rebuilt(data, {"CHYP": payload[: len(payload) // 2]}))
+
+
+def test_fit_progress_counts_the_training_steps(donut):
+    calls = []
+    with fit_overrides(ColourFitSettings(steps=120, batch=256), min_gaussians=0):
+        Encoder(quality=4, fit_progress=lambda done, total: calls.append((done, total))
+                ).encode(donut.subset(np.arange(2000)))
+    assert calls == [(50, 120), (100, 120), (120, 120)]
