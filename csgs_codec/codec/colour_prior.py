@@ -21,6 +21,7 @@ from csgs_codec.codec.float_stream import ChannelPrior
 from csgs_codec.codec.payloads import STREAM_CHANNELS
 from csgs_codec.entropy.intnet import IntMLP
 from csgs_codec.entropy.intnet_bytes import intnet_from_bytes, intnet_to_bytes
+from csgs_codec.entropy.tables import SCALE_COUNT
 from csgs_codec.errors import FormatError
 from csgs_codec.format.primitives import ByteReader, ByteWriter
 
@@ -28,8 +29,8 @@ CHYP_VERSION = 1
 #: Mean outputs are in units of 2^-MEAN_BITS steps, within +-MEAN_LIMIT.
 MEAN_BITS = 6
 MEAN_LIMIT = 1 << 40
-#: Scale outputs index the frozen Gaussian family (64 tables).
-SCALE_MAX = 63
+#: Scale outputs index the frozen Gaussian family.
+SCALE_MAX = SCALE_COUNT - 1
 
 
 @dataclass(frozen=True)

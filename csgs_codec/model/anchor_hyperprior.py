@@ -41,7 +41,6 @@ from csgs_codec.entropy.anchor_attributes import (
 from csgs_codec.entropy.intnet import IntMLP
 from csgs_codec.entropy.intnet_dense import IntDenseMLP
 from csgs_codec.entropy.residual import STEP_COUNT, step_index
-from csgs_codec.entropy.tables import SIGMA_MAX, SIGMA_MIN
 from csgs_codec.errors import CsgsWarning, ModelError
 from csgs_codec.model.dense_export import export_dense_mlp, export_position_mlp
 from csgs_codec.model.fit_tools import (
@@ -49,6 +48,8 @@ from csgs_codec.model.fit_tools import (
     clip_gradients,
     gaussian_bin_bits,
     mlp,
+    num_freqs_for,
+    scale_index_for_std,
     scaled_outputs,
 )
 from csgs_codec.model.intnet_export import float_embedding
@@ -124,12 +125,6 @@ def step_index_of(step: float) -> int:
     return int(step_index(np.array([step * 2.0 ** FRAC_BITS]))[0])
 
 
-def num_freqs_for(pos_bits: int) -> int:
-    """Embedding octaves for cells of ``pos_bits`` bits: periods from the whole grid down to
-    2^(pos_bits - L) cells, at most 10 octaves and never below a period of 2 cells."""
-    return max(1, min(10, pos_bits - 1))
-
-
 def _step_value(j: torch.Tensor) -> torch.Tensor:
     """Smooth step (value units) of a continuous step index (exact on the 1/8-octave grid)."""
     return torch.pow(2.0, (j + 17.0) / 8.0 - FRAC_BITS)
@@ -158,8 +153,7 @@ class _Prior(torch.nn.Module):
                 std = np.sqrt(((t.values - mean) ** 2 * w).sum(axis=0) / count) + 1e-6
                 j0 = step_index_of(t.base_step)
                 q0 = float(_step_value(torch.tensor(float(j0))))
-                idx = np.clip(np.log(std / q0 / SIGMA_MIN)
-                              / (math.log(SIGMA_MAX / SIGMA_MIN) / SCALE_MAX), 0, SCALE_MAX)
+                idx = scale_index_for_std(std / q0)
                 last.bias[col:col + c] = torch.from_numpy(mean)
                 last.bias[col + c:col + 2 * c] = torch.from_numpy(idx / INDEX_UNIT)
                 last.bias[col + 2 * c] = j0 / INDEX_UNIT

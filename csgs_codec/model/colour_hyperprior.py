@@ -24,7 +24,6 @@ import numpy as np
 import torch
 
 from csgs_codec.entropy.intnet import IntMLP
-from csgs_codec.entropy.tables import SIGMA_MAX, SIGMA_MIN
 from csgs_codec.errors import ModelError
 from csgs_codec.model.dense_export import export_position_mlp
 from csgs_codec.model.fit_tools import (
@@ -33,6 +32,8 @@ from csgs_codec.model.fit_tools import (
     clip_gradients,
     gaussian_bin_bits,
     mlp,
+    num_freqs_for,
+    scale_index_for_std,
     scaled_outputs,
 )
 from csgs_codec.model.intnet_export import float_embedding
@@ -54,12 +55,6 @@ class ColourFitSettings:
     seed: int = 0
     #: Activation scales are sized on at most this many Gaussians (every k-th).
     calibration_rows: int = 65536
-
-
-def num_freqs_for(pos_bits: int) -> int:
-    """Embedding octaves for cells of ``pos_bits`` bits (periods down to 2^(bits - L) cells,
-    at most 10 octaves, never below a period of 2 cells)."""
-    return max(1, min(10, pos_bits - 1))
 
 
 def fit_colour_prior(cells: np.ndarray, pos_bits: int, residuals: np.ndarray,
@@ -102,12 +97,6 @@ def fit_colour_prior(cells: np.ndarray, pos_bits: int, residuals: np.ndarray,
         torch.set_num_threads(threads)
 
 
-def _initial_scale_index(std: np.ndarray) -> np.ndarray:
-    """Scale-table index (continuous) of a Gaussian of standard deviation ``std`` steps."""
-    ratio = math.log(SIGMA_MAX / SIGMA_MIN) / SCALE_MAX
-    return np.clip(np.log(np.maximum(std, SIGMA_MIN) / SIGMA_MIN) / ratio, 0, SCALE_MAX)
-
-
 def _train(emb: torch.Tensor, residuals: np.ndarray, s: ColourFitSettings,
            on_step=None) -> torch.nn.Module:
     """Train the float network; it starts as the factorized model (per-channel mean and
@@ -120,7 +109,7 @@ def _train(emb: torch.Tensor, residuals: np.ndarray, s: ColourFitSettings,
         net[-1].weight.mul_(0.1)
         net[-1].bias[:t] = torch.from_numpy(np.median(residuals, axis=0))
         std = residuals.std(axis=0)
-        net[-1].bias[t:] = torch.from_numpy(_initial_scale_index(std) / INDEX_UNIT)
+        net[-1].bias[t:] = torch.from_numpy(scale_index_for_std(std) / INDEX_UNIT)
     values = torch.from_numpy(residuals).float()
     optimizer = Adam(net.parameters(), lr=s.learning_rate)
     for step in range(s.steps):

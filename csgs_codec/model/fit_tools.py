@@ -31,6 +31,19 @@ def table_sigma(scale_idx: torch.Tensor) -> torch.Tensor:
     return SIGMA_MIN * torch.exp(torch.clamp(scale_idx, 0.0, float(SCALE_MAX)) * ratio)
 
 
+def scale_index_for_std(std_steps: np.ndarray) -> np.ndarray:
+    """The (continuous) scale-table index of a Gaussian of standard deviation ``std_steps``
+    quantization steps, clipped to [0, 63]: where a fit's scale outputs start."""
+    ratio = math.log(SIGMA_MAX / SIGMA_MIN) / SCALE_MAX
+    return np.clip(np.log(np.maximum(std_steps, SIGMA_MIN) / SIGMA_MIN) / ratio, 0, SCALE_MAX)
+
+
+def num_freqs_for(pos_bits: int) -> int:
+    """Embedding octaves for cells of ``pos_bits`` bits: periods from the whole grid down to
+    2^(pos_bits - L) cells, at most 10 octaves and never below a period of 2 cells."""
+    return max(1, min(10, pos_bits - 1))
+
+
 def gaussian_bin_bits(values, mean, scale_idx, step, noise) -> torch.Tensor:
     """Estimated bits of each value: -log2 of the Gaussian mass over its (noisy) bin.
 
