@@ -1,4 +1,4 @@
-"""The colour layer's INR hyperprior (FORMAT §12.9): the CHYP payload and the per-channel
+"""The colour layer's INR hyperprior (FORMAT §12.19): the CHYP payload and the per-channel
 priors its network gives the float streams. Numpy only; the fit is in
 :mod:`csgs_codec.model.colour_hyperprior`.
 

@@ -221,7 +221,7 @@ def _submit(pool: ThreadPoolExecutor | None, fn, *args) -> Future:
     future = Future()
     try:
         future.set_result(fn(*args))
-    except BaseException as exc:  # re-raised by .result(), in the caller's order
+    except Exception as exc:  # re-raised by .result(), in the caller's order
         future.set_exception(exc)
     return future
 
