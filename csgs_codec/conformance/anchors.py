@@ -108,10 +108,16 @@ def generate(out_dir: Path) -> None:
     """Write the anchor vectors into ``out_dir``."""
     scene = vector_scene()
     fit = FitSettings(steps=60, batch=256)
-    full = AnchorEncoder(quality=5, fit=fit).encode(scene)
+    current = AnchorEncoder(quality=5, fit=fit).encode(scene)
+    # As landed, with its CARM networks in dense network version 1; the encoder now writes
+    # version 2, kept as its own vector. Vectors derived from this one use the landed bytes.
+    full = _replaced(current, "ACRM", _acrm_version_1(current))
     _write(out_dir, "anchors_semantic_q5", full,
            "60 synthetic anchors (F 20, K 4, S 3, labels, MLPs), quality 5, 5 CARM groups",
            AnchorDecoder().decode(full, layers="color,semantic"))
+    _write(out_dir, "anchors_semantic_q5_acrm_v2", current,
+           "anchors_semantic_q5 as the encoder writes it now: CARM networks in dense network "
+           "version 2 (coded weights)", AnchorDecoder().decode(current, layers="color,semantic"))
     colour = AnchorEncoder(quality=8, carm_groups=1, semantic="none", fit=fit).encode(scene)
     _write(out_dir, "anchors_colour_q8", colour,
            "the same anchors at quality 8 without CARM and without a semantic layer",
@@ -121,10 +127,6 @@ def generate(out_dir: Path) -> None:
     _write(out_dir, "anchors_colour_q8_mlp_float16", legacy,
            "anchors_colour_q8 with its MLP weights in AMLP version 1 (float16)",
            AnchorDecoder().decode(legacy))
-    acrm_v1 = _replaced(full, "ACRM", _acrm_version_1(full))
-    _write(out_dir, "anchors_semantic_q5_acrm_v1", acrm_v1,
-           "anchors_semantic_q5 with its CARM networks in dense network version 1 (fixed-width "
-           "weights)", AnchorDecoder().decode(acrm_v1, layers="color,semantic"))
     _write(out_dir, "anchors_missing_features", _without(full, "AFEA"),
            "anchors_semantic_q5 without its AFEA chunk: every read fails naming AFEA")
     _write(out_dir, "anchors_missing_semantic_features", _without(full, "ASEM"),
