@@ -27,6 +27,10 @@ MIN_GAUSSIANS = 8192
 #: The prior must save at least this share of the colour layer's bits: below it, the network
 #: evaluation at decode (about 0.3-0.5 s per 250k Gaussians on one core) is not worth it.
 MIN_SAVING_SHARE = 0.02
+#: Steps of the trial fit, and the share of the required saving the trial must show for the
+#: fit to go on.
+TRIAL_STEPS = 300
+TRIAL_SHARE = 0.5
 
 
 @dataclass
@@ -69,32 +73,55 @@ def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int,
     """Fit the colour hyperprior on ``plans`` (stream -> plan, in stream order) and keep it
     where it pays.
 
+    The fit first runs ``TRIAL_STEPS`` steps; when the exported trial network saves less
+    than ``TRIAL_SHARE`` of what the prior must save, the rest of the fit is skipped (on the
+    shared scenes a 300-step trial already shows more than half of the final saving).
+
     Args:
         cells: (N, 3) int64 network inputs (:func:`~csgs_codec.codec.colour_prior.prior_cells`).
         pos_bits: the grid's bits per axis.
         on_step: optional ``on_step(done, total)`` told of the fit's training steps.
     """
-    settings = _OVERRIDES.settings
     names = list(plans)
     layout = stream_layout(names)
     coded = np.array([plans[s].channels[c].mode != MODE_CONSTANT for s, c in layout], bool)
     if len(cells) < _OVERRIDES.min_gaussians or not coded.any():
         return PriorChoice()
-    from csgs_codec.model.colour_hyperprior import fit_colour_prior
+    from csgs_codec.model.colour_hyperprior import ColourPriorFit
 
     bases = np.column_stack([plans[s].channels[c].base
                              for (s, c), on in zip(layout, coded) if on])
+    needed = MIN_SAVING_SHARE * sum(plans[s].channels[c].cost for s, c in layout)
     try:
-        net = fit_colour_prior(cells, pos_bits, bases, settings, mean_bits=MEAN_BITS,
-                               mean_limit=MEAN_LIMIT, on_step=on_step)
+        fit = ColourPriorFit(cells, pos_bits, bases, _OVERRIDES.settings, mean_bits=MEAN_BITS,
+                             mean_limit=MEAN_LIMIT)
+        total = fit.settings.steps
+        if total > TRIAL_STEPS and not _OVERRIDES.keep_when_larger:
+            fit.train(TRIAL_STEPS, on_step)
+            trial_saving, _ = _evaluate(ColourPrior(coded, fit.export()), plans, cells)
+            if trial_saving < TRIAL_SHARE * needed:
+                return PriorChoice()
+        fit.train(total, on_step)
+        prior = ColourPrior(coded, fit.export())
     except ModelError as err:
         warnings.warn(f"the colour hyperprior was not used ({err.message}); the file decodes "
                       "exactly but is larger", CsgsWarning, stacklevel=3)
         return PriorChoice()
-    prior = ColourPrior(coded, net)
+    saving, choice = _evaluate(prior, plans, cells)
+    if saving <= needed and not _OVERRIDES.keep_when_larger:
+        return PriorChoice()
+    return choice
+
+
+def _evaluate(prior: ColourPrior, plans: dict[str, StreamPlan], cells: np.ndarray
+              ) -> tuple[float, PriorChoice]:
+    """(bits saved net of the CHYP payload, the choice) when ``prior`` codes the channels
+    where it codes smaller; the saving is -inf when it codes none smaller."""
+    names = list(plans)
     priors = channel_priors(prior, cells, names)
+    modelled = [lc for lc, on in zip(stream_layout(names), prior.mask) if on]
     keep, saved, streams = [], 0.0, {}
-    for s, c in (lc for lc, on in zip(layout, coded) if on):
+    for s, c in modelled:
         plan = plans[s].channels[c]
         stream = prior_stream(plan, priors[s][c])
         overhead = 8 * (3 * c + 6) if plan.coefs is not None else 0
@@ -104,11 +131,6 @@ def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int,
             saved += gain
             streams.setdefault(s, {})[c] = (priors[s][c], stream)
     if not any(keep):
-        return PriorChoice()
-    kept = keep_outputs(prior, np.array(keep))
-    payload = prior_to_bytes(kept)
-    colour_bits = sum(plans[s].channels[c].cost for s, c in layout)
-    pays = saved - 8 * len(payload) > MIN_SAVING_SHARE * colour_bits
-    if not pays and not _OVERRIDES.keep_when_larger:
-        return PriorChoice()
-    return PriorChoice(payload, streams)
+        return -np.inf, PriorChoice()
+    payload = prior_to_bytes(keep_outputs(prior, np.array(keep)))
+    return saved - 8 * len(payload), PriorChoice(payload, streams)

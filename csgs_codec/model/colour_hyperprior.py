@@ -61,10 +61,10 @@ class ColourFitSettings:
     training_rows: int = 1 << 18
 
 
-def fit_colour_prior(cells: np.ndarray, pos_bits: int, residuals: np.ndarray,
-                     settings: ColourFitSettings | None = None, *, mean_bits: int,
-                     mean_limit: int, on_step=None) -> IntMLP:
-    """Fit and export the colour hyperprior.
+class ColourPriorFit:
+    """A colour hyperprior fit that can run in parts, with an export between them (the
+    encoder looks at a short trial before paying for the whole fit). Training to step k in
+    one call or in several gives the same network.
 
     Args:
         cells: (N, 3) integer grid cells in [0, 2^pos_bits), one per Gaussian.
@@ -73,69 +73,87 @@ def fit_colour_prior(cells: np.ndarray, pos_bits: int, residuals: np.ndarray,
         settings: training settings.
         mean_bits, mean_limit: the format's mean outputs are in units of 2^-mean_bits steps
             and clamped to +-mean_limit (csgs_codec/codec/colour_prior.py).
-        on_step: optional ``on_step(done, total)`` told of the training steps (every 50).
 
-    Returns:
-        An IntMLP with 2T outputs: T mean indices, then T scale-table indices in [0, 63].
-
-    Raises:
-        ModelError: the fit diverged or the network cannot be exported exactly.
+    The exported network has 2T outputs: T mean indices, then T scale-table indices in
+    [0, 63].
     """
-    settings = settings or ColourFitSettings()
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
+
+    def __init__(self, cells: np.ndarray, pos_bits: int, residuals: np.ndarray,
+                 settings: ColourFitSettings | None = None, *, mean_bits: int,
+                 mean_limit: int) -> None:
+        self.settings = s = settings or ColourFitSettings()
+        self.cells, self.pos_bits = cells, pos_bits
+        self.num_freqs = num_freqs_for(pos_bits)
+        rows = _every_kth(len(cells), s.training_rows)
+        self.emb = float_embedding(cells[rows], pos_bits, self.num_freqs)
+        values = residuals[rows].astype(np.float64)
+        self.t = residuals.shape[1]
+        t = self.t
+        self.scales = np.array([2.0 ** mean_bits] * t + [INDEX_UNIT] * t)
+        self.out_lo = np.array([-mean_limit] * t + [0] * t)
+        self.out_hi = np.array([mean_limit] * t + [SCALE_MAX] * t)
         with torch.random.fork_rng(devices=[]):
-            num_freqs = num_freqs_for(pos_bits)
-            rows = _every_kth(len(cells), settings.training_rows)
-            emb = float_embedding(cells[rows], pos_bits, num_freqs)
-            net = _train(emb, residuals[rows].astype(np.float64), settings, on_step)
-            rows = _every_kth(len(cells), settings.calibration_rows)
-            t = residuals.shape[1]
-            scales = np.array([2.0 ** mean_bits] * t + [INDEX_UNIT] * t)
-            out_lo = np.array([-mean_limit] * t + [0] * t)
-            out_hi = np.array([mean_limit] * t + [SCALE_MAX] * t)
-            return export_position_mlp(scaled_outputs(net, scales), pos_bits=pos_bits,
-                                       num_freqs=num_freqs, calibration_positions=cells[rows],
-                                       out_lo=out_lo, out_hi=out_hi, weight_bits=WEIGHT_BITS)
-    finally:
-        torch.set_num_threads(threads)
+            torch.manual_seed(s.seed)
+            # It starts as the factorized model: per-channel mean and scale in the output
+            # biases, small output weights.
+            self.net = mlp([self.emb.shape[1], s.hidden, s.hidden, 2 * t])
+            with torch.no_grad():
+                self.net[-1].weight.mul_(0.1)
+                self.net[-1].bias[:t] = torch.from_numpy(np.median(values, axis=0))
+                self.net[-1].bias[t:] = torch.from_numpy(
+                    scale_index_for_std(values.std(axis=0)) / INDEX_UNIT)
+        self.values = torch.from_numpy(values).float()
+        self.gen = torch.Generator().manual_seed(s.seed)
+        self.optimizer = Adam(self.net.parameters(), lr=s.learning_rate)
+        self.steps_done = 0
+
+    def train(self, until: int, on_step=None) -> None:
+        """Train up to step ``until`` (at most ``settings.steps``), on one torch thread.
+
+        Raises:
+            ModelError: the loss or a gradient stopped being finite.
+        """
+        s = self.settings
+        threads = torch.get_num_threads()
+        torch.set_num_threads(1)
+        try:
+            n = self.values.shape[0]
+            t = self.t
+            for step in range(self.steps_done, min(until, s.steps)):
+                if step == s.steps * 3 // 4:
+                    self.optimizer.lr = s.learning_rate / 4
+                rows = torch.randint(0, n, (min(s.batch, n),), generator=self.gen)
+                self.optimizer.zero_grad()
+                out = self.net(self.emb[rows])
+                bits = gaussian_bin_bits(self.values[rows], out[:, :t],
+                                         out[:, t:] * INDEX_UNIT, 1.0, 0.0)
+                loss = bits.sum(dim=1).mean()
+                if not torch.isfinite(loss):
+                    raise ModelError(f"the colour hyperprior fit diverged at step {step}")
+                loss.backward()
+                if not math.isfinite(clip_gradients(self.optimizer.params, GRAD_CLIP_NORM)):
+                    raise ModelError(f"the colour hyperprior fit diverged at step {step}")
+                self.optimizer.step()
+                self.steps_done = step + 1
+                if on_step is not None and (self.steps_done % 50 == 0
+                                            or self.steps_done == s.steps):
+                    on_step(self.steps_done, s.steps)
+        finally:
+            torch.set_num_threads(threads)
+
+    def export(self) -> IntMLP:
+        """The exact integer network of the fit so far.
+
+        Raises:
+            ModelError: it cannot be exported exactly.
+        """
+        rows = _every_kth(len(self.cells), self.settings.calibration_rows)
+        return export_position_mlp(scaled_outputs(self.net, self.scales),
+                                   pos_bits=self.pos_bits, num_freqs=self.num_freqs,
+                                   calibration_positions=self.cells[rows], out_lo=self.out_lo,
+                                   out_hi=self.out_hi, weight_bits=WEIGHT_BITS)
 
 
 def _every_kth(count: int, most: int) -> slice:
     """Evenly spaced rows, at most ``most`` of ``count``."""
     return slice(None, None, max(1, -(-count // most)))
-
-
-def _train(emb: torch.Tensor, residuals: np.ndarray, s: ColourFitSettings,
-           on_step=None) -> torch.nn.Module:
-    """Train the float network; it starts as the factorized model (per-channel mean and
-    scale in the output biases, small output weights)."""
-    torch.manual_seed(s.seed)
-    gen = torch.Generator().manual_seed(s.seed)
-    n, t = residuals.shape
-    net = mlp([emb.shape[1], s.hidden, s.hidden, 2 * t])
-    with torch.no_grad():
-        net[-1].weight.mul_(0.1)
-        net[-1].bias[:t] = torch.from_numpy(np.median(residuals, axis=0))
-        std = residuals.std(axis=0)
-        net[-1].bias[t:] = torch.from_numpy(scale_index_for_std(std) / INDEX_UNIT)
-    values = torch.from_numpy(residuals).float()
-    optimizer = Adam(net.parameters(), lr=s.learning_rate)
-    for step in range(s.steps):
-        if step == s.steps * 3 // 4:
-            optimizer.lr = s.learning_rate / 4
-        rows = torch.randint(0, n, (min(s.batch, n),), generator=gen)
-        optimizer.zero_grad()
-        out = net(emb[rows])
-        bits = gaussian_bin_bits(values[rows], out[:, :t], out[:, t:] * INDEX_UNIT, 1.0, 0.0)
-        loss = bits.sum(dim=1).mean()
-        if not torch.isfinite(loss):
-            raise ModelError(f"the colour hyperprior fit diverged at step {step}")
-        loss.backward()
-        if not math.isfinite(clip_gradients(optimizer.params, GRAD_CLIP_NORM)):
-            raise ModelError(f"the colour hyperprior fit diverged at step {step}")
-        optimizer.step()
-        if on_step is not None and ((step + 1) % 50 == 0 or step + 1 == s.steps):
-            on_step(step + 1, s.steps)
-    return net

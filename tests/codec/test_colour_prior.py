@@ -164,3 +164,35 @@ def test_fit_progress_counts_the_training_steps(donut):
         Encoder(quality=4, fit_progress=lambda done, total: calls.append((done, total))
                 ).encode(donut.subset(np.arange(2000)))
     assert calls == [(50, 120), (100, 120), (120, 120)]
+
+
+def test_a_fit_run_in_parts_equals_one_run(donut):
+    from csgs_codec.codec.colour_prior import MEAN_BITS, MEAN_LIMIT
+    from csgs_codec.entropy.intnet_bytes import intnet_to_bytes
+    from csgs_codec.model.colour_hyperprior import ColourPriorFit
+
+    rng = np.random.default_rng(4)
+    cells = rng.integers(0, 1 << 10, (3000, 3))
+    residuals = np.column_stack([cells[:, 0] // 64 + rng.integers(-2, 3, 3000),
+                                 rng.integers(-5, 6, 3000)])
+    settings = ColourFitSettings(steps=80, batch=256)
+
+    def fit():
+        return ColourPriorFit(cells, 10, residuals, settings, mean_bits=MEAN_BITS,
+                              mean_limit=MEAN_LIMIT)
+
+    whole, parts = fit(), fit()
+    whole.train(80)
+    parts.train(30)
+    parts.train(80)
+    assert intnet_to_bytes(whole.export()) == intnet_to_bytes(parts.export())
+
+
+def test_a_trial_that_saves_little_stops_the_fit():
+    calls = []
+    scene = random_scene(6000, sh_degree=0, seed=5)  # attributes independent of position
+    with fit_overrides(ColourFitSettings(steps=600, batch=256), min_gaussians=0):
+        result = Encoder(quality=5, fit_progress=lambda done, total: calls.append(done)
+                         ).encode_with_report(scene)
+    assert "CHYP" not in result.stream_bytes
+    assert calls[-1] == 300
