@@ -75,7 +75,8 @@ def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int,
 
     The fit first runs ``TRIAL_STEPS`` steps; when the exported trial network saves less
     than ``TRIAL_SHARE`` of what the prior must save, the rest of the fit is skipped (on the
-    shared scenes a 300-step trial already shows more than half of the final saving).
+    15 scene/quality cases of benchmarks/prior_gain.py it stopped only fits that would then
+    have been left out).
 
     Args:
         cells: (N, 3) int64 network inputs (:func:`~csgs_codec.codec.colour_prior.prior_cells`).
