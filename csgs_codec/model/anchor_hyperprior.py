@@ -44,6 +44,8 @@ from csgs_codec.entropy.residual import STEP_COUNT, step_index
 from csgs_codec.errors import CsgsWarning, ModelError
 from csgs_codec.model.dense_export import export_dense_mlp, export_position_mlp
 from csgs_codec.model.fit_tools import (
+    GRAD_CLIP_NORM,
+    INDEX_UNIT,
     Adam,
     clip_gradients,
     gaussian_bin_bits,
@@ -54,8 +56,6 @@ from csgs_codec.model.fit_tools import (
 )
 from csgs_codec.model.intnet_export import float_embedding
 
-#: Scale and step outputs are trained in units of 1/8 index (so Adam moves them gently).
-INDEX_UNIT = 8.0
 #: The step index may move this far from the base step's index (a factor 4 either way).
 STEP_RANGE = 16
 MEAN_LIMIT = 1 << 40
@@ -63,9 +63,6 @@ MEAN_LIMIT = 1 << 40
 HYPER_WEIGHT_BITS = (8, 8, 10)
 CARM_WEIGHT_BITS = (8, 10)
 CARM_DELTA_LIMIT = 1 << 30
-#: Gradients are scaled down to this total norm. The loss is in bits per anchor; ordinary
-#: fits stay below about 100, so the clip only catches runaway steps.
-GRAD_CLIP_NORM = 1000.0
 #: A failed fit is retried once with the learning rate times this and the seed plus this.
 RESTART_LR_FACTOR = 0.1
 RESTART_SEED_OFFSET = 7919

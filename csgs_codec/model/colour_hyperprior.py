@@ -27,6 +27,8 @@ from csgs_codec.entropy.intnet import IntMLP
 from csgs_codec.errors import ModelError
 from csgs_codec.model.dense_export import export_position_mlp
 from csgs_codec.model.fit_tools import (
+    GRAD_CLIP_NORM,
+    INDEX_UNIT,
     SCALE_MAX,
     Adam,
     clip_gradients,
@@ -38,10 +40,8 @@ from csgs_codec.model.fit_tools import (
 )
 from csgs_codec.model.intnet_export import float_embedding
 
-#: Scale outputs are trained in units of 1/8 index (so Adam moves them gently).
-INDEX_UNIT = 8.0
+#: Signed weight bits per layer of the exported network.
 WEIGHT_BITS = (8, 8, 10)
-GRAD_CLIP_NORM = 1000.0
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,11 @@ from csgs_codec.entropy.tables import SCALE_COUNT, SIGMA_MAX, SIGMA_MIN
 
 #: Highest scale-table index of the frozen Gaussian family.
 SCALE_MAX = SCALE_COUNT - 1
+#: Scale (and step) outputs are trained in units of 1/8 index, so Adam moves them gently.
+INDEX_UNIT = 8.0
+#: Gradients are scaled down to this total norm. Losses are in bits per anchor or Gaussian;
+#: ordinary fits stay below about 100, so the clip only catches runaway steps.
+GRAD_CLIP_NORM = 1000.0
 
 
 def mlp(sizes: list[int]) -> torch.nn.Sequential:
