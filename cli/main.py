@@ -10,6 +10,7 @@ import traceback
 import warnings
 
 from csgs_codec import __version__
+from csgs_codec.atomic_write import sigterm_as_interrupt
 from csgs_codec.errors import CsgsError, CsgsWarning
 
 EXIT_OK = 0
@@ -70,9 +71,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "_run", None):
-        parser.print_help()
+        # No command is a usage error: help goes where errors go, with the error's exit code.
+        parser.print_help(sys.stderr)
         return EXIT_BAD_INPUT
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), sigterm_as_interrupt():
         if args.quiet:
             warnings.simplefilter("ignore")
         else:

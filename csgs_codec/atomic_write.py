@@ -1,43 +1,111 @@
-"""Writing output files so that a failure never leaves a half-written file behind."""
+"""Writing output files so that a failure never leaves a half-written file behind.
+
+Rules (issue #20): an output is never one of the inputs (same inode, whatever the name or
+link); a symlink is written through to its target, which stays a link; anything that is not
+a regular file (a device node, a folder, a FIFO) is refused; SIGTERM during the write cleans
+up like Ctrl-C; and :func:`check_output` lets a caller refuse an unwritable location before a
+long computation rather than after it.
+"""
 
 from __future__ import annotations
 
 import contextlib
 import os
+import signal
+import stat
 import tempfile
+import threading
 from pathlib import Path
 
 from csgs_codec.errors import InputError
 
+PathLike = str | os.PathLike
 
-def write_atomically(path: str | os.PathLike, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename.
 
-    The temporary file is flushed to disk before the rename and gets the ordinary mode
-    (0666 less the umask). On any failure it is removed and ``path`` is left as it was.
+def check_output(path: PathLike, inputs: tuple[PathLike, ...] | list[PathLike] = ()) -> Path:
+    """The file an output named ``path`` is written to, after checking it may be written.
+
+    Symlinks are followed (the data goes to their target). Nothing is created.
 
     Raises:
-        InputError: naming ``path`` when the folder is missing or not writable.
+        InputError: naming ``path`` when the target is not a regular file, is the same file
+            as one of ``inputs``, or its folder is missing or not writable.
     """
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
+    target = Path(os.path.realpath(path))
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+        info = os.stat(target)
+    except FileNotFoundError:
+        info = None
+    except OSError as exc:
+        raise InputError(f"cannot write here: {exc.strerror or exc}", file=path) from None
+    if info is not None:
+        if not stat.S_ISREG(info.st_mode):
+            raise InputError("is not a regular file; refusing to replace it", file=path)
+        for source in inputs:
+            with contextlib.suppress(OSError):
+                if os.path.samefile(source, target):
+                    raise InputError(f"is the input file {os.fspath(source)!r}; refusing to "
+                                     "overwrite it (choose another output)", file=path)
+    folder = target.parent
+    if not folder.is_dir():
+        raise InputError(f"cannot write here: folder {str(folder)!r} does not exist", file=path)
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InputError(f"cannot write here: folder {str(folder)!r} is not writable",
+                         file=path)
+    return target
+
+
+def write_atomically(path: PathLike, data: bytes,
+                     inputs: tuple[PathLike, ...] | list[PathLike] = ()) -> None:
+    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename.
+
+    A symlink ``path`` is written through: its target is replaced and the link kept. The
+    temporary file is flushed to disk before the rename and gets the ordinary mode (0666
+    less the umask). On any failure, Ctrl-C or SIGTERM it is removed and ``path`` is left as
+    it was.
+
+    Raises:
+        InputError: naming ``path`` when the folder is missing or not writable, the target is
+            not a regular file, or it is one of ``inputs`` (see :func:`check_output`).
+    """
+    target = check_output(path, inputs)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     except OSError as exc:
         raise InputError(f"cannot write here: {exc.strerror or exc}", file=path) from None
     try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get normal modes
-        os.replace(tmp, path)
+        with sigterm_as_interrupt():
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(data)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get normal modes
+            os.replace(tmp, target)
     except BaseException as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         if isinstance(exc, OSError):
             raise InputError(f"cannot write: {exc.strerror or exc}", file=path) from None
         raise
+
+
+@contextlib.contextmanager
+def sigterm_as_interrupt():
+    """A context manager: within it SIGTERM raises KeyboardInterrupt, so cleanup runs as
+    for Ctrl-C; the previous handler is restored after. Only the main thread can set
+    handlers: elsewhere it changes nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _umask() -> int:

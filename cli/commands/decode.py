@@ -20,16 +20,18 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     """Decode the layers asked for and write the PLY atomically."""
+    from csgs_codec.atomic_write import check_output
     from csgs_codec.codec.anchor_decoder import is_anchor_file
     from csgs_codec.codec.decoder import Decoder
     from csgs_codec.scene.ply_io import write_ply
 
     if is_anchor_file(args.bitstream):
         return _decode_anchors(args)
+    check_output(args.output, [args.bitstream])
     start = time.perf_counter()
     scene = Decoder().decode(args.bitstream, layers=args.layers)
     seconds = time.perf_counter() - start
-    write_ply(scene, args.output)
+    write_ply(scene, args.output, [args.bitstream])
     extra = ""
     if scene.semantic is not None:
         extra += f", {scene.semantic.shape[1]} semantic channels"
@@ -52,7 +54,7 @@ def _decode_anchors(args) -> int:
     scene = AnchorDecoder().decode(args.bitstream, layers=args.layers)
     seconds = time.perf_counter() - start
     if Path(args.output).suffix.lower() == ".ply":
-        write_anchor_ply(scene, args.output)
+        write_anchor_ply(scene, args.output, [args.bitstream])
         kind = "anchor PLY"
     else:
         write_scaffold(scene, args.output)

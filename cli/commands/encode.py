@@ -51,11 +51,12 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     """Read, encode and write atomically; print the sizes."""
     from csgs_cli.scene_input import is_anchor_input
-    from csgs_codec.atomic_write import write_atomically
+    from csgs_codec.atomic_write import check_output, write_atomically
     from csgs_codec.codec.encoder import Encoder
     from csgs_codec.scene.ply_io import read_ply
 
     _check_exclusive(args)
+    check_output(args.output, [args.scene])  # before a long encode, not after it
     if is_anchor_input(args.scene):
         return _encode_anchors(args, write_atomically)
     encoder = Encoder(quality=args.quality, target_psnr=args.target_psnr, lambda_=args.lambda_,
@@ -88,7 +89,7 @@ def run(args) -> int:
         for open_bar in fit_bar:
             open_bar.close()
         bar.close()
-    write_atomically(args.output, result.data)
+    write_atomically(args.output, result.data, [args.scene])
     n = len(result.reconstruction)
     in_bytes = os.path.getsize(args.scene)
     bits = 8 * len(result.data) / max(n, 1)
@@ -115,7 +116,7 @@ def _encode_anchors(args, write_atomically) -> int:
     scene = load_anchor_scene(args.scene)
     with tqdm(total=1, desc="encode anchors (fit + code)", disable=args.quiet, leave=False):
         result = encoder.encode_with_report(scene)
-    write_atomically(args.output, result.data)
+    write_atomically(args.output, result.data, [args.scene])
     m = len(result.reconstruction)
     print(f"{args.output}: {len(result.data):,} bytes, {m:,} anchors, "
           f"{8 * len(result.data) / max(m, 1):.1f} bits/anchor, {result.seconds:.2f} s "

@@ -185,6 +185,7 @@ def anchor_ply_bytes(scene: AnchorScene) -> bytes:
                             comment=f"written by csgs {__version__} (Scaffold-GS anchors)")
 
 
-def write_anchor_ply(scene: AnchorScene, path: str | Path) -> None:
-    """Write the anchor PLY (see :func:`anchor_ply_bytes`) atomically."""
-    write_atomically(path, anchor_ply_bytes(scene))
+def write_anchor_ply(scene: AnchorScene, path: str | Path, inputs=()) -> None:
+    """Write the anchor PLY (see :func:`anchor_ply_bytes`) atomically; ``path`` must not be
+    one of ``inputs`` (see :func:`csgs_codec.atomic_write.write_atomically`)."""
+    write_atomically(path, anchor_ply_bytes(scene), inputs)

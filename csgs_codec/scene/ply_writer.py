@@ -64,12 +64,14 @@ def vertex_ply_bytes(n: int, fields: list[tuple[str, np.ndarray]], *,
     return "\n".join(lines).encode("ascii") + rows.tobytes()
 
 
-def write_ply(scene: GaussianScene, path: str | Path) -> None:
+def write_ply(scene: GaussianScene, path: str | Path, inputs=()) -> None:
     """Write ``scene`` to ``path`` (see :func:`ply_bytes`) without ever leaving a partial file.
 
-    The bytes go to a temporary file in the same folder, which then replaces ``path``.
+    The bytes go to a temporary file in the same folder, which then replaces ``path`` (or,
+    for a symlink, its target); ``inputs`` are files ``path`` must not be.
 
     Raises:
-        InputError: the scene is invalid, or the folder cannot be written.
+        InputError: the scene is invalid, the folder cannot be written, or ``path`` is not a
+            regular file or is one of ``inputs``.
     """
-    write_atomically(path, ply_bytes(scene))
+    write_atomically(path, ply_bytes(scene), inputs)
