@@ -85,6 +85,10 @@ def run(args) -> int:
     encoder.fit_progress = fit_progress
     try:
         result = encoder.encode_with_report(scene)
+    except InputError as err:  # the scene's errors (row, property) belong to the input file
+        if err.file is None:
+            err.file = args.scene
+        raise
     finally:
         for open_bar in fit_bar:
             open_bar.close()

@@ -15,6 +15,7 @@ import numpy as np
 
 from csgs_codec.codec.colour_prior import prior_cells
 from csgs_codec.codec.colour_prior_choice import PriorChoice, choose_prior
+from csgs_codec.codec.encoder_checks import check_encodable, decodable_container
 from csgs_codec.codec.float_stream import (
     plan_float_stream,
     write_float_stream,
@@ -32,16 +33,12 @@ from csgs_codec.entropy.geometry import canonical_order, encode_positions
 from csgs_codec.entropy.residual import encode_symbols
 from csgs_codec.entropy.table_choice import best_table
 from csgs_codec.errors import InputError
-from csgs_codec.format import Chunk, write_container
+from csgs_codec.format import Chunk
 from csgs_codec.format.primitives import ByteWriter
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.scene.position_grid import PositionGrid
 
 SEMANTIC_MODES = ("auto", "none")
-#: Largest |value| of an attribute coded as a float stream without a clamp or normalisation
-#: before it: grid values and their reconstructions then stay within 2^53 (FORMAT §12.8).
-MAX_CODED_MAGNITUDE = 2.0**52
-LIMITED_ATTRIBUTES = ("sh_dc", "sh_rest", "scales", "semantic")
 
 
 @dataclass
@@ -135,7 +132,8 @@ class Encoder:
         """Encode ``scene`` and report the reconstruction, order and bytes per chunk."""
         start = time.perf_counter()
         scene.validate()
-        _check_codable(scene)
+        # What the format cannot carry is refused here, before any coding.
+        check_encodable(scene, semantic=self.semantic != "none")
         pruned = 0
         if self.prune_opacity is not None and len(scene):
             with np.errstate(over="ignore"):  # exp(-logit) is inf below -709: alpha 0
@@ -228,7 +226,7 @@ class Encoder:
             self._semantic_chunks(ordered, reconstruction, chunks, settings)
 
         self.progress("container")
-        data = write_container(chunks)
+        data = decodable_container(chunks, len(ordered))
         return EncodeResult(
             data=data, reconstruction=reconstruction, order=order,
             stream_bytes={c.type: len(c.payload) for c in chunks},
@@ -279,21 +277,6 @@ class Encoder:
             out.byte_string(encode_symbols(residuals, np.full(labels.size, table, np.int64)))
             reconstruction.labels = ordered.labels.copy()
             chunks.append(Chunk("SEML", "semantic", out.getvalue()))
-
-
-def _check_codable(scene: GaussianScene) -> None:
-    """InputError naming the attribute and Gaussian when a value is too large to code."""
-    attributes = scene.attributes()
-    for name in LIMITED_ATTRIBUTES:
-        values = attributes.get(name)
-        if values is None or not values.size:
-            continue
-        too_big = ~(np.abs(values) <= MAX_CODED_MAGNITUDE)
-        if too_big.any():
-            row, col = np.argwhere(too_big)[0]
-            raise InputError(f"|value| {abs(float(values[row, col])):.6g} (channel {col}) "
-                             "exceeds 2^52, the largest the codec can code", property=name,
-                             index=int(row))
 
 
 def _outliers_payload(positions: np.ndarray) -> bytes:

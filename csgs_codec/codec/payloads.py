@@ -32,6 +32,10 @@ STREAM_CHANNELS = {"dc": 3, "rest1": 9, "rest2": 15, "rest3": 21, "opacity": 1, 
 #: Most Gaussians a file may declare (a decoder limit).
 MAX_GAUSSIANS = 1 << 28
 MAX_SEMANTIC_CHANNELS = 256
+#: A float stream's channel_count is one byte (FORMAT §12.8): SEMF carries at most 255.
+MAX_FLOAT_STREAM_CHANNELS = 255
+#: Longest semantic channel name, in UTF-8 bytes (FORMAT §12.16).
+MAX_NAME_BYTES = 256
 
 
 @dataclass(frozen=True)
@@ -115,7 +119,7 @@ def names_from_bytes(r: ByteReader, maximum: int) -> tuple[str, ...]:
     count = r.varint("channel_count", maximum=maximum)
     names = []
     for _ in range(count):
-        raw = r.byte_string("channel_name", maximum=256)
+        raw = r.byte_string("channel_name", maximum=MAX_NAME_BYTES)
         try:
             names.append(raw.decode("utf-8"))
         except UnicodeDecodeError:

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from csgs_codec.errors import InputError
+from csgs_codec.scene.ply_names import ply_property
 
 #: Number of SH rest coefficients per colour channel for SH degree 0..3.
 SH_REST_COUNTS = {0: 0, 1: 3, 2: 8, 3: 15}
@@ -176,6 +177,12 @@ class GaussianScene:
                 return False
         return True
 
+    def ply_property(self, attribute: str, channel: int) -> str:
+        """The PLY property of column ``channel`` of :meth:`attributes` ``[attribute]``
+        (``sh_dc`` 1 -> ``f_dc_1``), the name errors give so users find it in their file."""
+        return ply_property(attribute, channel, sh_bands=int(self.sh_rest.shape[1]),
+                            semantic_names=self.semantic_names)
+
     # ----------------------------------------------------------------- checks
     def validate(self, source: str | None = None) -> None:
         """Check shapes, dtypes and finiteness.
@@ -228,5 +235,6 @@ class GaussianScene:
             finite = np.isfinite(values)
             if not finite.all():
                 row, col = np.argwhere(~finite)[0]
-                raise InputError(f"non-finite value {values[row, col]} (channel {col})",
-                                 file=source, property=name, index=int(row))
+                raise InputError(f"non-finite value {values[row, col]} (attribute {name}, "
+                                 f"channel {col})", file=source,
+                                 property=self.ply_property(name, int(col)), index=int(row))

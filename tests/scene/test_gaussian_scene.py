@@ -25,7 +25,7 @@ def test_validate_names_property_and_first_bad_index():
     scene.scales[3, 0] = np.nan
     with pytest.raises(InputError) as info:
         scene.validate("s.ply")
-    assert info.value.property == "scales" and info.value.index == 2
+    assert info.value.property == "scale_1" and info.value.index == 2
     assert "s.ply" in str(info.value) and "index 2" in str(info.value)
 
 

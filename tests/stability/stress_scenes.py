@@ -78,15 +78,16 @@ def denormal_values() -> GaussianScene:
 
 
 def float16_range_values() -> GaussianScene:
-    """Values at +-65504 (the float16 limit) in SH, opacity, log-scales and positions."""
+    """Values at +-65504 (the float16 limit) in SH, opacity and positions, and log-scales at
+    +-88 (the encoder refuses log-scales beyond that)."""
     scene = plain_scene()
     scene.sh_dc[0] = FLOAT16_MAX
     scene.sh_dc[1] = -FLOAT16_MAX
     scene.sh_rest[2] = FLOAT16_MAX
     scene.sh_rest[3, 0] = -FLOAT16_MAX
     scene.opacity[4:6] = (FLOAT16_MAX, -FLOAT16_MAX)
-    scene.scales[6] = FLOAT16_MAX
-    scene.scales[7] = -FLOAT16_MAX
+    scene.scales[6] = 88.0
+    scene.scales[7] = -88.0
     scene.positions[8] = FLOAT16_MAX
     scene.positions[9] = -FLOAT16_MAX
     scene.rotations[10] = (FLOAT16_MAX, -FLOAT16_MAX, FLOAT16_MAX, 1.0)

@@ -1,7 +1,8 @@
 """NaN and Inf never pass: refused with an InputError naming the property, or a FormatError.
 
 Rules: the encoder, the PLY writer, the PLY reader and the renderer refuse a scene with NaN or
-+-Inf in any float attribute, naming the attribute and the Gaussian; the decoder refuses a
++-Inf in any float attribute, naming its PLY property (issue #20: "f_dc_2", not "sh_dc") and
+the Gaussian; the decoder refuses a
 bitstream whose values would decode to NaN or Inf, naming the chunk, instead of outputting
 them.
 """
@@ -34,6 +35,11 @@ BAD_VALUES = {"nan": np.nan, "+inf": np.inf, "-inf": -np.inf}
 CASES = [(attr, label) for attr in ATTRIBUTES for label in BAD_VALUES]
 IDS = [f"{attr}-{label}" for attr, label in CASES]
 BAD_INDEX = 5
+#: The PLY property of the last channel of each attribute (where with_nonfinite writes) in
+#: the SH-degree-1 scene with semantic channels ins_feat_0..2.
+LAST_PLY_PROPERTY = {"positions": "z", "sh_dc": "f_dc_2", "sh_rest": "f_rest_8",
+                     "opacity": "opacity", "scales": "scale_2", "rotations": "rot_3",
+                     "semantic": "ins_feat_2"}
 
 
 @pytest.mark.parametrize(("attribute", "label"), CASES, ids=IDS)
@@ -41,7 +47,7 @@ def test_encoder_refuses_nonfinite_naming_property_and_gaussian(attribute, label
     scene = with_nonfinite(attribute, BAD_VALUES[label], BAD_INDEX)
     with pytest.raises(InputError) as err:
         Encoder(quality=5).encode(scene)
-    assert err.value.property == attribute and err.value.index == BAD_INDEX
+    assert err.value.property == LAST_PLY_PROPERTY[attribute] and err.value.index == BAD_INDEX
 
 
 @pytest.mark.parametrize(("attribute", "label"), CASES, ids=IDS)
@@ -50,7 +56,7 @@ def test_ply_writer_refuses_nonfinite_and_leaves_no_file(attribute, label, tmp_p
     target = tmp_path / "out.ply"
     with pytest.raises(InputError) as err:
         write_ply(scene, target)
-    assert err.value.property == attribute and err.value.index == BAD_INDEX
+    assert err.value.property == LAST_PLY_PROPERTY[attribute] and err.value.index == BAD_INDEX
     assert list(tmp_path.iterdir()) == []
 
 
@@ -70,8 +76,7 @@ def _ply_with_nonfinite(property_name: str, value: float) -> bytes:
     return vertex_ply_bytes(n, fields)
 
 
-PLY_PROPERTIES = {"x": "positions", "f_dc_1": "sh_dc", "opacity": "opacity",
-                  "scale_2": "scales", "rot_0": "rotations", "ins_feat_0": "semantic"}
+PLY_PROPERTIES = ("x", "f_dc_1", "opacity", "scale_2", "rot_0", "ins_feat_0")
 
 
 @pytest.mark.parametrize("label", list(BAD_VALUES))
@@ -80,7 +85,7 @@ def test_ply_reader_refuses_nonfinite_naming_property_and_gaussian(ply_property,
     data = _ply_with_nonfinite(ply_property, BAD_VALUES[label])
     with pytest.raises(InputError) as err:
         parse_ply_bytes(data, source="bad.ply")
-    assert err.value.property == PLY_PROPERTIES[ply_property]
+    assert err.value.property == ply_property
     assert err.value.index == BAD_INDEX and err.value.file == "bad.ply"
 
 
@@ -91,7 +96,7 @@ def test_renderer_refuses_nonfinite_naming_the_property(attribute, backend):
     scene = with_nonfinite(attribute, np.nan, BAD_INDEX)
     with pytest.raises(InputError) as err:
         render(scene, camera, backend=backend)
-    assert err.value.property == attribute
+    assert err.value.property == LAST_PLY_PROPERTY[attribute]
 
 
 def _replace_payload(data: bytes, chunk_type: str, payload: bytes) -> bytes:
