@@ -11,7 +11,7 @@ import warnings
 
 from csgs_codec import __version__
 from csgs_codec.atomic_write import sigterm_as_interrupt
-from csgs_codec.errors import CsgsError, CsgsWarning
+from csgs_codec.errors import CsgsError, CsgsWarning, DataLossWarning
 
 EXIT_OK = 0
 EXIT_FAILURE = 1
@@ -75,11 +75,13 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help(sys.stderr)
         return EXIT_BAD_INPUT
     with warnings.catch_warnings(), sigterm_as_interrupt():
+        warnings.showwarning = _print_warning
         if args.quiet:
             warnings.simplefilter("ignore")
+            # Dropped data is reported even when quiet: it changes the output.
+            warnings.simplefilter("always", DataLossWarning)
         else:
             warnings.simplefilter("always", CsgsWarning)
-            warnings.showwarning = _print_warning
         try:
             return int(args._run(args) or EXIT_OK)
         except CsgsError as err:

@@ -85,3 +85,8 @@ class ModelError(CsgsError):
 
 class CsgsWarning(UserWarning):
     """A non-fatal notice about the input (e.g. dropped unknown PLY properties)."""
+
+
+class DataLossWarning(CsgsWarning):
+    """Input data was dropped (Gaussians with NaN/Inf under ``sanitize``, unknown PLY
+    properties): the CLI prints it even with ``--quiet``."""

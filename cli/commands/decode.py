@@ -14,8 +14,24 @@ def add_arguments(parser) -> None:
     parser.add_argument("-o", "--output", required=True,
                         help="output .ply (an anchor scene: an anchor .ply, or a Scaffold-GS "
                              "checkpoint folder when the name has no .ply suffix)")
-    parser.add_argument("--layers", default="color", choices=("color", "color,semantic"),
-                        help="layers to decode; 'color' never reads the semantic bytes")
+    parser.add_argument("--layers", default="color", type=layers_option,
+                        metavar="color|color,semantic",
+                        help="layers to decode, comma-separated in any order (default color; "
+                             "'color' never reads the semantic bytes)")
+
+
+def layers_option(text: str) -> str:
+    """The ``--layers`` value normalised to "color" or "color,semantic" (argparse type)."""
+    import argparse
+
+    from csgs_codec.codec.container_access import parse_layers
+    from csgs_codec.errors import InputError
+
+    try:
+        names = parse_layers(text)
+    except InputError as err:
+        raise argparse.ArgumentTypeError(err.message) from None
+    return "color,semantic" if "semantic" in names else "color"
 
 
 def run(args) -> int:

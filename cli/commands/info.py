@@ -30,6 +30,7 @@ def run(args) -> int:
         print(json.dumps(facts, indent=2) if args.json
               else with_semantic_share(format_description(facts), facts))
         return 0
+    _check_ply_signature(args.file)
     facts = describe_file(args.file, sanitize=args.sanitize)
     print(json.dumps(facts, indent=2) if args.json else format_ply_facts(facts))
     return 0
@@ -53,6 +54,19 @@ def is_csgs(path: str) -> bool:
             return fh.read(len(CSGS_MAGIC_PREFIX)) == CSGS_MAGIC_PREFIX
     except OSError:
         return False  # the PLY path reports the missing or unreadable file
+
+
+def _check_ply_signature(path: str) -> None:
+    """InputError when ``path`` is readable, not empty and starts neither with the .csgs
+    magic nor with "ply": say it is neither, rather than only "not a PLY file"."""
+    try:
+        with open(path, "rb") as fh:
+            start = fh.read(len(CSGS_MAGIC_PREFIX))
+    except OSError:
+        return  # the PLY path reports the missing or unreadable file
+    if start and not start.startswith(b"ply"):
+        raise InputError("neither a .csgs bitstream (no .csgs magic) nor a PLY "
+                         "file (does not start with 'ply')", file=path, offset=0)
 
 
 def describe_file(path: str, *, sanitize: bool = False) -> dict:

@@ -2,20 +2,25 @@
 
 from __future__ import annotations
 
-from csgs_codec.errors import FormatError
+from csgs_codec.errors import FormatError, InputError
 
 
 def parse_layers(layers) -> set[str]:
-    """Normalise a layers argument ("color", "color,semantic", or an iterable) to a set.
+    """Normalise a layers argument ("color", "color,semantic", "semantic,color", or an
+    iterable of names) to a set; the colour layer is always decoded.
 
     Raises:
-        FormatError: an unknown layer name (the colour layer is always decoded).
+        InputError: an unknown layer name, or no layer at all ("" does not mean colour).
     """
     names = set(layers.split(",")) if isinstance(layers, str) else set(layers)
     names = {n.strip() for n in names if n.strip()}
+    if not names:
+        raise InputError(f"no layer given ({layers!r}); choose 'color' or 'color,semantic'",
+                         property="layers")
     unknown = names - {"color", "semantic", "base"}
     if unknown:
-        raise FormatError(f"unknown layer(s) {sorted(unknown)}; choose from color, semantic")
+        raise InputError(f"unknown layer(s) {sorted(unknown)}; choose from color, semantic",
+                         property="layers")
     return (names | {"color"}) - {"base"}
 
 

@@ -6,6 +6,7 @@ the header announces is checked against the file size before anything is allocat
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,6 +31,9 @@ PLY_TYPES = {
     # Not in the original PLY definition, written by some GPU tools.
     "half": "f2", "float16": "f2",
 }
+
+#: The line that ends a header: "end_header" alone on its line (trailing blanks or CR allowed).
+_END_HEADER = re.compile(rb"^end_header[ \t\r]*(?:\n|\Z)", re.MULTILINE)
 
 FORMATS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian": ">"}
 
@@ -98,18 +102,20 @@ def parse_header(data: bytes, source: str | None = None) -> PlyHeader:
         raise InputError("empty file", file=source)
     if not data.startswith(b"ply"):
         raise InputError("not a PLY file (does not start with 'ply')", file=source, offset=0)
-    end = data.find(b"end_header", 0, MAX_HEADER_BYTES)
-    if end < 0:
+    # The header ends at the first *line* that is "end_header" ("comment ... end_header"
+    # does not end it).
+    match = _END_HEADER.search(data, 0, MAX_HEADER_BYTES)
+    if match is None:
         if len(data) >= MAX_HEADER_BYTES:
             raise InputError(f"no 'end_header' within the first {MAX_HEADER_BYTES} bytes",
                              file=source, offset=0)
         raise InputError("truncated header (no 'end_header' line)", file=source,
                          offset=len(data))
-    line_end = data.find(b"\n", end)
-    if line_end < 0:
+    end = match.start()
+    if not match.group().endswith(b"\n"):
         raise InputError("truncated header ('end_header' line has no newline)", file=source,
                          offset=end)
-    header_bytes = line_end + 1
+    header_bytes = match.end()
     try:
         text = data[:end].decode("ascii")
     except UnicodeDecodeError as exc:

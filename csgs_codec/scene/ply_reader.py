@@ -8,6 +8,7 @@ the file can hold: element counts are checked against the file size before the b
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import warnings
@@ -16,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from csgs_codec.errors import CsgsWarning, InputError
+from csgs_codec.errors import CsgsWarning, DataLossWarning, InputError
 from csgs_codec.scene.gaussian_scene import SH_DEGREE_OF_REST, GaussianScene
 from csgs_codec.scene.ply_header import MAX_HEADER_BYTES, PlyElement, PlyHeader, parse_header
 
@@ -82,7 +83,7 @@ def parse_ply_bytes(data: bytes, *, source: str | None = None, sanitize: bool = 
         scene = scene.subset(~bad)
         report.nonfinite_dropped = int(bad.sum())
         warnings.warn(f"{source}: dropped {report.nonfinite_dropped} Gaussians with NaN/Inf "
-                      "values", CsgsWarning, stacklevel=3)
+                      "values", DataLossWarning, stacklevel=3)
     scene.validate(source)
     return scene, report
 
@@ -127,9 +128,12 @@ def _read_vertex_columns(data: bytes, header: PlyHeader, vertex: PlyElement,
     if header.byte_order is None:
         return _read_ascii_columns(data, header, vertex, source)
     offset = header.header_bytes
+    columns = None
     for el in header.elements:
         remaining = len(data) - offset
         if el.has_list:
+            if columns is not None:
+                return columns  # a list element after the vertices: its size is unknown
             raise InputError(f"element '{el.name}' has list properties; cannot locate the "
                              "vertex data behind it", file=source, offset=offset)
         needed = el.count * el.row_bytes
@@ -140,9 +144,13 @@ def _read_vertex_columns(data: bytes, header: PlyHeader, vertex: PlyElement,
         if el is vertex:
             rows = np.frombuffer(data, dtype=el.dtype(header.byte_order), count=el.count,
                                  offset=offset)
-            return {p.name: rows[p.name] for p in el.properties}
+            columns = {p.name: rows[p.name] for p in el.properties}
         offset += needed
-    raise AssertionError("vertex element vanished")  # pragma: no cover
+    if offset < len(data):
+        raise InputError(f"{len(data) - offset} bytes follow the last element the header "
+                         "declares (a header count smaller than the body, or trailing data)",
+                         file=source, offset=offset)
+    return columns
 
 
 def _read_ascii_columns(data: bytes, header: PlyHeader, vertex: PlyElement,
@@ -153,6 +161,7 @@ def _read_ascii_columns(data: bytes, header: PlyHeader, vertex: PlyElement,
         if el is vertex:
             break
         skip += el.count
+    total = sum(el.count for el in header.elements)
     n_props = len(vertex.properties)
     # Each value takes at least two bytes (a digit and a separator): a cheap bound on the
     # count before splitting anything.
@@ -160,21 +169,53 @@ def _read_ascii_columns(data: bytes, header: PlyHeader, vertex: PlyElement,
         raise InputError(f"element 'vertex' declares {vertex.count} rows but the body has only "
                          f"{len(body)} bytes (truncated body or wrong count)", file=source,
                          offset=header.header_bytes)
-    lines = body.split(b"\n", skip + vertex.count)
-    rows = [ln for ln in lines[skip:skip + vertex.count]]
+    lines = body.split(b"\n", total)
+    rows = lines[skip:skip + vertex.count]
     if len(rows) < vertex.count:
         raise InputError(f"element 'vertex' declares {vertex.count} rows, the body has "
                          f"{len(rows)}", file=source, offset=len(data))
-    tokens = b" ".join(rows).split()
-    if len(tokens) != vertex.count * n_props:
-        for i, row in enumerate(rows):
-            if len(row.split()) != n_props:
-                raise InputError(f"vertex row {i} has {len(row.split())} values, expected "
-                                 f"{n_props}", file=source, index=i)
-    try:
-        values = np.array(tokens, dtype=np.float64).reshape(vertex.count, n_props)
-    except ValueError as exc:
-        raise InputError(f"non-numeric value in vertex data ({exc})", file=source) from None
+    if len(lines) > total and lines[total].strip():
+        extra = lines[total]
+        raise InputError("data follows the last row the header declares (a header count "
+                         "smaller than the body, or trailing data)", file=source,
+                         offset=len(data) - len(extra))
+    tokens = []
+    for i, row in enumerate(rows):
+        values = row.split()
+        if len(values) != n_props:
+            raise InputError(f"vertex row {i} has {len(values)} values, expected {n_props}",
+                             file=source, index=i)
+        tokens += values
+    return _ascii_numbers(tokens, vertex, source)
+
+
+#: A PLY ASCII number as C's strtod reads it (decimal), or nan/inf: Python's float() also
+#: takes "1_000", which no PLY writer means.
+_ASCII_NUMBER = re.compile(rb"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|nan|inf|infinity)",
+                           re.IGNORECASE)
+
+
+def _ascii_numbers(tokens: list[bytes], vertex: PlyElement, source: str | None
+                   ) -> dict[str, np.ndarray]:
+    """The vertex columns of the ASCII ``tokens`` (rows of len(properties) values);
+    InputError naming the row and property of the first token that is not a number."""
+    n_props = len(vertex.properties)
+    suspicious = b"_" in b"".join(tokens)
+    values = None
+    if not suspicious:
+        with contextlib.suppress(ValueError):
+            values = np.array(tokens, dtype=np.float64)
+    if values is None:
+        for at, token in enumerate(tokens):
+            if not _ASCII_NUMBER.fullmatch(token):
+                row, col = divmod(at, n_props)
+                raise InputError(f"non-numeric value {token.decode('ascii', 'replace')!r}",
+                                 file=source, property=vertex.properties[col].name, index=row)
+        try:
+            values = np.array(tokens, dtype=np.float64)
+        except ValueError as exc:
+            raise InputError(f"non-numeric value in vertex data ({exc})", file=source) from None
+    values = values.reshape(vertex.count, n_props)
     return {p.name: values[:, i] for i, p in enumerate(vertex.properties)}
 
 

@@ -95,14 +95,14 @@ def test_non_numeric_ascii_value():
 def test_nonfinite_values_are_an_error_naming_property_and_index(bad):
     values = random_values(5, NAMES)
     values[3, NAMES.index("scale_1")] = bad
-    assert_input_error(make_ply(values, NAMES), "non-finite", property="scales", index=3)
+    assert_input_error(make_ply(values, NAMES), "non-finite", property="scale_1", index=3)
 
 
 def test_float64_overflowing_float32_is_nonfinite():
     values = random_values(3, NAMES).astype(np.float64)
     values[1, 0] = 1e300
     assert_input_error(make_ply(values, NAMES, types={"x": "double"}), "non-finite",
-                 property="positions", index=1)
+                 property="x", index=1)
 
 
 def test_sanitize_drops_nonfinite_gaussians_and_reports_count(tmp_path):
