@@ -61,6 +61,7 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     """Select at the click and write the selected Gaussians; prints how many."""
     from csgs_cli.scene_input import load_scene
+    from csgs_codec.atomic_write import check_output
     from csgs_codec.scene.ply_io import write_ply
     from csgs_codec.semantic.selection import click_selection, selected_gaussians
 
@@ -68,6 +69,7 @@ def run(args) -> int:
     output = Path(args.output)
     if output.is_dir():
         raise InputError("output is a folder; give a .ply file name", file=output)
+    check_output(output, [args.scene])
     scene = load_scene(args.scene, command=NAME, layers="color,semantic")
     camera = camera_from_view(args.view, scene, size=args.size, up=args.up,
                               orbit_views=args.orbit)
@@ -76,7 +78,7 @@ def run(args) -> int:
     if result.count == 0:
         warnings.warn("no Gaussian matched the clicked feature; try a lower --threshold",
                       CsgsWarning, stacklevel=2)
-    write_ply(selected_gaussians(scene, result.mask, camera), output)
+    write_ply(selected_gaussians(scene, result.mask, camera), output, [args.scene])
     if args.save_mask:
         write_mask(result.mask, args.save_mask)
     print(f"selected {result.count:,} of {len(scene):,} Gaussians ({args.mode}, threshold "

@@ -30,7 +30,8 @@ import numpy as np
 
 from csgs_codec.codec.anchor_grid import anchor_grid
 from csgs_codec.codec.anchor_payloads import AnchorHeader, mlps_to_bytes
-from csgs_codec.codec.payloads import names_to_bytes
+from csgs_codec.codec.encoder_checks import check_semantic_names
+from csgs_codec.codec.payloads import MAX_SEMANTIC_CHANNELS, names_to_bytes
 from csgs_codec.entropy.anchor_attributes import (
     FRAC_BITS,
     encode_block,
@@ -178,6 +179,8 @@ class AnchorEncoder:
             raise InputError(f"{scene.n_offsets} offsets per anchor exceed 64",
                              property="offsets")
         _check_magnitudes(scene)
+        if self.semantic == "auto" and scene.semantic is not None:
+            check_semantic_names(scene.semantic_names, MAX_SEMANTIC_CHANNELS)  # before the fit
         grid = anchor_grid(scene.positions, self.voxel_size)
         order = canonical_order(grid.cells, grid.bits)
         cells = grid.cells[order]

@@ -41,7 +41,8 @@ from csgs_codec.scene.position_grid import PositionGrid
 
 #: Decoder limits against decompression bombs (FORMAT §10.1): a file may declare at most
 #: this many Gaussians, and at most this many per byte of the file (real files hold well
-#: under one per byte; 10,000 identical Gaussians code in about 200 bytes).
+#: under one per byte). The encoder keeps to both: it refuses larger scenes and pads a scene
+#: that codes smaller (e.g. many identical Gaussians) with a `fill` chunk.
 MAX_GAUSSIANS = 1 << 24
 MAX_GAUSSIANS_PER_BYTE = 64
 
@@ -52,7 +53,7 @@ class Decoder:
     Args:
         max_gaussians: refuse files declaring more Gaussians than this.
         max_gaussians_per_byte: refuse files declaring more Gaussians per byte of the file
-            than this (a scene of many identical Gaussians may need it raised).
+            than this (files of this package's encoder always pass the defaults).
         threads: threads decoding the geometry and the colour streams side by side (default
             2, or 1 on a one-core machine); the output is the same for any count.
     """

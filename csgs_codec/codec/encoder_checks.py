@@ -39,15 +39,17 @@ def check_encodable(scene: GaussianScene, *, semantic: bool = True) -> None:
         raise InputError(f"{len(scene):,} Gaussians; the format's decoders take at most "
                          f"{MAX_GAUSSIANS:,} (2^24)")
     if semantic and scene.semantic is not None:
-        _check_semantic_names(scene.semantic_names)
+        check_semantic_names(scene.semantic_names, MAX_FLOAT_STREAM_CHANNELS)
     _check_log_scales(scene)
     _check_magnitudes(scene)
 
 
-def _check_semantic_names(names: tuple[str, ...]) -> None:
-    if len(names) > MAX_FLOAT_STREAM_CHANNELS:
+def check_semantic_names(names: tuple[str, ...], max_channels: int) -> None:
+    """InputError when the semantic layer cannot carry ``names``: more than
+    ``max_channels`` of them, one that is not UTF-8 text, or one over 256 UTF-8 bytes."""
+    if len(names) > max_channels:
         raise InputError(f"{len(names)} semantic channels; the semantic layer carries at most "
-                         f"{MAX_FLOAT_STREAM_CHANNELS}", property=names[MAX_FLOAT_STREAM_CHANNELS])
+                         f"{max_channels}", property=names[max_channels])
     for name in names:
         try:
             size = len(name.encode("utf-8"))

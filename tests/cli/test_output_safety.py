@@ -137,3 +137,15 @@ def test_no_command_prints_help_to_stderr_with_exit_2(capsys):
     assert main([]) == 2
     captured = capsys.readouterr()
     assert captured.out == "" and "usage: csgs" in captured.err
+
+
+def test_a_device_node_target_is_refused_and_stays_a_device(tmp_path, ply, capsys):
+    # A private copy of /dev/null's node, so a broken rule could never replace a real device.
+    node = tmp_path / "null"
+    try:
+        os.mknod(node, stat.S_IFCHR | 0o666, os.makedev(1, 3))
+    except (PermissionError, OSError) as exc:
+        pytest.skip(f"cannot create a device node here: {exc}")
+    assert _encode(ply, node) == 2
+    assert "not a regular file" in capsys.readouterr().err
+    assert stat.S_ISCHR(os.stat(node).st_mode)

@@ -102,3 +102,15 @@ def test_more_gaussians_than_the_decoder_takes_are_refused(monkeypatch):
     monkeypatch.setattr(encoder_checks, "MAX_GAUSSIANS", 10)
     with pytest.raises(InputError, match="11 Gaussians; the format's decoders take at most 10"):
         Encoder(hyperprior=False).encode(random_scene(11))
+
+
+def test_an_anchor_scene_with_a_257_byte_semantic_name_is_refused_before_the_fit():
+    import copy
+
+    from csgs_codec.codec.anchor_encoder import AnchorEncoder
+    from tests.anchors.helpers import small_scene
+
+    scene = copy.copy(small_scene())
+    scene.semantic_names = ("n" * 257,) + tuple(scene.semantic_names[1:])
+    with pytest.raises(InputError, match="257 bytes long"):
+        AnchorEncoder(5).encode(scene)
