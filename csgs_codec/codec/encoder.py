@@ -15,7 +15,7 @@ import numpy as np
 
 from csgs_codec.codec.colour_prior import prior_cells
 from csgs_codec.codec.colour_prior_choice import PriorChoice, choose_prior
-from csgs_codec.codec.encoder_checks import check_encodable, decodable_container
+from csgs_codec.codec.encoder_checks import check_count, check_encodable, decodable_container
 from csgs_codec.codec.float_stream import (
     plan_float_stream,
     write_float_stream,
@@ -143,6 +143,7 @@ class Encoder:
             original, scene = scene, scene.subset(keep)
         else:
             original = scene
+        check_count(len(scene))
         if (self.target_psnr is None and self.lambda_ is None) or not len(original):
             result = self._encode(scene, self.preset)
         else:

@@ -21,27 +21,33 @@ from csgs_codec.scene.gaussian_scene import GaussianScene
 MAX_CODED_MAGNITUDE = 2.0**52
 LIMITED_ATTRIBUTES = ("sh_dc", "sh_rest", "scales", "semantic")
 #: Largest |log-scale| taken: exp(88) = 1.65e38 is near float32's largest value, so a scale
-#: beyond it (or below exp(-88), under float32's smallest normal) has no physical meaning;
-#: larger values would also coarsen the value grid of every scale in the scene (FORMAT
-#: §12.8 picks one grid per stream).
+#: beyond it (or below exp(-88), under float32's smallest normal) has no physical meaning.
+#: Refusing them also keeps every scale's precision: FORMAT §12.8 picks one value grid per
+#: stream from its largest |value|, and one value of 2^28 or more (say 1e15) would coarsen
+#: the grid of every scale in the scene.
 MAX_LOG_SCALE = 88.0
 
 
 def check_encodable(scene: GaussianScene, *, semantic: bool = True) -> None:
     """InputError, before any coding, when ``scene`` holds something the format or the
-    default decoder cannot carry: more Gaussians than the decoder takes, too many or too
-    long semantic channel names, a log-scale outside +-88, or a value beyond 2^52.
+    default decoder cannot carry: too many or too long semantic channel names, a log-scale
+    outside +-88, or a value beyond 2^52 (the count is :func:`check_count`'s, after pruning).
 
     Errors name the PLY property (``scale_1``, ``f_dc_0``, a semantic name) and the row.
     ``semantic``: the semantic layer will be written (its names are checked only then).
     """
-    if len(scene) > MAX_GAUSSIANS:
-        raise InputError(f"{len(scene):,} Gaussians; the format's decoders take at most "
-                         f"{MAX_GAUSSIANS:,} (2^24)")
     if semantic and scene.semantic is not None:
         check_semantic_names(scene.semantic_names, MAX_FLOAT_STREAM_CHANNELS)
     _check_log_scales(scene)
     _check_magnitudes(scene)
+
+
+def check_count(count: int) -> None:
+    """InputError when a scene of ``count`` Gaussians (after pruning) is more than the
+    default decoder takes (2^24, FORMAT §10.1)."""
+    if count > MAX_GAUSSIANS:
+        raise InputError(f"{count:,} Gaussians; the format's decoders take at most "
+                         f"{MAX_GAUSSIANS:,} (2^24)")
 
 
 def check_semantic_names(names: tuple[str, ...], max_channels: int) -> None:
