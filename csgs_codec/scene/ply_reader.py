@@ -4,6 +4,9 @@ The reader accepts any property order and any numeric property type, derives the
 the number of ``f_rest_*`` properties, keeps semantic properties (``ins_feat_*``, ``sem_*``,
 ``label``) and drops other unknown properties with one warning. It never allocates more than
 the file can hold: element counts are checked against the file size before the body is read.
+Nothing is read loosely: every ASCII row must hold one value per property, written as a PLY
+number (C's strtod syntax, or nan/inf), and the body must end where the header's counts say
+(rows or bytes beyond them are an error, not ignored).
 """
 
 from __future__ import annotations

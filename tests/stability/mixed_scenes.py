@@ -10,13 +10,17 @@ from tests.stability.stress_scenes import DENORMAL_MAX, DENORMAL_MIN, FLOAT16_MA
 #: Values that replace a random share of each attribute's entries.
 SPECIAL_VALUES = np.array([0.0, -0.0, DENORMAL_MIN, -DENORMAL_MIN, DENORMAL_MAX, FLOAT16_MAX,
                            -FLOAT16_MAX], np.float32)
+#: The same for log-scales, whose range the encoder limits to +-88 (issue #20).
+SCALE_SPECIAL_VALUES = np.where(np.abs(SPECIAL_VALUES) > 88, np.sign(SPECIAL_VALUES) * 88,
+                                SPECIAL_VALUES).astype(np.float32)
 
 
 def mixed_scene(seed: int, n: int, sh_degree: int) -> GaussianScene:
     """A scene of ``n`` Gaussians (SH degree ``sh_degree``) with, chosen by ``seed``: an
     extent of 1e-6 .. 1e6 units, duplicated positions, at most one far outlier, log-scales in
     [-30, 10], opacity logits up to +-1e4, zero and unnormalised quaternions, and a few special
-    values (zeros, denormals, +-65504) sprinkled over every attribute except positions."""
+    values (zeros, denormals, +-65504; +-88 in log-scales, the encoder's limit) sprinkled over
+    every attribute except positions."""
     rng = np.random.default_rng(seed)
     extent = float(10.0 ** rng.uniform(-6, 6))
     scene = plain_scene(n, sh_degree=sh_degree, seed=seed, extent=extent,
@@ -42,5 +46,6 @@ def mixed_scene(seed: int, n: int, sh_degree: int) -> GaussianScene:
         flat = array.reshape(-1)
         if flat.size and rng.random() < 0.5:
             where = rng.random(flat.size) < 0.05
-            flat[where] = rng.choice(SPECIAL_VALUES, size=int(where.sum()))
+            specials = SCALE_SPECIAL_VALUES if array is scene.scales else SPECIAL_VALUES
+            flat[where] = rng.choice(specials, size=int(where.sum()))
     return scene
