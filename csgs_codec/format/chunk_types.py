@@ -61,6 +61,8 @@ _TABLE = (
               "Scene header: Gaussian count, SH degrees, position grid, far-outlier count."),
     ChunkType("GEOM", Layer.BASE, "Quantized positions: the octree geometry stream."),
     ChunkType("OUTL", Layer.BASE, "Far outliers: exact float32 positions outside the grid."),
+    ChunkType("OUTQ", Layer.BASE,
+              "Far points with relative precision: an exponent and 3 mantissas each."),
     ChunkType("CHYP", Layer.COLOR,
               "Colour hyperprior: channel mask and integer network on the Gaussians' cells."),
     ChunkType("SHDC", Layer.COLOR, "SH degree-0 colour coefficients (float stream, 3 ch)."),
