@@ -58,7 +58,7 @@ _TABLE = (
     ChunkType("fill", None,
               "Padding or test bytes; any layer, any content; decoders ignore the payload."),
     ChunkType("SCNE", Layer.BASE,
-              "Scene header: Gaussian count, SH degrees, position grid, far-outlier count."),
+              "Scene header: Gaussian count, SH degrees, position grid, far-point count."),
     ChunkType("GEOM", Layer.BASE, "Quantized positions: the octree geometry stream."),
     ChunkType("OUTL", Layer.BASE, "Far outliers: exact float32 positions outside the grid."),
     ChunkType("OUTQ", Layer.BASE,
