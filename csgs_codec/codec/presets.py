@@ -15,7 +15,7 @@ Gaussian (FORMAT §12.5, §12.20), with E the largest side of the dense core's 1
 box (csgs_codec/scene/position_grid.py; far floaters of any share below one half leave it
 unchanged) and ulp32(x) the float32 spacing at the decoded coordinate:
 
-- a Gaussian on the position grid (every Gaussian within 2^(21 - B - 1) E of the core,
+- a Gaussian on the position grid (every Gaussian within about 2^(20 - B) E of the core's centre,
   or all of them when the scene fits 21 bits): error <= cell / 2 + ulp32(x), with
   cell = E / (2^B - 1) (:attr:`PositionGrid.max_error`);
 - a far point coded apart with relative precision (OUTQ): error <= 2^-B r + ulp32(x), with r
