@@ -23,6 +23,9 @@ MAX_BITS = 21
 #: The dense core's radius doubles while the shell it would add holds more than this share
 #: of the points it would then contain (see :func:`dense_core`).
 CORE_SHELL_SHARE = 1.0 / 256
+#: A 2x gap ends the core when at most this share of the points lies beyond it (a 4x gap
+#: ends it whatever lies beyond, below one half).
+CORE_LEFT_OUT = 0.25
 
 
 def dense_core(positions: np.ndarray) -> np.ndarray:
@@ -30,12 +33,15 @@ def dense_core(positions: np.ndarray) -> np.ndarray:
     R of the per-axis median.
 
     R starts at the median Chebyshev distance r50 (the smallest positive distance when r50
-    is 0) and doubles while the shell (R, 2R] holds more than ``CORE_SHELL_SHARE`` of the
-    points within 2R, or while the next shell (2R, 4R] does (a factor-4 gap is needed to
-    stop). The median and r50 are set by the nearer half of the points, so any share of
-    far points below one half leaves the core where the dense points are; a scene without
-    a gap of at least 4x in its distances (every real object-centric capture measured:
-    their points lie within 5 r50) keeps all its points in the core.
+    is 0) and doubles until the shell (R, 2R] holds at most ``CORE_SHELL_SHARE`` of the
+    points within 2R (a gap of 2x in distance) and either the next shell (2R, 4R] does too
+    (a gap of 4x: whatever lies beyond is far) or at most ``CORE_LEFT_OUT`` of all points
+    lie beyond R. The median and r50 are set by the nearer half of the points, so any share
+    of far points below one half leaves the core where the dense points are, and a shell of
+    floaters beyond a 2x gap holding under a quarter of the points is left out too; a scene
+    without such gaps (every object-centric capture measured: their points lie within
+    5 r50, without gaps) keeps all its points in the core. Points left out of the core stay
+    on the grid when it can hold them: the core sets only the cell size.
 
     Args:
         positions: (N, 3) finite world positions.
@@ -56,8 +62,8 @@ def dense_core(positions: np.ndarray) -> np.ndarray:
     count = lambda r: int(np.searchsorted(ds, r, side="right"))  # noqa: E731
     while count(radius) < n:
         within, next1, next2 = count(radius), count(2 * radius), count(4 * radius)
-        if (next1 - within <= CORE_SHELL_SHARE * next1
-                and next2 - next1 <= CORE_SHELL_SHARE * next2):
+        if next1 - within <= CORE_SHELL_SHARE * next1 and (
+                next2 - next1 <= CORE_SHELL_SHARE * next2 or n - within <= n * CORE_LEFT_OUT):
             break
         radius *= 2
     return d <= radius

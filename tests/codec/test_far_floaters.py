@@ -90,12 +90,18 @@ def test_preset_bound_holds_on_every_visible_gaussian(donut_subset, share, dista
     assert np.all(err[moved] <= r * 2.0**-bits + ulp)
 
 
-def test_floaters_do_not_change_the_cell(donut_subset):
+@pytest.mark.parametrize(("share", "distance"), [
+    (0.005, 1e4), (0.2, 1e4), (0.45, 1e4), (0.45, 1e30),
+    (0.02, 1.0), (0.2, 1.0),  # a floater shell 5-10x the donut's size, inside the grid
+])
+def test_floaters_do_not_change_the_cell(donut_subset, share, distance):
     clean = PositionGrid.fit(donut_subset.positions, 12)
-    for share in (0.005, 0.2, 0.45):
-        scene, _ = with_floaters(donut_subset, share, 1e4, seed=3)
-        grid = PositionGrid.fit(scene.positions, 12)
-        assert grid.cell == pytest.approx(clean.cell, rel=0.03), share
+    scene, moved = with_floaters(donut_subset, share, distance, seed=3)
+    grid = PositionGrid.fit(scene.positions, 12)
+    assert grid.cell == pytest.approx(clean.cell, rel=0.03)
+    cells, inside = grid.quantize(scene.positions)
+    assert inside[~moved].all()
+    assert inside[moved].all() == (distance < 100)
 
 
 def test_a_handful_of_far_points_stays_exact(donut_subset):
