@@ -32,16 +32,17 @@ def dense_core(positions: np.ndarray) -> np.ndarray:
     """The (N,) boolean mask of the scene's dense core: the points within Chebyshev distance
     R of the per-axis median.
 
-    R starts at the median Chebyshev distance r50 (the smallest positive distance when r50
-    is 0) and doubles until the shell (R, 2R] holds at most ``CORE_SHELL_SHARE`` of the
-    points within 2R (a gap of 2x in distance) and either the next shell (2R, 4R] does too
-    (a gap of 4x: whatever lies beyond is far) or at most ``CORE_LEFT_OUT`` of all points
-    lie beyond R. The median and r50 are set by the nearer half of the points, so any share
-    of far points below one half leaves the core where the dense points are, and a shell of
-    floaters beyond a 2x gap holding under a quarter of the points is left out too; a scene
-    without such gaps (every object-centric capture measured: their points lie within
-    5 r50, without gaps) keeps all its points in the core. Points left out of the core stay
-    on the grid when it can hold them: the core sets only the cell size.
+    R starts at the median Chebyshev distance r50 (the median of the positive distances
+    when more than half of the points sit on the median) and doubles until the shell
+    (R, 2R] holds at most ``CORE_SHELL_SHARE`` of the points within 2R (a gap of 2x in
+    distance) and either the next shell (2R, 4R] does too (a gap of 4x: whatever lies
+    beyond is far) or at most ``CORE_LEFT_OUT`` of all points lie beyond R. The median and
+    r50 are set by the nearer half of the points, so any share of far points below one half
+    leaves the core where the dense points are, and a shell of floaters beyond a 2x gap
+    holding under a quarter of the points is left out too; a scene without such gaps (every
+    object-centric capture measured: their points lie within 5 r50, without gaps) keeps all
+    its points in the core. Points left out of the core stay on the grid when it can hold
+    them: the core sets only the cell size.
 
     Args:
         positions: (N, 3) finite world positions.
@@ -58,7 +59,7 @@ def dense_core(positions: np.ndarray) -> np.ndarray:
         positive = ds[ds > 0]
         if not len(positive):
             return np.ones(n, dtype=bool)
-        radius = float(positive[0])
+        radius = float(positive[(len(positive) - 1) // 2])  # the spread of the others
     count = lambda r: int(np.searchsorted(ds, r, side="right"))  # noqa: E731
     while count(radius) < n:
         within, next1, next2 = count(radius), count(2 * radius), count(4 * radius)
@@ -108,6 +109,8 @@ class PositionGrid:
         hi_r = np.percentile(core, 100 - percentile, axis=0, method="lower")
         extent = float(np.max(hi_r - lo_r))
         full_lo, full_hi = p.min(axis=0), p.max(axis=0)
+        if extent <= 0:  # the core's percentile box is flat: its full box, else all points'
+            extent = float(np.max(core.max(axis=0) - core.min(axis=0)))
         if extent <= 0:
             extent = float(np.max(full_hi - full_lo))
         if extent <= 0:  # every point identical

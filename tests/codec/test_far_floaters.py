@@ -199,3 +199,14 @@ def test_outq_without_far_points_is_refused(donut_subset):
     with pytest.raises(FormatError, match="unexpected OUTQ") as info:
         Decoder().decode(write_container(chunks))
     assert info.value.chunk == "OUTQ"
+
+
+def test_core_of_a_scene_mostly_on_one_point():
+    # 60% of the points on the median, 30% in a 2-unit cube, 10% about 1e4 away: the core is
+    # the cube (its 1-99 percentile box, about 1.9 wide), not the duplicates nor the floaters.
+    rng = np.random.default_rng(0)
+    p = np.concatenate([np.zeros((600, 3)), rng.uniform(-1, 1, (300, 3)),
+                        rng.normal(size=(100, 3)) * 1e4])
+    grid = PositionGrid.fit(p, 12)
+    assert 1.8 <= grid.cell * 4095 <= 2.0
+    assert grid.quantize(p)[1][:900].all()
