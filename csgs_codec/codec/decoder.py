@@ -19,6 +19,7 @@ from csgs_codec.codec.colour_prior import (
     prior_from_bytes,
 )
 from csgs_codec.codec.container_access import parse_layers, single_payload
+from csgs_codec.codec.far_payload import read_far_payload
 from csgs_codec.codec.float_stream import ChannelPrior, read_float_stream
 from csgs_codec.codec.payloads import (
     CHUNK_STREAMS,
@@ -138,16 +139,13 @@ class Decoder:
         grid = PositionGrid(header.grid_origin, header.grid_cell, max(header.grid_bits, 1))
         positions = grid.dequantize(cells)
         if header.far_count:
-            data, offset = single_payload(container, "OUTL")
-            r = ByteReader(data, base_offset=offset, chunk="OUTL")
-            n = r.varint("far_count", maximum=header.far_count)
-            if n != header.far_count:
-                raise r.error(f"{n} outliers, the header says {header.far_count}")
-            far = r.array(n * 3, "<f4", "positions").reshape(n, 3).astype(np.float32)
-            r.expect_end("the outlier list")
-            check_finite(far, "OUTL")
-            positions = np.concatenate([positions, far])
+            far = _far_positions(container, header)
+        else:
+            for code in ("OUTQ", "OUTL"):
+                _refuse_chunk(container, code, "the header declares no far points")
         check_finite(positions, "GEOM")
+        if header.far_count:
+            positions = np.concatenate([positions, far])
         return positions, cells
 
     # ------------------------------------------------------------------ colour layer
@@ -225,6 +223,35 @@ def _submit(pool: ThreadPoolExecutor | None, fn, *args) -> Future:
     except Exception as exc:  # re-raised by .result(), in the caller's order
         future.set_exception(exc)
     return future
+
+
+def _far_positions(container, header: SceneHeader) -> np.ndarray:
+    """(far_count, 3) float32 positions of the far points: those of OUTQ (relative
+    precision, when present) then those of OUTL (exact float32), FORMAT §12.4."""
+    parts = []
+    if any(e.type == "OUTQ" for e in container.toc):
+        data, offset = single_payload(container, "OUTQ")
+        parts.append(read_far_payload(data, offset, header.far_count))
+    exact = header.far_count - sum(len(p) for p in parts)
+    if not exact:
+        _refuse_chunk(container, "OUTL", "OUTQ holds every far point")
+        return np.concatenate(parts)
+    data, offset = single_payload(container, "OUTL")
+    r = ByteReader(data, base_offset=offset, chunk="OUTL")
+    n = r.varint("far_count", maximum=exact)
+    if n != exact:
+        raise r.error(f"{n} outliers, the header and OUTQ leave {exact}")
+    far = r.array(n * 3, "<f4", "positions").reshape(n, 3).astype(np.float32)
+    r.expect_end("the outlier list")
+    check_finite(far, "OUTL")
+    return np.concatenate(parts + [far])
+
+
+def _refuse_chunk(container, code: str, why: str) -> None:
+    """FormatError at the chunk when ``container`` holds a ``code`` chunk it must not."""
+    entry = next((e for e in container.toc if e.type == code), None)
+    if entry is not None:
+        raise FormatError(f"unexpected {code} chunk: {why}", chunk=code, offset=entry.offset)
 
 
 def _stream_names(header: SceneHeader) -> list[str]:

@@ -4,11 +4,14 @@ from __future__ import annotations
 
 from csgs_codec.codec.payloads import SceneHeader
 from csgs_codec.format import describe, read_layers
+from csgs_codec.format.primitives import ByteReader
 
 
 def describe_bitstream(source, *, verify: bool = True) -> dict:
     """:func:`csgs_codec.format.describe` facts, plus, when the file holds a scene header:
-    ``gaussians``, ``sh_degree_stored`` / ``sh_degree_coded``, ``quality``, ``grid_bits`` and
+    ``gaussians``, ``sh_degree_stored`` / ``sh_degree_coded``, ``quality``, ``grid_bits``,
+    ``far_outliers`` (positions coded apart from the grid: ``far_relative`` of them with
+    relative precision in OUTQ, ``far_exact`` as float32 in OUTL) and
     ``bits_per_gaussian`` for the file, each layer and each chunk (bytes * 8 / N); and
     always ``semantic_share_percent``, the semantic layer's chunk frames as a percentage of
     the whole file (header and TOC included).
@@ -28,6 +31,8 @@ def describe_bitstream(source, *, verify: bool = True) -> dict:
     facts.update(gaussians=n, sh_degree_stored=header.sh_degree_stored,
                  sh_degree_coded=header.sh_degree_coded, quality=header.quality,
                  grid_bits=header.grid_bits, far_outliers=header.far_count)
+    relative = _outq_count(container)
+    facts.update(far_relative=relative, far_exact=header.far_count - relative)
     if n:
         facts["bits_per_gaussian"] = 8 * facts["file_bytes"] / n
         for layer in facts["layers"].values():
@@ -35,3 +40,12 @@ def describe_bitstream(source, *, verify: bool = True) -> dict:
         for chunk in facts["chunks"]:
             chunk["bits_per_gaussian"] = 8 * chunk["bytes"] / n
     return facts
+
+
+def _outq_count(container) -> int:
+    """The point count of the OUTQ chunk (0 without one)."""
+    entry = next((e for e in container.toc if e.type == "OUTQ"), None)
+    if entry is None or entry.index not in container.payloads:
+        return 0
+    reader = ByteReader(bytes(container.payloads[entry.index]), entry.offset + 8, chunk="OUTQ")
+    return reader.varint("count")

@@ -1,6 +1,7 @@
 """Encoder: a GaussianScene -> a layered .csgs bitstream (orchestration only).
 
-Pipeline: validate -> optional pruning -> position grid -> geometry (canonical order) ->
+Pipeline: validate -> optional pruning -> position grid (dense core) -> geometry (canonical
+order) and far points coded apart (far_points.py) ->
 attribute streams in that order -> chunks -> container. The encoder computes its own
 reconstruction with exactly the integer arithmetic the decoder runs, so
 ``Decoder().decode(Encoder().encode(s))`` equals ``EncodeResult.reconstruction`` bit for bit.
@@ -16,6 +17,7 @@ import numpy as np
 from csgs_codec.codec.colour_prior import prior_cells
 from csgs_codec.codec.colour_prior_choice import PriorChoice, choose_prior
 from csgs_codec.codec.encoder_checks import check_count, check_encodable, decodable_container
+from csgs_codec.codec.far_points import plan_far_points
 from csgs_codec.codec.float_stream import (
     plan_float_stream,
     write_float_stream,
@@ -195,12 +197,14 @@ class Encoder:
         grid = PositionGrid.fit(scene.positions, settings.position_bits)
         cells, inside = grid.quantize(scene.positions)
         inside_idx = np.flatnonzero(inside)
-        far_idx = np.flatnonzero(~inside)
+        far = plan_far_points(scene.positions, np.flatnonzero(~inside), grid,
+                              settings.position_bits)
         perm = canonical_order(cells[inside_idx], grid.bits)
-        order = np.concatenate([inside_idx[perm], far_idx]).astype(np.int64)
+        order = np.concatenate([inside_idx[perm], far.order]).astype(np.int64)
         geometry = encode_positions(cells[inside_idx], grid.bits)
         positions = np.concatenate([grid.dequantize(cells[inside_idx][perm]),
-                                    scene.positions[far_idx]]).astype(np.float32)
+                                    far.positions]).astype(np.float32)
+        far_count = len(far.order)
         ordered = scene.subset(order)
 
         streams = split_streams(ordered)
@@ -208,14 +212,13 @@ class Encoder:
             count=len(ordered), sh_degree_stored=streams.sh_degree_stored,
             sh_degree_coded=sum(1 for k in streams.float_streams if k.startswith("rest")),
             quality=settings.quality, grid_origin=grid.origin, grid_cell=grid.cell,
-            grid_bits=grid.bits, far_count=len(far_idx))
-        chunks = [Chunk("SCNE", "base", header.to_bytes()), Chunk("GEOM", "base", geometry)]
-        if len(far_idx):
-            chunks.append(Chunk("OUTL", "base", _outliers_payload(scene.positions[far_idx])))
+            grid_bits=grid.bits, far_count=far_count)
+        chunks = [Chunk("SCNE", "base", header.to_bytes()), Chunk("GEOM", "base", geometry),
+                  *far.chunks]
 
         self.progress("colour")
         use_prior = self.hyperprior if hyperprior is None else hyperprior
-        cells_in_order = (prior_cells(cells[inside_idx][perm], len(far_idx)) if use_prior
+        cells_in_order = (prior_cells(cells[inside_idx][perm], far_count) if use_prior
                           else None)
         decoded_streams = self._colour_chunks(streams, chunks, settings, cells_in_order,
                                               max(grid.bits, 1))
@@ -280,8 +283,3 @@ class Encoder:
             chunks.append(Chunk("SEML", "semantic", out.getvalue()))
 
 
-def _outliers_payload(positions: np.ndarray) -> bytes:
-    out = ByteWriter()
-    out.varint(len(positions))
-    out.array(positions.astype(np.float32), "<f4")
-    return out.getvalue()

@@ -117,6 +117,7 @@ def generate(out_dir: Path) -> None:
            "semantic_small_r2 with the OPAC payload cut in half (frame and CRC rewritten)",
            _reads(bad))
     _colour_prior_vectors(out_dir, donut)
+    _far_point_vectors(out_dir, donut)
 
 
 def _colour_prior_vectors(out_dir: Path, donut: GaussianScene) -> None:
@@ -136,3 +137,39 @@ def _colour_prior_vectors(out_dir: Path, donut: GaussianScene) -> None:
     _write(out_dir, "colour_prior_missing_chyp", bad,
            "colour_prior_q3 without its CHYP chunk: mode-5 channels have no prior",
            _reads(bad))
+
+
+def far_floater_scene(donut: GaussianScene) -> GaussianScene:
+    """Every 30th Gaussian of samples/donut.ply (1,521), 76 of them (5%) moved far away with
+    opacity -8: about 1e4 units out, every third about 1e30, and the last to (3.4e38,
+    -3.4e38, 1), which only the exact list can hold."""
+    scene = donut.subset(np.arange(0, len(donut), 30))
+    moved = np.arange(3, len(scene), 20)
+    k = np.arange(len(moved), dtype=np.float64)
+    dirs = np.stack([np.cos(k), np.sin(k), np.cos(2.5 * k)], axis=1)
+    distance = np.where(k % 3 == 0, 1e30, 1e4)
+    scene.positions[moved] = (dirs * distance[:, None]).astype(np.float32)
+    scene.positions[moved[-1]] = (3.4e38, -3.4e38, 1.0)
+    scene.opacity[moved] = -8.0
+    return scene
+
+
+def _far_point_vectors(out_dir: Path, donut: GaussianScene) -> None:
+    """A scene with far floaters (OUTQ relative-precision far points and one exact OUTL
+    point), and two damaged copies: without OUTQ, and with its payload cut in half."""
+    import warnings
+
+    from csgs_codec.errors import CsgsWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", CsgsWarning)  # "coded apart", expected here
+        data = Encoder(quality=5, hyperprior=False).encode(far_floater_scene(donut))
+    _write(out_dir, "far_floaters_q5", data,
+           "1,521 Gaussians of samples/donut.ply, 5% moved to ~1e4 / ~1e30 (OUTQ, relative "
+           "precision) and one to 3.4e38 (OUTL, exact), quality 5", _reads(data),
+           arrays=Decoder().decode(data))
+    for name, bad, what in (
+            ("far_floaters_missing_outq", _invalid(data, drop="OUTQ"), "without its OUTQ chunk"),
+            ("far_floaters_truncated_outq", _invalid(data, cut="OUTQ"),
+             "with the OUTQ payload cut in half (frame and CRC rewritten)")):
+        _write(out_dir, name, bad, f"far_floaters_q5 {what}", _reads(bad))

@@ -90,6 +90,11 @@ def format_description(facts: dict) -> str:
                      f"{facts['sh_degree_stored']} ({facts['sh_degree_coded']} coded), "
                      f"quality {facts['quality']}, {facts['bits_per_gaussian']:.2f} "
                      "bits/Gaussian")
+    if facts.get("far_outliers"):
+        relative = facts.get("far_relative", 0)
+        lines.append(f"  coded apart      {facts['far_outliers']:,} positions outside the grid "
+                     f"({relative:,} relative precision, OUTQ; "
+                     f"{facts['far_outliers'] - relative:,} exact, OUTL)")
     lines.append(f"  header + TOC     {facts['header_bytes']:>12,} bytes")
     for label, layer in facts["layers"].items():
         missing = "" if layer["present"] else "  (not all present)"
