@@ -44,6 +44,15 @@ def add_arguments(parser) -> None:
                              "(auto) or never (none)")
     parser.add_argument("--prune-opacity", type=float, default=None, metavar="T",
                         help="drop Gaussians with opacity below T (lossy, opt-in)")
+    parser.add_argument("--view-prune", dest="view_pruning", action="store_true",
+                        help="3DGS scenes: leave out the Gaussians that add least to renders "
+                             "from the viewing distribution, within 10%% of the quantization's "
+                             "own squared error on probe views (lossy; a sphere of views "
+                             "around the scene unless --cameras is given)")
+    parser.add_argument("--cameras", default=None, metavar="FILE",
+                        help="3DGS scenes: the views the scene will be seen from (INRIA "
+                             "cameras.json, transforms.json or a COLMAP folder); implies "
+                             "--view-prune. Give them for a scene walked through from inside")
     parser.add_argument("--sanitize", action="store_true",
                         help="drop Gaussians with NaN/Inf values instead of failing")
 
@@ -59,12 +68,19 @@ def run(args) -> int:
     check_output(args.output, [args.scene])  # before a long encode, not after it
     if is_anchor_input(args.scene):
         return _encode_anchors(args, write_atomically)
+    cameras = None
+    if args.cameras is not None:
+        from csgs_codec.render.cameras_io import load_cameras
+
+        cameras = load_cameras(args.cameras)
     encoder = Encoder(quality=args.quality, target_psnr=args.target_psnr, lambda_=args.lambda_,
                       fast=args.fast, semantic=args.semantic, prune_opacity=args.prune_opacity,
-                      hyperprior=args.hyperprior)
+                      hyperprior=args.hyperprior,
+                      view_pruning=args.view_pruning or cameras is not None, cameras=cameras)
     scene = read_ply(args.scene, sanitize=args.sanitize)
     searching = args.target_psnr is not None or args.lambda_ is not None
-    bar = tqdm(total=None if searching else len(STAGES), desc="encode", unit="stage",
+    bar = tqdm(total=None if searching or args.view_pruning else len(STAGES), desc="encode",
+               unit="stage",
                disable=args.quiet, leave=False)
 
     def progress(stage: str) -> None:
@@ -81,8 +97,19 @@ def run(args) -> int:
         if done == total:
             fit_bar.pop().close()
 
+    view_bar = []
+
+    def view_progress(done: int, total: int) -> None:
+        if not view_bar:
+            view_bar.append(tqdm(total=total, desc="view sensitivity", unit="view",
+                                 disable=args.quiet, leave=False))
+        view_bar[0].update(done - view_bar[0].n)
+        if done == total:
+            view_bar.pop().close()
+
     encoder.progress = progress
     encoder.fit_progress = fit_progress
+    encoder.view_progress = view_progress
     try:
         result = encoder.encode_with_report(scene)
     except InputError as err:  # the scene's errors (row, property) belong to the input file
@@ -90,7 +117,7 @@ def run(args) -> int:
             err.file = args.scene
         raise
     finally:
-        for open_bar in fit_bar:
+        for open_bar in fit_bar + view_bar:
             open_bar.close()
         bar.close()
     write_atomically(args.output, result.data, [args.scene])
@@ -104,6 +131,9 @@ def run(args) -> int:
         print(f"rate control: {result.rate_control.summary()}")
     if result.pruned:
         print(f"pruned {result.pruned:,} Gaussians with opacity below {args.prune_opacity}")
+    if result.views is not None:
+        print(f"left out {result.view_pruned:,} Gaussians that add least to the views "
+              f"({result.views})")
     return 0
 
 

@@ -30,6 +30,7 @@ from csgs_codec.codec.payloads import (
 )
 from csgs_codec.codec.presets import DEFAULT_QUALITY, Preset, preset, scaled_preset
 from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
+from csgs_codec.codec.view_pruning import DEFAULT_BUDGET, decide
 from csgs_codec.entropy.categorical import encode_categorical
 from csgs_codec.entropy.geometry import canonical_order, encode_positions
 from csgs_codec.entropy.residual import encode_symbols
@@ -41,6 +42,9 @@ from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.scene.position_grid import PositionGrid
 
 SEMANTIC_MODES = ("auto", "none")
+#: Scenes with fewer Gaussians are not view-pruned: the sensitivity pass is not worth it and
+#: tiny test scenes stay whole.
+MIN_PRUNED_SCENE = 1024
 
 
 @dataclass
@@ -55,6 +59,9 @@ class EncodeResult:
         pruned: Gaussians removed by ``prune_opacity``.
         stream_bytes: chunk type -> payload bytes.
         seconds: encode wall time.
+        view_pruned: Gaussians removed for contributing too little to the views (see
+            :mod:`csgs_codec.codec.view_pruning`); ``order`` skips them.
+        views: the viewing distribution the pruning followed, or None when none ran.
         rate_control: the :class:`~csgs_codec.codec.rate_control.RateControlReport` of a
             target-PSNR encode, the :class:`~csgs_codec.codec.rate_control.LambdaReport`
             (chosen multiplier and cost J) of a lambda encode, else None.
@@ -66,6 +73,8 @@ class EncodeResult:
     pruned: int = 0
     stream_bytes: dict[str, int] = field(default_factory=dict)
     seconds: float = 0.0
+    view_pruned: int = 0
+    views: str | None = None
     rate_control: object | None = None
 
 
@@ -91,6 +100,15 @@ class Encoder:
             labels; "none" never writes it.
         prune_opacity: drop Gaussians whose opacity sigmoid(logit) is below this (lossy,
             opt-in); None keeps every Gaussian.
+        view_pruning: leave out the Gaussians that contribute least to renders over the
+            viewing distribution, within a budget of the quantization's own error
+            (:mod:`csgs_codec.codec.view_pruning`; scenes of 1,024+ Gaussians, needs numba;
+            lossy, opt-in: ``--view-prune``). False (default) codes every Gaussian.
+        cameras: the views the scene will be seen from (e.g. its capture cameras), or None
+            for the default sphere of views around it
+            (:func:`csgs_codec.render.view_distribution.default_distribution`).
+        view_budget: the pruning budget, a fraction of the quantization's squared error on
+            the views (default 0.1: at most about 0.4 dB).
         progress: a callable ``progress(step_name)`` told of each stage, or None.
         fit_progress: a callable ``fit_progress(done, total)`` told of the colour hyperprior
             fit's training steps (it takes seconds), or None.
@@ -99,7 +117,9 @@ class Encoder:
     def __init__(self, quality: int | None = None, *, target_psnr: float | None = None,
                  lambda_: float | None = None, fast: bool = False, semantic: str = "auto",
                  prune_opacity: float | None = None, hyperprior: bool = True,
-                 progress=None, fit_progress=None) -> None:
+                 view_pruning: bool = False, cameras=None,
+                 view_budget: float = DEFAULT_BUDGET,
+                 progress=None, fit_progress=None, view_progress=None) -> None:
         if lambda_ is not None and (quality is not None or target_psnr is not None):
             raise InputError("lambda excludes quality and target PSNR: give one of them",
                              property="lambda")
@@ -123,8 +143,16 @@ class Encoder:
         self.semantic = semantic
         self.prune_opacity = prune_opacity
         self.hyperprior = bool(hyperprior) and not self.fast
+        if not 0.0 <= view_budget <= 10.0:
+            raise InputError(f"view budget must be in [0, 10], got {view_budget}",
+                             property="view_budget")
+        self.view_pruning = bool(view_pruning)
+        self.cameras = None if cameras is None else list(cameras)
+        self.view_budget = float(view_budget)
+        self._sensitivity = None  # (W (N,) of the scene being encoded, ViewDistribution)
         self.progress = progress or (lambda step: None)
         self.fit_progress = fit_progress
+        self.view_progress = view_progress
 
     def encode(self, scene: GaussianScene) -> bytes:
         """The .csgs bytes of ``scene``."""
@@ -146,6 +174,7 @@ class Encoder:
         else:
             original = scene
         check_count(len(scene))
+        self._sensitivity = self._render_sensitivity(scene)
         if (self.target_psnr is None and self.lambda_ is None) or not len(original):
             result = self._encode(scene, self.preset)
         else:
@@ -153,6 +182,22 @@ class Encoder:
         result.pruned = pruned
         result.seconds = time.perf_counter() - start
         return result
+
+    def _render_sensitivity(self, scene: GaussianScene):
+        """(colour sensitivity W (N,), its ViewDistribution) of ``scene``, or None when view
+        pruning is off or the scene is too small for it."""
+        if not self.view_pruning or len(scene) < MIN_PRUNED_SCENE:
+            return None
+        from csgs_codec.render.sensitivity import blend_sensitivity
+        from csgs_codec.render.view_distribution import (
+            camera_distribution,
+            default_distribution,
+        )
+
+        self.progress("view sensitivity")
+        views = (default_distribution(scene) if self.cameras is None
+                 else camera_distribution(self.cameras, "the given cameras"))
+        return blend_sensitivity(scene, views.cameras, self.view_progress).weight_sq, views
 
     def _search(self, scene: GaussianScene, original: GaussianScene) -> EncodeResult:
         """The target-PSNR or lambda search over the step multiplier (rate_control.py),
@@ -190,8 +235,31 @@ class Encoder:
 
     def _encode(self, scene: GaussianScene, settings: Preset, *,
                 hyperprior: bool | None = None) -> EncodeResult:
-        """Encode a validated (and pruned) scene with ``settings`` (and the colour
-        hyperprior when ``hyperprior``, default: the encoder's setting)."""
+        """Encode a validated scene with ``settings``, leaving out the Gaussians view pruning
+        removes (``order`` indexes ``scene``; see :meth:`_encode_all` for the rest)."""
+        if self._sensitivity is None:
+            return self._encode_all(scene, settings, hyperprior=hyperprior)
+        weights, views = self._sensitivity
+        trial = self._encode_all(scene, settings, hyperprior=False)
+        self.progress("view pruning")
+        in_input_order = trial.reconstruction.subset(np.argsort(trial.order, kind="stable"))
+        decision = decide(scene, in_input_order, weights, views.cameras, self.view_budget)
+        use_prior = self.hyperprior if hyperprior is None else hyperprior
+        if decision.dropped == 0 and not use_prior:
+            result = trial
+        else:
+            kept = np.flatnonzero(decision.keep)
+            result = self._encode_all(scene.subset(decision.keep), settings,
+                                      hyperprior=hyperprior)
+            result.order = kept[result.order]
+        result.view_pruned = decision.dropped
+        result.views = views.description
+        return result
+
+    def _encode_all(self, scene: GaussianScene, settings: Preset, *,
+                    hyperprior: bool | None = None) -> EncodeResult:
+        """Encode every Gaussian of a validated (and pruned) scene with ``settings`` (and
+        the colour hyperprior when ``hyperprior``, default: the encoder's setting)."""
         start = time.perf_counter()
         self.progress("geometry")
         grid = PositionGrid.fit(scene.positions, settings.position_bits)

@@ -111,3 +111,57 @@ def composite_tiles(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
                         out[py, px, ch] += weight * values[g, ch]
                     trans = after
                 transmittance[py, px] = trans
+
+
+@numba.njit(parallel=True, cache=True)
+def blend_weight_slots(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
+                       conics: np.ndarray, opacities: np.ndarray, width: int, height: int,
+                       tile_size: int, tiles_x: int, weight_sq: np.ndarray,
+                       weight_sum: np.ndarray) -> None:
+    """Blending weights w = alpha * T of every (tile, Gaussian) slot, summed over the tile's
+    pixels with the compositing rule of :func:`composite_tiles`.
+
+    ``weight_sq`` and ``weight_sum`` are [I] float64, one entry per slot of ``ids`` (zeroed
+    by the caller): each slot belongs to one tile, so tiles write disjoint entries and run
+    in parallel without races; the caller sums slots per Gaussian.
+    """
+    n_tiles = offsets.shape[0] - 1
+    for t in numba.prange(n_tiles):
+        start = offsets[t]
+        count = offsets[t + 1] - start
+        if count == 0:
+            continue
+        packed = np.empty((count, 7), np.float32)
+        for k in range(count):
+            g = ids[start + k]
+            packed[k, 0] = means2d[g, 0]
+            packed[k, 1] = means2d[g, 1]
+            packed[k, 2] = conics[g, 0]
+            packed[k, 3] = conics[g, 1]
+            packed[k, 4] = conics[g, 2]
+            packed[k, 5] = opacities[g]
+            packed[k, 6] = np.log(_ALPHA_THRESHOLD / opacities[g]) - _POWER_MARGIN
+        x0 = (t % tiles_x) * tile_size
+        y0 = (t // tiles_x) * tile_size
+        for py in range(y0, min(y0 + tile_size, height)):
+            pyc = np.float32(py) + _HALF
+            for px in range(x0, min(x0 + tile_size, width)):
+                pxc = np.float32(px) + _HALF
+                trans = _ONE
+                for k in range(count):
+                    dx = pxc - packed[k, 0]
+                    dy = pyc - packed[k, 1]
+                    power = (-_HALF * (packed[k, 2] * dx * dx + packed[k, 4] * dy * dy)
+                             - packed[k, 3] * dx * dy)
+                    if power < packed[k, 6]:
+                        continue
+                    alpha = min(_MAX_ALPHA, packed[k, 5] * np.exp(power))
+                    if alpha < _ALPHA_THRESHOLD:
+                        continue
+                    after = trans * (_ONE - alpha)
+                    if after < _T_STOP:
+                        break
+                    weight = np.float64(alpha * trans)
+                    weight_sq[start + k] += weight * weight
+                    weight_sum[start + k] += weight
+                    trans = after

@@ -1,0 +1,141 @@
+"""View pruning: Gaussians that add least to the views are left out, within the budget."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from csgs_cli.main import main
+from csgs_codec.codec.decoder import Decoder
+from csgs_codec.codec.encoder import MIN_PRUNED_SCENE, Encoder
+from csgs_codec.codec.view_pruning import decide, drop_costs, probe_cameras, render_images
+from csgs_codec.render.sensitivity import blend_sensitivity
+from csgs_codec.render.view_distribution import default_distribution
+from csgs_codec.scene.ply_io import read_ply, write_ply
+from tests.conftest import SAMPLE
+
+pytest.importorskip("numba")
+
+
+@pytest.fixture(scope="module")
+def donut_part():
+    """Every 12th Gaussian of the sample (3,802): big enough to prune, quick to encode."""
+    scene = read_ply(SAMPLE)
+    return scene.subset(np.arange(0, len(scene), 12))
+
+
+@pytest.fixture(scope="module")
+def pruned(donut_part):
+    return Encoder(quality=5, hyperprior=False, view_pruning=True).encode_with_report(
+        donut_part)
+
+
+def test_pruned_file_decodes_to_the_encoders_reconstruction(pruned, donut_part):
+    decoded = Decoder().decode(pruned.data)
+    assert decoded.equals(pruned.reconstruction)
+    assert len(decoded) == len(donut_part) - pruned.view_pruned
+    assert 0 < pruned.view_pruned < len(donut_part)
+    assert pruned.views == "72 views on a sphere at 3 distances"
+
+
+def test_order_names_each_kept_gaussian_once(pruned, donut_part):
+    order = pruned.order
+    assert len(np.unique(order)) == len(order) == len(pruned.reconstruction)
+    assert order.min() >= 0 and order.max() < len(donut_part)
+    kept = donut_part.subset(order)
+    # Kept Gaussians decode near their own inputs (DC within the quality-5 step).
+    assert np.abs(kept.sh_dc - pruned.reconstruction.sh_dc).max() < 0.04
+
+
+def test_pruning_stays_within_the_budget_on_the_probe_views(donut_part):
+    encoder = Encoder(quality=5, hyperprior=False)
+    full = encoder.encode_with_report(donut_part)
+    views = default_distribution(donut_part)
+    weights = blend_sensitivity(donut_part, views.cameras).weight_sq
+    in_input_order = full.reconstruction.subset(np.argsort(full.order))
+    decision = decide(donut_part, in_input_order, weights, views.cameras, budget=0.1)
+    probes = probe_cameras(views.cameras)
+    reference = render_images(donut_part, probes)
+    pruned = in_input_order.subset(decision.keep)
+    sse = sum(float(np.sum((a - b) ** 2))
+              for a, b in zip(reference, render_images(pruned, probes)))
+    assert sse <= 1.1 * decision.quantization_sse
+    assert decision.dropped == int((~decision.keep).sum()) > 0
+    # Unseen Gaussians always go; the rest go in order of their drop cost.
+    unseen = weights <= 0
+    assert not decision.keep[unseen].any()
+    costs = drop_costs(donut_part, weights)
+    dropped_seen = ~decision.keep & ~unseen
+    if dropped_seen.any() and decision.keep.any():
+        assert costs[dropped_seen].max() <= costs[decision.keep].min()
+
+
+def test_a_zero_budget_removes_only_what_no_view_reaches(donut_part):
+    full = Encoder(quality=5, hyperprior=False).encode_with_report(donut_part)
+    views = default_distribution(donut_part)
+    weights = blend_sensitivity(donut_part, views.cameras).weight_sq
+    in_input_order = full.reconstruction.subset(np.argsort(full.order))
+    decision = decide(donut_part, in_input_order, weights, views.cameras, budget=0.0)
+    assert decision.dropped >= decision.unseen == int((weights <= 0).sum())
+    assert decision.dropped <= decision.unseen + len(donut_part) // 50
+
+
+def test_pruning_is_deterministic(donut_part, pruned):
+    again = Encoder(quality=5, hyperprior=False, view_pruning=True).encode_with_report(
+        donut_part)
+    assert again.data == pruned.data
+
+
+def test_small_scenes_are_not_pruned(donut_part):
+    small = donut_part.subset(np.arange(MIN_PRUNED_SCENE - 1))
+    result = Encoder(quality=5, hyperprior=False, view_pruning=True).encode_with_report(small)
+    assert result.view_pruned == 0 and result.views is None
+    assert len(result.reconstruction) == len(small)
+
+
+def test_off_by_default(donut_part):
+    result = Encoder(quality=5, hyperprior=False).encode_with_report(donut_part)
+    assert result.view_pruned == 0 and len(result.reconstruction) == len(donut_part)
+
+
+def test_cli_view_prune_reports_what_it_left_out(tmp_path, capsys, donut_part):
+    src = tmp_path / "part.ply"
+    write_ply(donut_part, src)
+    out = tmp_path / "part.csgs"
+    assert main(["encode", str(src), "-o", str(out), "--view-prune", "--no-hyperprior",
+                 "--quiet"]) == 0
+    assert "left out" in capsys.readouterr().out
+    assert len(Decoder().decode(out.read_bytes())) < len(donut_part)
+
+
+def test_cli_cameras_file_is_used(tmp_path, capsys, donut_part):
+    src = tmp_path / "part.ply"
+    write_ply(donut_part, src)
+    views = default_distribution(donut_part, directions=4, distances=(1.0,))
+    entries = []
+    for i, cam in enumerate(views.cameras):
+        c2w = cam.camera_to_world
+        entries.append({"id": i, "img_name": cam.name, "width": cam.width,
+                        "height": cam.height, "position": c2w[:3, 3].tolist(),
+                        "rotation": c2w[:3, :3].tolist(), "fx": cam.fx, "fy": cam.fy})
+    cameras = tmp_path / "cameras.json"
+    cameras.write_text(json.dumps(entries))
+    out = tmp_path / "part.csgs"
+    assert main(["encode", str(src), "-o", str(out), "--cameras", str(cameras),
+                 "--no-hyperprior", "--quiet"]) == 0
+    assert "4 of 4 cameras from the given cameras" in capsys.readouterr().out
+
+
+def test_cli_bad_cameras_file_is_a_clear_error(tmp_path, capsys, donut_part):
+    src = tmp_path / "part.ply"
+    write_ply(donut_part, src)
+    cameras = tmp_path / "cameras.json"
+    cameras.write_text('[{"id": 0, "width": 10}]')
+    out = tmp_path / "part.csgs"
+    assert main(["encode", str(src), "-o", str(out), "--cameras", str(cameras),
+                 "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "cameras.json" in err and "Traceback" not in err
+    assert not out.exists()
