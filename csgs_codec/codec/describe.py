@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from csgs_codec.codec.payloads import SceneHeader
+from csgs_codec.codec.view_record import ViewRecord
 from csgs_codec.format import describe, read_layers
 from csgs_codec.format.primitives import ByteReader
 
@@ -11,7 +12,8 @@ def describe_bitstream(source, *, verify: bool = True) -> dict:
     """:func:`csgs_codec.format.describe` facts, plus, when the file holds a scene header:
     ``gaussians``, ``sh_degree_stored`` / ``sh_degree_coded``, ``quality``, ``grid_bits``,
     ``far_outliers`` (positions coded apart from the grid: ``far_relative`` of them with
-    relative precision in OUTQ, ``far_exact`` as float32 in OUTL) and
+    relative precision in OUTQ, ``far_exact`` as float32 in OUTL), ``views`` (the viewing
+    distribution view pruning followed, when the file records one) and
     ``bits_per_gaussian`` for the file, each layer and each chunk (bytes * 8 / N); and
     always ``semantic_share_percent``, the semantic layer's chunk frames as a percentage of
     the whole file (header and TOC included).
@@ -33,6 +35,10 @@ def describe_bitstream(source, *, verify: bool = True) -> dict:
                  grid_bits=header.grid_bits, far_outliers=header.far_count)
     relative = _outq_count(container)
     facts.update(far_relative=relative, far_exact=header.far_count - relative)
+    record = _view_record(container)
+    if record is not None:
+        facts["views"] = {"source": record.source, "count": record.views,
+                          "left_out": record.left_out, "description": record.description}
     if n:
         facts["bits_per_gaussian"] = 8 * facts["file_bytes"] / n
         for layer in facts["layers"].values():
@@ -40,6 +46,14 @@ def describe_bitstream(source, *, verify: bool = True) -> dict:
         for chunk in facts["chunks"]:
             chunk["bits_per_gaussian"] = 8 * chunk["bytes"] / n
     return facts
+
+
+def _view_record(container) -> ViewRecord | None:
+    """The ``vdis`` record of the base layer, or None."""
+    entry = next((e for e in container.toc if e.type == "vdis"), None)
+    if entry is None or entry.index not in container.payloads:
+        return None
+    return ViewRecord.from_bytes(bytes(container.payloads[entry.index]), entry.offset + 8)
 
 
 def _outq_count(container) -> int:

@@ -31,6 +31,7 @@ from csgs_codec.codec.payloads import (
 from csgs_codec.codec.presets import DEFAULT_QUALITY, Preset, preset, scaled_preset
 from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
 from csgs_codec.codec.view_pruning import DEFAULT_BUDGET, decide
+from csgs_codec.codec.view_record import ViewRecord
 from csgs_codec.entropy.categorical import encode_categorical
 from csgs_codec.entropy.geometry import canonical_order, encode_positions
 from csgs_codec.entropy.residual import encode_symbols
@@ -244,22 +245,22 @@ class Encoder:
         self.progress("view pruning")
         in_input_order = trial.reconstruction.subset(np.argsort(trial.order, kind="stable"))
         decision = decide(scene, in_input_order, weights, views.cameras, self.view_budget)
-        use_prior = self.hyperprior if hyperprior is None else hyperprior
-        if decision.dropped == 0 and not use_prior:
-            result = trial
-        else:
-            kept = np.flatnonzero(decision.keep)
-            result = self._encode_all(scene.subset(decision.keep), settings,
-                                      hyperprior=hyperprior)
-            result.order = kept[result.order]
+        record = ViewRecord(views.source, len(views.cameras), decision.dropped,
+                            views.description)
+        kept = np.flatnonzero(decision.keep)
+        result = self._encode_all(scene.subset(decision.keep), settings, hyperprior=hyperprior,
+                                  record=Chunk("vdis", "base", record.to_bytes()))
+        result.order = kept[result.order]
         result.view_pruned = decision.dropped
         result.views = views.description
         return result
 
     def _encode_all(self, scene: GaussianScene, settings: Preset, *,
-                    hyperprior: bool | None = None) -> EncodeResult:
+                    hyperprior: bool | None = None, record: Chunk | None = None
+                    ) -> EncodeResult:
         """Encode every Gaussian of a validated (and pruned) scene with ``settings`` (and
-        the colour hyperprior when ``hyperprior``, default: the encoder's setting)."""
+        the colour hyperprior when ``hyperprior``, default: the encoder's setting);
+        ``record`` (a ``vdis`` chunk) ends the base layer when given."""
         start = time.perf_counter()
         self.progress("geometry")
         grid = PositionGrid.fit(scene.positions, settings.position_bits)
@@ -282,7 +283,7 @@ class Encoder:
             quality=settings.quality, grid_origin=grid.origin, grid_cell=grid.cell,
             grid_bits=grid.bits, far_count=far_count)
         chunks = [Chunk("SCNE", "base", header.to_bytes()), Chunk("GEOM", "base", geometry),
-                  *far.chunks]
+                  *far.chunks, *([record] if record is not None else [])]
 
         self.progress("colour")
         use_prior = self.hyperprior if hyperprior is None else hyperprior

@@ -62,8 +62,10 @@ def drop_costs(scene: GaussianScene, weight_sq: np.ndarray) -> np.ndarray:
     return np.asarray(weight_sq, np.float64) * np.sum(colour * colour, axis=1)
 
 
-def probe_cameras(cameras: Sequence[Camera], count: int = PROBE_VIEWS) -> list[Camera]:
-    """``count`` evenly spaced cameras of ``cameras`` (all of them when there are fewer)."""
+def probe_cameras(cameras: Sequence[Camera], count: int | None = None) -> list[Camera]:
+    """``count`` (default :data:`PROBE_VIEWS`) evenly spaced cameras of ``cameras`` (all of
+    them when there are fewer)."""
+    count = PROBE_VIEWS if count is None else count
     cameras = list(cameras)
     if len(cameras) <= count:
         return cameras

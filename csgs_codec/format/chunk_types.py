@@ -63,6 +63,9 @@ _TABLE = (
     ChunkType("OUTL", Layer.BASE, "Far outliers: exact float32 positions outside the grid."),
     ChunkType("OUTQ", Layer.BASE,
               "Far points with relative precision: an exponent and 3 mantissas each."),
+    ChunkType("vdis", Layer.BASE,
+              "View distribution: where the encoder's views came from, how many Gaussians "
+              "view pruning left out (informative)."),
     ChunkType("CHYP", Layer.COLOR,
               "Colour hyperprior: channel mask and integer network on the Gaussians' cells."),
     ChunkType("SHDC", Layer.COLOR, "SH degree-0 colour coefficients (float stream, 3 ch)."),

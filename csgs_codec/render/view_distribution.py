@@ -86,17 +86,18 @@ def sphere_directions(count: int) -> np.ndarray:
 
 def default_distribution(scene: GaussianScene, *, directions: int = DEFAULT_DIRECTIONS,
                          distances: tuple[float, ...] = DEFAULT_DISTANCES,
-                         size: tuple[int, int] = DEFAULT_SIZE,
+                         size: tuple[int, int] | None = None,
                          up: str | np.ndarray | None = None) -> ViewDistribution:
     """Views on a sphere around ``scene`` (see the module notes): ``directions`` per shell,
-    shells at ``distances`` x the framing distance, images of ``size`` (width, height).
+    shells at ``distances`` x the framing distance, images of ``size`` (width, height;
+    default :data:`DEFAULT_SIZE`).
 
     Raises:
         InputError: an empty scene, no directions or distances, or a non-positive size.
     """
     if directions < 1 or not distances or min(distances) <= 0:
         raise InputError("a view distribution needs directions and positive distances")
-    width, height = size
+    width, height = DEFAULT_SIZE if size is None else size
     if width < 1 or height < 1:
         raise InputError(f"image size must be positive, got {width}x{height}", property="size")
     up_vector = guess_up_axis(scene) if up is None else parse_up(up)

@@ -139,3 +139,29 @@ def test_cli_bad_cameras_file_is_a_clear_error(tmp_path, capsys, donut_part):
     err = capsys.readouterr().err
     assert "cameras.json" in err and "Traceback" not in err
     assert not out.exists()
+
+
+def test_the_file_records_the_distribution_and_info_reports_it(tmp_path, capsys, pruned):
+    from csgs_codec.codec.describe import describe_bitstream
+
+    path = tmp_path / "p.csgs"
+    path.write_bytes(pruned.data)
+    facts = describe_bitstream(path)
+    assert facts["views"] == {"source": "default-sphere", "count": 72,
+                              "left_out": pruned.view_pruned,
+                              "description": "72 views on a sphere at 3 distances"}
+    assert main(["info", str(path)]) == 0
+    assert "72 views on a sphere at 3 distances (default-sphere)" in capsys.readouterr().out
+
+
+def test_view_record_round_trips_and_refuses_damage():
+    from csgs_codec.codec.view_record import ViewRecord
+    from csgs_codec.errors import FormatError
+
+    record = ViewRecord("cameras", 96, 1234, "96 of 311 cameras from cams.json")
+    data = record.to_bytes()
+    assert ViewRecord.from_bytes(data) == record
+    for bad in (b"\x02" + data[1:], data[:1] + b"\x07" + data[2:], data + b"\x00", data[:-3]):
+        with pytest.raises(FormatError) as err:
+            ViewRecord.from_bytes(bad, base_offset=100)
+        assert err.value.chunk == "vdis" and err.value.offset >= 100
