@@ -1,0 +1,113 @@
+#!/usr/bin/env node
+/**
+ * Command line of the JavaScript receiver.
+ *
+ *   node decode_cli.mjs FILE... [--layers color|color,semantic] [--container] [--repeat N]
+ *
+ * Prints one JSON object per file, one per line, with the file's name under "file". Scene mode (default): {"ok": true, "count": N, "arrays": {name:
+ * {"shape": [...], "sha256": hex}}, "semantic_names": [...], "decode_s": seconds} where each
+ * hash is the SHA-256 of the array's little-endian bytes in row-major order (positions,
+ * sh_dc, sh_rest (N x R x 3), opacity, scales, rotations (w x y z) as float32; semantic as
+ * float32; labels as int32). Container mode (--container): the header, every TOC entry and
+ * the size and SHA-256 of each payload read. On a rejection: {"ok": false, "error":
+ * "FormatError" | "UnsupportedError", "chunk": ..., "offset": ..., "message": ...}, exit
+ * status 2 (FormatError) or 3 (unsupported). --repeat N decodes N times and reports the
+ * fastest decode_s (tables loaded once, outside the timing).
+ */
+
+import { createHash } from 'node:crypto';
+import { readFileSync } from 'node:fs';
+import { performance } from 'node:perf_hooks';
+
+import { LAYERS, readLayers } from './container.mjs';
+import { FormatError, UnsupportedError } from './errors.mjs';
+import { decodeScene } from './scene.mjs';
+import { loadTables } from './tables_node.mjs';
+
+function sha256(typed) {
+  const bytes = new Uint8Array(typed.buffer, typed.byteOffset, typed.byteLength);
+  return createHash('sha256').update(bytes).digest('hex');
+}
+
+function sceneSummary(scene) {
+  const n = scene.count;
+  const arrays = {
+    positions: [scene.positions, [n, 3]],
+    sh_dc: [scene.sh_dc, [n, 3]],
+    sh_rest: [scene.sh_rest, [n, scene.sh_rest.length / Math.max(3 * n, 1), 3]],
+    opacity: [scene.opacity, [n]],
+    scales: [scene.scales, [n, 3]],
+    rotations: [scene.rotations, [n, 4]],
+  };
+  if (scene.semantic) arrays.semantic = [scene.semantic, [n, scene.semanticNames.length]];
+  if (scene.labels) arrays.labels = [scene.labels, [n]];
+  const out = {};
+  for (const [name, [values, shape]] of Object.entries(arrays)) out[name] = { shape, sha256: sha256(values) };
+  return { count: n, arrays: out, semantic_names: scene.semanticNames };
+}
+
+function containerSummary(data, layers) {
+  const { toc, payloads } = readLayers(data, layers);
+  const last = toc.entries.length ? toc.entries[toc.entries.length - 1].end : toc.tocEnd;
+  return {
+    major_version: toc.major,
+    minor_version: toc.minor,
+    flags: toc.flags,
+    complete: data.length >= last,
+    toc: toc.entries.map((e) => ({ type: e.type, layer: LAYERS[e.layer], tile: e.tile, offset: e.offset, length: e.length, critical: e.critical })),
+    payloads: [...payloads.entries()].map(([index, p]) => ({ index, bytes: p.length, sha256: sha256(p) })),
+  };
+}
+
+function decodeFile(file, wanted, container, repeat, tables) {
+  const data = new Uint8Array(readFileSync(file));
+  try {
+    if (container) return [0, { ok: true, ...containerSummary(data, wanted) }];
+    let best = Infinity;
+    let scene = null;
+    for (let i = 0; i < repeat; i++) {
+      const start = performance.now();
+      scene = decodeScene(data, { layers: [...wanted], tables: tables() });
+      best = Math.min(best, (performance.now() - start) / 1000);
+    }
+    return [0, { ok: true, ...sceneSummary(scene), decode_s: best }];
+  } catch (err) {
+    if (err instanceof FormatError || err instanceof UnsupportedError) {
+      const format = err instanceof FormatError;
+      return [format ? 2 : 3, {
+        ok: false, error: err.name, chunk: format ? err.chunk : null, offset: format ? err.offset : null, message: err.message,
+      }];
+    }
+    throw err;
+  }
+}
+
+function main(argv) {
+  const args = argv.slice(2);
+  const files = [];
+  let layers = ['color'];
+  let container = false;
+  let repeat = 1;
+  for (let i = 0; i < args.length; i++) {
+    if (args[i] === '--layers') layers = args[++i].split(',').map((s) => s.trim()).filter(Boolean);
+    else if (args[i] === '--container') container = true;
+    else if (args[i] === '--repeat') repeat = Math.max(1, parseInt(args[++i], 10));
+    else files.push(args[i]);
+  }
+  if (!files.length) {
+    process.stderr.write('usage: node decode_cli.mjs FILE... [--layers color,semantic] [--container] [--repeat N]\n');
+    return 64;
+  }
+  const wanted = new Set(layers);
+  let loaded = null;
+  const tables = () => { loaded = loaded || loadTables(); return loaded; };
+  let status = 0;
+  for (const file of files) {
+    const [code, result] = decodeFile(file, wanted, container, repeat, tables);
+    status = Math.max(status, code);
+    process.stdout.write(`${JSON.stringify({ file, ...result })}\n`);
+  }
+  return status;
+}
+
+process.exitCode = main(process.argv);
