@@ -32,7 +32,9 @@ export function decodeCategorical(bytes, count, chunk, baseOffset) {
   const table = prepareTable(freqs);
   const decoder = new RangeDecoder(data, words);
   try {
-    for (let i = 0; i < n; i++) out[i] = decoder.decode(table);
+    const symbols = new Int32Array(n);
+    decoder.decodeMany(table, symbols, n);
+    out.set(symbols);
   } catch (err) {
     if (err instanceof RangeDecodeError) throw new FormatError(`range decoder failed (${err.message})`, { chunk, offset: baseOffset });
     throw err;

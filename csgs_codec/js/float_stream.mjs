@@ -29,14 +29,16 @@ function predict(indices, peaks, coefs, bias, n) {
   coefs.forEach((a, j) => { bound += Math.abs(Number(a)) * peaks[j]; });
   const out = new Float64Array(n);
   if (bound <= TWO53) {
-    out.fill(Number(bias));
-    coefs.forEach((a, j) => {
-      const an = Number(a);
-      if (!an) return;
-      const k = indices[j];
-      for (let i = 0; i < n; i++) out[i] += an * k[i];
-    });
-    for (let i = 0; i < n; i++) out[i] = Math.floor(out[i] / 4096);
+    const b = Number(bias);
+    const active = [];
+    for (let j = 0; j < coefs.length; j++) if (coefs[j]) active.push([Number(coefs[j]), indices[j]]);
+    // Rows in blocks, so the block of ``out`` stays in cache while every channel adds to it.
+    for (let start = 0; start < n; start += 4096) {
+      const end = Math.min(n, start + 4096);
+      for (let i = start; i < end; i++) out[i] = b;
+      for (const [a, k] of active) for (let i = start; i < end; i++) out[i] += a * k[i];
+      for (let i = start; i < end; i++) out[i] = Math.floor(out[i] * (1 / 4096));
+    }
     return out;
   }
   for (let i = 0; i < n; i++) {
@@ -55,9 +57,11 @@ function predict(indices, peaks, coefs, bias, n) {
  * @param {Map<number, {mean: Float64Array, scale: Uint8Array}>|null} priors the colour
  *   hyperprior's per-Gaussian mean and table of the channels it models
  * @param {object} family the Gaussian tables
- * @returns {Float32Array[]} one array of N values per channel
+ * @param {{array: Float32Array, stride: number, offset: number}|null} target where value i
+ *   of channel c goes: array[i * stride + offset + c] (default: a new N x C array)
+ * @returns {Float32Array} the target array
  */
-export function readFloatStream(r, count, channels, priors, family) {
+export function readFloatStream(r, count, channels, priors, family, target = null) {
   const n = r.varint('count', MAX_COUNT);
   if (n !== count) throw r.error(`stream holds ${n} values, the scene has ${count} Gaussians`);
   const cCount = r.u8('channel_count');
@@ -65,14 +69,15 @@ export function readFloatStream(r, count, channels, priors, family) {
   const f = r.u8('frac_bits');
   if (f > 24) throw r.error(`frac_bits ${f} exceeds 24`);
   const unit = 2 ** -f;
-  const out = [];
+  const { array, stride, offset } = target || { array: new Float32Array(n * cCount), stride: cCount, offset: 0 };
   const indices = [];
   const peaks = [];
   let peak = 0;
   for (let c = 0; c < cCount; c++) {
     const mode = r.u8('mode');
     if (mode === 0) {
-      out.push(new Float32Array(n).fill(r.f32('constant_value')));
+      const value = r.f32('constant_value');
+      for (let i = 0, at = offset + c; i < n; i++, at += stride) array[at] = value;
       indices.push(new Float64Array(n));
       peaks.push(0);
       continue;
@@ -141,11 +146,9 @@ export function readFloatStream(r, count, channels, priors, family) {
       throw r.error(`channel ${c}: decoded value exceeds 2^53 on its grid`);
     }
     if (top > peak) peak = top;
-    const values = new Float32Array(n);
-    for (let i = 0; i < n; i++) values[i] = (k[i] * q + meanNum) * unit;
-    out.push(values);
+    for (let i = 0, at = offset + c; i < n; i++, at += stride) array[at] = (k[i] * q + meanNum) * unit;
     indices.push(k);
     peaks.push(top);
   }
-  return out;
+  return array;
 }

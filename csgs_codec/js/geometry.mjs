@@ -33,11 +33,13 @@ function nodeFrames() {
         const m = j ^ k;
         t[j] = ((m >> order[0]) & 1) | (((m >> order[1]) & 1) << 1) | (((m >> order[2]) & 1) << 2);
       }
+      // to_frame of every byte o, built from o without its lowest bit: O(1) per byte.
       const base = (occ * 8 + k) * 256;
-      for (let o = 0; o < 256; o++) {
-        let v = 0;
-        for (let j = 0; j < 8; j++) if (o & (1 << j)) v |= 1 << t[j];
-        fromFrame[base + v] = o;
+      const toFrame = new Uint8Array(256);
+      for (let o = 1; o < 256; o++) {
+        const low = 31 - Math.clz32(o & -o);
+        toFrame[o] = toFrame[o & (o - 1)] | (1 << t[low]);
+        fromFrame[base + toFrame[o]] = o;
       }
     }
   }
@@ -90,14 +92,25 @@ function blockEnds(m) {
 function decodeGrouped(decoder, contexts, stats, nContexts) {
   const m = contexts.length;
   const out = new Uint8Array(m);
+  const symbols = new Int32Array(Math.min(m, 1 << 20) || 1);
+  const counts = new Int32Array(nContexts + 1);
+  let order = new Int32Array(0);
   let start = 0;
   for (const end of blockEnds(m)) {
-    const present = new Uint8Array(nContexts);
-    for (let i = start; i < end; i++) present[contexts[i]] = 1;
+    // Positions of the block sorted by context (stable): a counting sort.
+    counts.fill(0);
+    for (let i = start; i < end; i++) counts[contexts[i] + 1]++;
+    for (let c = 0; c < nContexts; c++) counts[c + 1] += counts[c];
+    if (order.length < end - start) order = new Int32Array(end - start);
+    const fill = counts.slice(0, nContexts);
+    for (let i = start; i < end; i++) order[fill[contexts[i]]++] = i;
+    let buffer = symbols;
     for (let c = 0; c < nContexts; c++) {
-      if (!present[c]) continue;
-      const table = stats.table(c);
-      for (let i = start; i < end; i++) if (contexts[i] === c) out[i] = decoder.decode(table);
+      const size = counts[c + 1] - counts[c];
+      if (!size) continue;
+      if (buffer.length < size) buffer = new Int32Array(size);
+      decoder.decodeMany(stats.table(c), buffer, size);
+      for (let j = 0; j < size; j++) out[order[counts[c] + j]] = buffer[j];
     }
     const a = stats.alphabet;
     for (let i = start; i < end; i++) stats.counts[contexts[i] * a + out[i]] += 1;

@@ -39,16 +39,18 @@ export function decodeHistogram(bytes, count, chunk, baseOffset) {
   const loSafe = abs(lo) <= SAFE;
   const loNum = Number(lo);
   let big = loSafe ? null : new Map();
+  const symbols = new Int32Array(n);
   try {
-    for (let i = 0; i < n; i++) {
-      const s = decoder.decode(table);
-      if (s === k) escaped.push(i);
-      else if (loSafe) values[i] = loNum + s;
-      else { big.set(i, lo + BigInt(s)); values[i] = Number(lo + BigInt(s)); }
-    }
+    decoder.decodeMany(table, symbols, n);
   } catch (err) {
     if (err instanceof RangeDecodeError) throw r.error(`range decoder failed (${err.message})`);
     throw err;
+  }
+  for (let i = 0; i < n; i++) {
+    const s = symbols[i];
+    if (s === k) escaped.push(i);
+    else if (loSafe) values[i] = loNum + s;
+    else { big.set(i, lo + BigInt(s)); values[i] = Number(lo + BigInt(s)); }
   }
   if (escaped.length) {
     const start = r.offset;

@@ -2,9 +2,9 @@
  * The range decoder of spec/FORMAT.md §16.2.4 and the coder view of a frequency table
  * (§16.2.3), in exact integer arithmetic on JavaScript numbers.
  *
- * The decoder keeps d = (point - lower) mod 2^64 and range, each as two 32-bit limbs
- * (hi * 2^32 + lo): the spec's updates never wrap d (d < range always, and both are below
- * 2^32 when renormalised), so lower itself is not needed. The quotient d / scale is taken in
+ * The decoder keeps d = (point - lower) mod 2^64 and range, each as hi * 2^24 + lo with
+ * lo < 2^24 (so hi of range is the spec's scale): the spec's updates never wrap d (d < range
+ * always, and both are below 2^32 when renormalised), so lower itself is not needed. The quotient d / scale is taken in
  * float64 and checked: when it lies within 2^-26 of an integer the exact BigInt quotient is
  * used instead, so every symbol is the one the integer arithmetic gives.
  */
@@ -12,6 +12,8 @@
 const TWO32 = 4294967296;
 const TWO24 = 16777216;
 const NEAR = 1 / 67108864; // 2^-26
+const INV24 = 1 / TWO24;
+const MASK24 = 0xffffff;
 
 /** Thrown when the spec's decoder fails (quantile >= 2^24): the stream is invalid. */
 export class RangeDecodeError extends Error {}
@@ -63,19 +65,17 @@ export class RangeDecoder {
    * @param {number} wordCount W
    */
   constructor(bytes, wordCount) {
-    this.words = new DataView(bytes.buffer, bytes.byteOffset, wordCount * 4);
-    this.count = wordCount;
-    this.pos = 0;
-    this.rangeHi = TWO32 - 1;
-    this.rangeLo = TWO32 - 1;
-    this.dHi = this.readWord();
-    this.dLo = this.readWord();
-  }
-
-  /** The next word, or 0 past the end of range_data. */
-  readWord() {
-    const p = this.pos++;
-    return p < this.count ? this.words.getUint32(4 * p, true) : 0;
+    const view = new DataView(bytes.buffer, bytes.byteOffset, wordCount * 4);
+    this.words = new Uint32Array(wordCount);
+    for (let i = 0; i < wordCount; i++) this.words[i] = view.getUint32(4 * i, true);
+    // Start: range = 2^64 - 1 = (2^40 - 1) 2^24 + (2^24 - 1); point = (w0 << 32) | w1.
+    this.rangeHi = 1099511627775;
+    this.rangeLo = MASK24;
+    const w0 = wordCount > 0 ? this.words[0] : 0;
+    const w1 = wordCount > 1 ? this.words[1] : 0;
+    this.dHi = w0 * 256 + (w1 >>> 24);
+    this.dLo = w1 & MASK24;
+    this.pos = 2;
   }
 
   /**
@@ -84,53 +84,72 @@ export class RangeDecoder {
    * @returns {number} the symbol
    */
   decode(table) {
+    this.decodeMany(table, ONE, 1);
+    return ONE[0];
+  }
+
+  /**
+   * Decode ``count`` symbols against one table into ``out[0..count)``.
+   *
+   * A product scale * x (scale < 2^40, x <= 2^24, so below 2^64) is split exactly into
+   * hi * 2^24 + lo: lo is the low 24 bits of Math.imul(scale mod 2^24, x), and hi the
+   * float64 product minus lo, times 2^-24, rounded (the float64 error, below 2^12, is far
+   * from 2^23).
+   * @param {{view: Float64Array, index: Int32Array}} table
+   * @param {Int32Array} out
+   * @param {number} count
+   */
+  decodeMany(table, out, count) {
     const view = table.view;
-    const scale = this.rangeHi * 256 + (this.rangeLo >>> 24); // floor(range / 2^24) < 2^40
-    const t = (this.dHi * TWO32 + this.dLo) / scale;
-    let quantile = Math.floor(t);
-    const frac = t - quantile;
-    if (frac < NEAR || frac > 1 - NEAR) quantile = this.exactQuantile(scale);
-    if (quantile >= TWO24) throw new RangeDecodeError(`quantile ${quantile} >= 2^24`);
-    let s = table.index[quantile >>> 12];
-    while (view[s + 1] <= quantile) s++;
-    // d -= scale * L[s]; range = scale * (L[s+1] - L[s]); both products exact in two limbs.
-    const low = view[s];
-    const sHi = Math.floor(scale / 65536);
-    const sLo = scale - sHi * 65536;
-    let a = sHi * low;
-    let aHi = Math.floor(a / 65536);
-    let lo = (a - aHi * 65536) * 65536 + sLo * low;
-    let carry = Math.floor(lo / TWO32);
-    let pLo = lo - carry * TWO32;
-    let pHi = aHi + carry;
-    let dLo = this.dLo - pLo;
-    let dHi = this.dHi - pHi;
-    if (dLo < 0) { dLo += TWO32; dHi -= 1; }
-    const width = view[s + 1] - low;
-    a = sHi * width;
-    aHi = Math.floor(a / 65536);
-    lo = (a - aHi * 65536) * 65536 + sLo * width;
-    carry = Math.floor(lo / TWO32);
-    let rLo = lo - carry * TWO32;
-    let rHi = aHi + carry;
-    if (rHi === 0) { // range < 2^32: renormalise (d < range < 2^32, so dHi is 0)
-      rHi = rLo; rLo = 0;
-      dHi = dLo; dLo = this.readWord();
+    const index = table.index;
+    const words = this.words;
+    const nWords = words.length;
+    let pos = this.pos;
+    let rHi = this.rangeHi;
+    let rLo = this.rangeLo;
+    let dHi = this.dHi;
+    let dLo = this.dLo;
+    for (let i = 0; i < count; i++) {
+      const scale = rHi; // floor(range / 2^24), in [2^8, 2^40)
+      const t = (dHi * TWO24 + dLo) / scale;
+      let quantile = Math.floor(t);
+      const frac = t - quantile;
+      if (frac < NEAR || frac > 1 - NEAR) quantile = exactQuantile(dHi, dLo, scale);
+      if (quantile >= TWO24) {
+        this.pos = pos; this.rangeHi = rHi; this.rangeLo = rLo; this.dHi = dHi; this.dLo = dLo;
+        throw new RangeDecodeError(`quantile ${quantile} >= 2^24`);
+      }
+      let s = index[quantile >>> 12];
+      while (view[s + 1] <= quantile) s++;
+      out[i] = s;
+      const low = view[s];
+      const width = view[s + 1] - low;
+      const sLo = scale - Math.floor(scale * INV24) * TWO24; // scale mod 2^24
+      // d -= scale * low
+      const pLo = Math.imul(sLo, low) & MASK24;
+      dHi -= Math.floor((scale * low - pLo) * INV24 + 0.5);
+      dLo -= pLo;
+      if (dLo < 0) { dLo += TWO24; dHi -= 1; }
+      // range = scale * width
+      rLo = Math.imul(sLo, width) & MASK24;
+      rHi = Math.floor((scale * width - rLo) * INV24 + 0.5);
+      if (rHi < 256) { // range < 2^32: renormalise (d < range < 2^32 too)
+        rHi = rHi * TWO32 + rLo * 256;
+        rLo = 0;
+        const w = pos < nWords ? words[pos] : 0;
+        pos++;
+        dHi = dHi * TWO32 + dLo * 256 + (w >>> 24);
+        dLo = w & MASK24;
+      }
     }
-    this.rangeHi = rHi; this.rangeLo = rLo;
-    this.dHi = dHi; this.dLo = dLo;
-    return s;
-  }
-
-  /** floor(d / scale) with BigInt, for quotients too close to an integer for float64. */
-  exactQuantile(scale) {
-    const d = (BigInt(this.dHi) << 32n) | BigInt(this.dLo);
-    const q = d / BigInt(scale);
-    return q >= BigInt(TWO24) ? TWO24 : Number(q);
-  }
-
-  /** Decode ``count`` symbols with one table into ``out`` at the given positions. */
-  decodeInto(table, out, positions, count) {
-    for (let i = 0; i < count; i++) out[positions ? positions[i] : i] = this.decode(table);
+    this.pos = pos; this.rangeHi = rHi; this.rangeLo = rLo; this.dHi = dHi; this.dLo = dLo;
   }
 }
+
+/** floor(d / scale) with BigInt, for quotients too close to an integer for float64. */
+function exactQuantile(dHi, dLo, scale) {
+  const q = (BigInt(dHi) * 16777216n + BigInt(dLo)) / BigInt(scale);
+  return q >= 16777216n ? TWO24 : Number(q);
+}
+
+const ONE = new Int32Array(1);

@@ -51,21 +51,29 @@ export function decodeSymbols(bytes, tables, n, family, chunk, baseOffset) {
   const decoder = new RangeDecoder(data, words);
   const values = new Float64Array(n);
   const escaped = [];
+  const symbols = new Int32Array(n);
   for (const [table, positions] of groupsByTable(tables, n)) {
     const half = family.halfWidths[table];
-    const prepared = family.prepared[table];
     const m = positions ? positions.length : n;
     const escape = 2 * half + 1;
     try {
-      for (let i = 0; i < m; i++) {
-        const p = positions ? positions[i] : i;
-        const s = decoder.decode(prepared);
-        values[p] = s - half;
-        if (s === escape) escaped.push(p, half);
-      }
+      decoder.decodeMany(family.prepared[table], symbols, m);
     } catch (err) {
       if (err instanceof RangeDecodeError) throw r.error(`range decoder failed in table ${table} (${err.message})`);
       throw err;
+    }
+    if (positions) {
+      for (let i = 0; i < m; i++) {
+        const s = symbols[i];
+        values[positions[i]] = s - half;
+        if (s === escape) escaped.push(positions[i], half);
+      }
+    } else {
+      for (let i = 0; i < m; i++) {
+        const s = symbols[i];
+        values[i] = s - half;
+        if (s === escape) escaped.push(i, half);
+      }
     }
   }
   let big = null;

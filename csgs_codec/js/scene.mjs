@@ -98,8 +98,9 @@ function decodePositions(container, header) {
   return { positions, cells };
 }
 
-/** One colour stream: its channels (and for ROTN the dropped-component indices). */
-function decodeStream(container, header, code, priors, family) {
+/** One colour stream, its values written into ``target`` (and for ROTN the dropped-component
+ * indices returned). */
+function decodeStream(container, header, code, priors, family, target) {
   const [data, offset] = single(container, code);
   const r = new ByteReader(data, offset, code);
   let axis = null;
@@ -108,38 +109,27 @@ function decodeStream(container, header, code, priors, family) {
     axis = decodeCategorical(stream, header.count, code, r.offset - stream.length);
     for (let i = 0; i < axis.length; i++) if (axis[i] > 3) throw r.error('dropped-component index above 3');
   }
-  const channels = readFloatStream(r, header.count, STREAM_CHANNELS[code], priors, family);
+  readFloatStream(r, header.count, STREAM_CHANNELS[code], priors, family, target);
   r.expectEnd(`the ${code} stream`);
-  for (const values of channels) checkFinite(values, code);
-  return { channels, axis };
+  checkFinite(target.array, code);
+  return axis;
 }
 
-/** (w, x, y, z) float32 quaternions from the smallest three (§12.4 "rotation"). */
-function rotations(axis, channels, n) {
+/** (w, x, y, z) float32 quaternions from the smallest three, N x 3 (§12.4 "rotation"). */
+function rotations(axis, rest, n) {
   const out = new Float32Array(4 * n);
-  const [c0, c1, c2] = channels;
+  const t = new Float32Array(3);
   for (let i = 0; i < n; i++) {
-    const t0 = Math.fround(c0[i] / SQRT2);
-    const t1 = Math.fround(c1[i] / SQRT2);
-    const t2 = Math.fround(c2[i] / SQRT2);
+    const t0 = Math.fround(rest[3 * i] / SQRT2);
+    const t1 = Math.fround(rest[3 * i + 1] / SQRT2);
+    const t2 = Math.fround(rest[3 * i + 2] / SQRT2);
     const sum = Math.fround(Math.fround(Math.fround(t0 * t0) + Math.fround(t1 * t1)) + Math.fround(t2 * t2));
     const m = Math.fround(1 - sum);
     const big = Math.fround(Math.sqrt(Math.max(m, 0)));
     const d = axis[i];
-    const t = [t0, t1, t2];
+    t[0] = t0; t[1] = t1; t[2] = t2;
     let j = 0;
     for (let a = 0; a < 4; a++) out[4 * i + a] = a === d ? big : t[j++];
-  }
-  return out;
-}
-
-/** Interleave per-channel arrays into an N x C row-major Float32Array. */
-function interleave(channels, n) {
-  const c = channels.length;
-  const out = new Float32Array(n * c);
-  for (let k = 0; k < c; k++) {
-    const src = channels[k];
-    for (let i = 0; i < n; i++) out[i * c + k] = src[i];
   }
   return out;
 }
@@ -184,29 +174,30 @@ export function decodeScene(data, options) {
     }
     priors = channelPriors(prior, base.cells, header.count, codes, sine);
   }
-  const streams = {};
-  for (const code of codes) streams[code] = decodeStream(container, header, code, priors.get(code) || null, family);
-  if (!base) base = decodePositions(container, header);
   const n = header.count;
   const restCount = SH_REST[header.stored];
+  const targets = {
+    SHDC: { array: new Float32Array(3 * n), stride: 3, offset: 0 },
+    OPAC: { array: new Float32Array(n), stride: 1, offset: 0 },
+    SCAL: { array: new Float32Array(3 * n), stride: 3, offset: 0 },
+    ROTN: { array: new Float32Array(3 * n), stride: 3, offset: 0 },
+  };
   const shRest = new Float32Array(n * restCount * 3);
-  for (let band = 1; band <= header.coded; band++) {
-    const lo = SH_REST[band - 1];
-    const width = (SH_REST[band] - lo) * 3;
-    const channels = streams[BAND_CODES[band - 1]].channels;
-    for (let k = 0; k < width; k++) {
-      const src = channels[k];
-      for (let i = 0; i < n; i++) shRest[i * restCount * 3 + lo * 3 + k] = src[i];
-    }
+  BAND_CODES.forEach((code, b) => { targets[code] = { array: shRest, stride: restCount * 3, offset: SH_REST[b] * 3 }; });
+  let axis = null;
+  for (const code of codes) {
+    const result = decodeStream(container, header, code, priors.get(code) || null, family, targets[code]);
+    if (code === 'ROTN') axis = result;
   }
+  if (!base) base = decodePositions(container, header);
   const scene = {
     count: n,
     positions: base.positions,
-    sh_dc: interleave(streams.SHDC.channels, n),
+    sh_dc: targets.SHDC.array,
     sh_rest: shRest,
-    opacity: streams.OPAC.channels[0],
-    scales: interleave(streams.SCAL.channels, n),
-    rotations: rotations(streams.ROTN.axis, streams.ROTN.channels, n),
+    opacity: targets.OPAC.array,
+    scales: targets.SCAL.array,
+    rotations: rotations(axis, targets.ROTN.array, n),
     semantic: null,
     semanticNames: [],
     labels: null,
@@ -228,10 +219,10 @@ function decodeSemantic(container, header, scene, family) {
       const raw = r.byteString('channel_name', 256);
       try { names.push(decoder.decode(raw)); } catch { throw r.error('channel name is not UTF-8'); }
     }
-    const channels = readFloatStream(r, header.count, names.length, null, family);
+    const values = readFloatStream(r, header.count, names.length, null, family);
     r.expectEnd('the semantic feature stream');
-    for (const values of channels) checkFinite(values, 'SEMF');
-    scene.semantic = interleave(channels, header.count);
+    checkFinite(values, 'SEMF');
+    scene.semantic = values;
     scene.semanticNames = names;
   }
   if (present.has('SEML')) {
