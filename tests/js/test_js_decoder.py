@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pytest
 
+from benchmarks._js_receiver import REPO, node_executable, run_js, scene_hashes
 from csgs_codec import Decoder
 from csgs_codec.errors import FormatError
-from tests.js.js_runner import REPO, node_executable, run_js, scene_hashes
 
 pytestmark = pytest.mark.skipif(node_executable() is None,
                                 reason="node (Node.js >= 18) is not on PATH")

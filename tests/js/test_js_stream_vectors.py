@@ -9,7 +9,7 @@ import subprocess
 
 import pytest
 
-from tests.js.js_runner import REPO, node_executable
+from benchmarks._js_receiver import REPO, node_executable
 
 pytestmark = pytest.mark.skipif(node_executable() is None,
                                 reason="node (Node.js >= 18) is not on PATH")
