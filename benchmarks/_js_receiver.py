@@ -21,9 +21,11 @@ def node_executable() -> str | None:
 
 
 def run_js(files: list[Path], *, layers: str = "color", container: bool = False,
-           repeat: int = 1, timeout: float = 600) -> list[dict]:
-    """Decode ``files`` with the JavaScript CLI; one result dict per file, in order."""
-    args = [node_executable(), str(CLI), *map(str, files), "--layers", layers]
+           repeat: int = 1, threads: int = 2, timeout: float = 600) -> list[dict]:
+    """Decode ``files`` with the JavaScript CLI (on ``threads`` threads, 1 or 2); one result
+    dict per file, in order."""
+    args = [node_executable(), str(CLI), *map(str, files), "--layers", layers,
+            "--threads", str(threads)]
     if container:
         args.append("--container")
     if repeat > 1:

@@ -3,6 +3,7 @@
  * Command line of the JavaScript receiver.
  *
  *   node decode_cli.mjs FILE... [--layers color|color,semantic] [--container] [--repeat N]
+ *                                [--threads 1|2]
  *
  * Prints one JSON object per file, one per line, with the file's name under "file". Scene mode (default): {"ok": true, "count": N, "arrays": {name:
  * {"shape": [...], "sha256": hex}}, "semantic_names": [...], "decode_s": seconds} where each
@@ -13,7 +14,8 @@
  * "FormatError" | "UnsupportedError", "chunk": ..., "offset": ..., "message": ...}, exit
  * status 2 (FormatError) or 3 (unsupported). --repeat N decodes N times and reports the
  * fastest decode_s (wall) and decode_cpu_s (CPU time of the process; tables loaded once,
- * outside the timing).
+ * outside the timing). --threads 2 (the default, as the Python decoder's) decodes on this
+ * thread and one worker thread (parallel_node.mjs); 1 on this thread only.
  */
 
 import { createHash } from 'node:crypto';
@@ -22,7 +24,7 @@ import { performance } from 'node:perf_hooks';
 
 import { LAYERS, readLayers } from './container.mjs';
 import { FormatError, UnsupportedError } from './errors.mjs';
-import { decodeScene } from './scene.mjs';
+import { WorkerLane, decodeSceneParallel } from './parallel_node.mjs';
 import { loadTables } from './tables_node.mjs';
 
 function sha256(typed) {
@@ -60,7 +62,7 @@ function containerSummary(data, layers) {
   };
 }
 
-function decodeFile(file, wanted, container, repeat, tables) {
+async function decodeFile(file, wanted, container, repeat, tables, lane) {
   const data = new Uint8Array(readFileSync(file));
   try {
     if (container) return [0, { ok: true, ...containerSummary(data, wanted) }];
@@ -71,7 +73,7 @@ function decodeFile(file, wanted, container, repeat, tables) {
     for (let i = 0; i < repeat; i++) {
       const cpu = process.cpuUsage();
       const start = performance.now();
-      scene = decodeScene(data, { layers: [...wanted], tables: loaded });
+      scene = await decodeSceneParallel(data, { layers: [...wanted], tables: loaded }, lane);
       best = Math.min(best, (performance.now() - start) / 1000);
       const used = process.cpuUsage(cpu);
       bestCpu = Math.min(bestCpu, (used.user + used.system) / 1e6);
@@ -88,32 +90,39 @@ function decodeFile(file, wanted, container, repeat, tables) {
   }
 }
 
-function main(argv) {
+async function main(argv) {
   const args = argv.slice(2);
   const files = [];
   let layers = ['color'];
   let container = false;
   let repeat = 1;
+  let threads = 2;
   for (let i = 0; i < args.length; i++) {
     if (args[i] === '--layers') layers = args[++i].split(',').map((s) => s.trim()).filter(Boolean);
     else if (args[i] === '--container') container = true;
     else if (args[i] === '--repeat') repeat = Math.max(1, parseInt(args[++i], 10));
+    else if (args[i] === '--threads') threads = Math.max(1, parseInt(args[++i], 10));
     else files.push(args[i]);
   }
   if (!files.length) {
-    process.stderr.write('usage: node decode_cli.mjs FILE... [--layers color,semantic] [--container] [--repeat N]\n');
+    process.stderr.write('usage: node decode_cli.mjs FILE... [--layers color,semantic] [--container] [--repeat N] [--threads 1|2]\n');
     return 64;
   }
   const wanted = new Set(layers);
   let loaded = null;
   const tables = () => { loaded = loaded || loadTables(); return loaded; };
+  const lane = threads > 1 && !container ? new WorkerLane() : null;
   let status = 0;
-  for (const file of files) {
-    const [code, result] = decodeFile(file, wanted, container, repeat, tables);
-    status = Math.max(status, code);
-    process.stdout.write(`${JSON.stringify({ file, ...result })}\n`);
+  try {
+    for (const file of files) {
+      const [code, result] = await decodeFile(file, wanted, container, repeat, tables, lane);
+      status = Math.max(status, code);
+      process.stdout.write(`${JSON.stringify({ file, ...result })}\n`);
+    }
+  } finally {
+    if (lane) await lane.close();
   }
   return status;
 }
 
-process.exitCode = main(process.argv);
+process.exitCode = await main(process.argv);

@@ -32,11 +32,23 @@ function predict(indices, peaks, coefs, bias, n) {
     const b = Number(bias);
     const active = [];
     for (let j = 0; j < coefs.length; j++) if (coefs[j]) active.push([Number(coefs[j]), indices[j]]);
-    // Rows in blocks, so the block of ``out`` stays in cache while every channel adds to it.
+    // Rows in blocks, so the block of ``out`` stays in cache while every channel adds to it;
+    // four channels per pass (integer sums within 2^53 are exact in any order).
     for (let start = 0; start < n; start += 4096) {
       const end = Math.min(n, start + 4096);
       for (let i = start; i < end; i++) out[i] = b;
-      for (const [a, k] of active) for (let i = start; i < end; i++) out[i] += a * k[i];
+      let j = 0;
+      for (; j + 4 <= active.length; j += 4) {
+        const [a0, k0] = active[j];
+        const [a1, k1] = active[j + 1];
+        const [a2, k2] = active[j + 2];
+        const [a3, k3] = active[j + 3];
+        for (let i = start; i < end; i++) out[i] += a0 * k0[i] + a1 * k1[i] + a2 * k2[i] + a3 * k3[i];
+      }
+      for (; j < active.length; j++) {
+        const [a, k] = active[j];
+        for (let i = start; i < end; i++) out[i] += a * k[i];
+      }
       for (let i = start; i < end; i++) out[i] = Math.floor(out[i] * (1 / 4096));
     }
     return out;
@@ -70,14 +82,14 @@ export function readFloatStream(r, count, channels, priors, family, target = nul
   if (f > 24) throw r.error(`frac_bits ${f} exceeds 24`);
   const unit = 2 ** -f;
   const { array, stride, offset } = target || { array: new Float32Array(n * cCount), stride: cCount, offset: 0 };
+  const steps = [];
   const indices = [];
   const peaks = [];
   let peak = 0;
   for (let c = 0; c < cCount; c++) {
     const mode = r.u8('mode');
     if (mode === 0) {
-      const value = r.f32('constant_value');
-      for (let i = 0, at = offset + c; i < n; i++, at += stride) array[at] = value;
+      steps.push({ constant: r.f32('constant_value') });
       indices.push(new Float64Array(n));
       peaks.push(0);
       continue;
@@ -146,9 +158,29 @@ export function readFloatStream(r, count, channels, priors, family, target = nul
       throw r.error(`channel ${c}: decoded value exceeds 2^53 on its grid`);
     }
     if (top > peak) peak = top;
-    for (let i = 0, at = offset + c; i < n; i++, at += stride) array[at] = (k[i] * q + meanNum) * unit;
+    steps.push({ q, mean: meanNum });
     indices.push(k);
     peaks.push(top);
   }
+  writeValues(array, stride, offset, indices, steps, unit, n);
   return array;
+}
+
+/** Write value i of channel c, float32((mu + q k) 2^-F), to array[i * stride + offset + c],
+ * rows in blocks so that a block of interleaved rows stays in cache across the channels. */
+function writeValues(array, stride, offset, indices, steps, unit, n) {
+  for (let start = 0; start < n; start += 2048) {
+    const end = Math.min(n, start + 2048);
+    for (let c = 0; c < steps.length; c++) {
+      const step = steps[c];
+      let at = start * stride + offset + c;
+      if (step.constant !== undefined) {
+        for (let i = start; i < end; i++, at += stride) array[at] = step.constant;
+        continue;
+      }
+      const { q, mean } = step;
+      const k = indices[c];
+      for (let i = start; i < end; i++, at += stride) array[at] = (k[i] * q + mean) * unit;
+    }
+  }
 }

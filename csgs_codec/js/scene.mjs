@@ -54,8 +54,20 @@ function checkFinite(values, chunk) {
   }
 }
 
-/** Base layer: grid cells and float32 positions (§12.4 "Positions", §12.6, §12.7). */
-function decodePositions(container, header) {
+/** FormatError when a stream's channels in ``target`` hold a non-finite value. */
+function checkTarget(target, channels, n, chunk) {
+  const { array, stride, offset } = target;
+  for (let i = 0; i < n; i++) {
+    const row = i * stride + offset;
+    for (let c = 0; c < channels; c++) {
+      if (!Number.isFinite(array[row + c])) throw new FormatError('decoded values overflow float32', { chunk });
+    }
+  }
+}
+
+/** Base layer: float32 positions written into ``positions`` (§12.4 "Positions", §12.6,
+ * §12.7); returns the grid cells. */
+function decodePositions(container, header, positions) {
   const gridCount = header.count - header.far;
   const [data, offset] = single(container, 'GEOM');
   let cells;
@@ -72,7 +84,6 @@ function decodePositions(container, header) {
       for (let i = 0; i < axis.length; i++) if (axis[i] >= limit) throw new FormatError('a point lies outside the header\'s grid', { chunk: 'GEOM', offset });
     }
   }
-  const positions = new Float32Array(3 * header.count);
   const [ox, oy, oz] = header.origin;
   const cell = header.cell;
   for (let i = 0; i < gridCount; i++) {
@@ -95,7 +106,7 @@ function decodePositions(container, header) {
     positions.set(far, 3 * gridCount);
   }
   checkFinite(positions, 'GEOM');
-  return { positions, cells };
+  return cells;
 }
 
 /** One colour stream, its values written into ``target`` (and for ROTN the dropped-component
@@ -111,7 +122,7 @@ function decodeStream(container, header, code, priors, family, target) {
   }
   readFloatStream(r, header.count, STREAM_CHANNELS[code], priors, family, target);
   r.expectEnd(`the ${code} stream`);
-  checkFinite(target.array, code);
+  checkTarget(target, STREAM_CHANNELS[code], header.count, code);
   return axis;
 }
 
@@ -135,14 +146,10 @@ function rotations(axis, rest, n) {
 }
 
 /**
- * Decode a standard scene.
- * @param {Uint8Array} data the .csgs bytes (or a prefix holding the requested layers)
- * @param {{layers?: string[], tables: {family: object, sine: Int32Array},
- *   maxGaussians?: number, maxGaussiansPerByte?: number}} options
- * @returns {object} count, positions (N x 3), sh_dc (N x 3), sh_rest (N x R x 3), opacity,
- *   scales (N x 3), rotations (N x 4, w x y z), semantic (N x S) and semanticNames, labels
+ * The checks and parameters every decode starts with: container, header, colour hyperprior.
+ * @returns {object} the prepared decode (container, header, codes, prior, modelled, ...)
  */
-export function decodeScene(data, options) {
+export function prepareScene(data, options) {
   const layers = new Set(['color', ...(options.layers || [])]);
   const { family, sine } = options.tables;
   const container = readLayers(data, layers);
@@ -164,46 +171,89 @@ export function decodeScene(data, options) {
   const extra = [...BAND_CODES, 'SHDC', 'OPAC', 'SCAL', 'ROTN'].filter((c) => present.has(c) && !codes.includes(c)).sort();
   if (extra.length) throw new FormatError(`unexpected colour chunk(s) ${extra} for SH degree ${header.coded}`, { chunk: extra[0] });
   const modelled = prior ? modelledStreams(prior, codes) : new Set();
-  let base = null;
-  let priors = new Map();
-  if (modelled.size) {
-    base = decodePositions(container, header);
-    const cellLimit = 2 ** prior.net.posBits;
-    for (const axis of [base.cells.x, base.cells.y, base.cells.z]) {
-      for (let i = 0; i < axis.length; i++) if (axis[i] >= cellLimit) throw new FormatError('the colour hyperprior needs smaller cells', { chunk: 'CHYP' });
-    }
-    priors = channelPriors(prior, base.cells, header.count, codes, sine);
-  }
+  return { layers, family, sine, container, header, codes, prior, modelled };
+}
+
+/**
+ * The output arrays of the colour streams, each stream's place in them ({array, stride,
+ * offset}) and the positions array; ``Buffer`` makes their storage (ArrayBuffer or
+ * SharedArrayBuffer).
+ */
+export function makeTargets(header, Buffer = ArrayBuffer) {
   const n = header.count;
+  const f32 = (length) => new Float32Array(new Buffer(4 * length));
   const restCount = SH_REST[header.stored];
+  const shRest = f32(n * restCount * 3);
   const targets = {
-    SHDC: { array: new Float32Array(3 * n), stride: 3, offset: 0 },
-    OPAC: { array: new Float32Array(n), stride: 1, offset: 0 },
-    SCAL: { array: new Float32Array(3 * n), stride: 3, offset: 0 },
-    ROTN: { array: new Float32Array(3 * n), stride: 3, offset: 0 },
+    SHDC: { array: f32(3 * n), stride: 3, offset: 0 },
+    OPAC: { array: f32(n), stride: 1, offset: 0 },
+    SCAL: { array: f32(3 * n), stride: 3, offset: 0 },
+    ROTN: { array: f32(3 * n), stride: 3, offset: 0 },
   };
-  const shRest = new Float32Array(n * restCount * 3);
   BAND_CODES.forEach((code, b) => { targets[code] = { array: shRest, stride: restCount * 3, offset: SH_REST[b] * 3 }; });
-  let axis = null;
-  for (const code of codes) {
-    const result = decodeStream(container, header, code, priors.get(code) || null, family, targets[code]);
-    if (code === 'ROTN') axis = result;
-  }
-  if (!base) base = decodePositions(container, header);
+  return { targets, shRest, positions: f32(3 * n) };
+}
+
+/** Decode one task ('GEOM' or a colour stream code) of a prepared scene into its targets;
+ * returns the dropped-component indices for ROTN. */
+export function decodeTask(prep, out, code, priors = null) {
+  if (code === 'GEOM') return decodePositions(prep.container, prep.header, out.positions);
+  return decodeStream(prep.container, prep.header, code, priors, prep.family, out.targets[code]);
+}
+
+/** The scene object of decoded targets, with the semantic layer when it was asked for. */
+export function finishScene(prep, out, axis) {
+  const n = prep.header.count;
   const scene = {
     count: n,
-    positions: base.positions,
-    sh_dc: targets.SHDC.array,
-    sh_rest: shRest,
-    opacity: targets.OPAC.array,
-    scales: targets.SCAL.array,
-    rotations: rotations(axis, targets.ROTN.array, n),
+    positions: out.positions,
+    sh_dc: out.targets.SHDC.array,
+    sh_rest: out.shRest,
+    opacity: out.targets.OPAC.array,
+    scales: out.targets.SCAL.array,
+    rotations: rotations(axis, out.targets.ROTN.array, n),
     semantic: null,
     semanticNames: [],
     labels: null,
   };
-  if (layers.has('semantic')) decodeSemantic(container, header, scene, family);
+  if (prep.layers.has('semantic')) decodeSemantic(prep.container, prep.header, scene, prep.family);
   return scene;
+}
+
+/**
+ * Decode a standard scene on this thread (parallel_node.mjs spreads it over two in Node).
+ * @param {Uint8Array} data the .csgs bytes (or a prefix holding the requested layers)
+ * @param {{layers?: string[], tables: {family: object, sine: Int32Array},
+ *   maxGaussians?: number, maxGaussiansPerByte?: number}} options
+ * @returns {object} count, positions (N x 3), sh_dc (N x 3), sh_rest (N x R x 3), opacity,
+ *   scales (N x 3), rotations (N x 4, w x y z), semantic (N x S) and semanticNames, labels
+ */
+export function decodeScene(data, options) {
+  return decodePrepared(prepareScene(data, options));
+}
+
+/** The rest of decodeScene after prepareScene, on this thread. Errors come in the order the
+ * reference decoder reports them: hyperprior cells, colour streams in order, geometry. */
+export function decodePrepared(prep) {
+  const out = makeTargets(prep.header);
+  let priors = new Map();
+  let geometryDone = false;
+  if (prep.modelled.size) {
+    const cells = decodeTask(prep, out, 'GEOM');
+    geometryDone = true;
+    const cellLimit = 2 ** prep.prior.net.posBits;
+    for (const axis of [cells.x, cells.y, cells.z]) {
+      for (let i = 0; i < axis.length; i++) if (axis[i] >= cellLimit) throw new FormatError('the colour hyperprior needs smaller cells', { chunk: 'CHYP' });
+    }
+    priors = channelPriors(prep.prior, cells, prep.header.count, prep.codes, prep.sine);
+  }
+  let axis = null;
+  for (const code of prep.codes) {
+    const result = decodeTask(prep, out, code, priors.get(code) || null);
+    if (code === 'ROTN') axis = result;
+  }
+  if (!geometryDone) decodeTask(prep, out, 'GEOM');
+  return finishScene(prep, out, axis);
 }
 
 /** Semantic layer: SEMF features and SEML labels (§12.16, §12.17). */

@@ -1,0 +1,88 @@
+/**
+ * Decoding a standard scene on two threads in Node (worker_threads), like the Python
+ * decoder's two threads: geometry and the colour streams are independent (except where the
+ * colour hyperprior needs the geometry first; such files decode on one thread), so they are
+ * split into two lanes of about equal bytes, one on a worker, writing into shared arrays.
+ * The first error in the reference decoder's order (colour streams in order, then geometry)
+ * is the one raised, whichever lane found it.
+ */
+
+import { Worker } from 'node:worker_threads';
+
+import { FormatError } from './errors.mjs';
+import { decodePrepared, decodeTask, finishScene, makeTargets, prepareScene } from './scene.mjs';
+
+/** One worker thread that runs decode jobs one at a time. */
+export class WorkerLane {
+  constructor() {
+    this.worker = new Worker(new URL('./worker_node.mjs', import.meta.url));
+    this.worker.unref();
+  }
+
+  /** Post ``job``; resolves with the worker's per-task results. */
+  run(job) {
+    return new Promise((resolve, reject) => {
+      const onError = (err) => { this.worker.off('message', onMessage); reject(err); };
+      const onMessage = (results) => { this.worker.off('error', onError); resolve(results); };
+      this.worker.once('message', onMessage);
+      this.worker.once('error', onError);
+      this.worker.postMessage(job);
+    });
+  }
+
+  /** Stop the worker. */
+  close() { return this.worker.terminate(); }
+}
+
+/** Split ``tasks`` into two lanes of about equal payload bytes (largest first). */
+function lanes(tasks, sizes) {
+  const order = [...tasks].sort((a, b) => sizes[b] - sizes[a]);
+  const load = [0, 0];
+  const split = [[], []];
+  for (const task of order) {
+    const lane = load[0] <= load[1] ? 0 : 1;
+    split[lane].push(task);
+    load[lane] += sizes[task];
+  }
+  return split;
+}
+
+/**
+ * Decode a standard scene using this thread and ``lane`` (a WorkerLane).
+ * @param {Uint8Array} data
+ * @param {object} options as decodeScene's
+ * @param {WorkerLane|null} lane the second thread (null: decode on this thread only)
+ * @returns {Promise<object>} the scene, as decodeScene returns it
+ */
+export async function decodeSceneParallel(data, options, lane) {
+  const prep = prepareScene(data, options);
+  if (!lane || prep.modelled.size) return decodePrepared(prep);
+  const shared = new Uint8Array(new SharedArrayBuffer(data.length));
+  shared.set(data);
+  const out = makeTargets(prep.header, SharedArrayBuffer);
+  const tasks = [...prep.codes, 'GEOM'];
+  const sizes = {};
+  for (const entry of prep.container.toc.entries) if (tasks.includes(entry.type)) sizes[entry.type] = (sizes[entry.type] || 0) + entry.length;
+  for (const task of tasks) sizes[task] = sizes[task] || 0;
+  const [mine, theirs] = lanes(tasks, sizes);
+  const entries = prep.container.toc.entries.filter((e) => theirs.includes(e.type) || e.type === 'OUTL');
+  const pending = lane.run({ data: shared, entries, header: prep.header, tasks: theirs, out });
+  const results = {};
+  for (const task of mine) {
+    try {
+      const value = decodeTask(prep, out, task);
+      results[task] = { ok: true, axis: task === 'ROTN' ? value : null };
+    } catch (err) {
+      results[task] = { ok: false, error: err };
+    }
+  }
+  Object.assign(results, await pending);
+  for (const task of tasks) {
+    const result = results[task];
+    if (result.ok) continue;
+    if (result.error) throw result.error;
+    if (result.name === 'FormatError') throw new FormatError(result.detail, { chunk: result.chunk, offset: result.offset });
+    throw new Error(result.detail);
+  }
+  return finishScene(prep, out, results.ROTN.axis);
+}
