@@ -21,11 +21,12 @@ def node_executable() -> str | None:
 
 
 def run_js(files: list[Path], *, layers: str = "color", container: bool = False,
-           repeat: int = 1, threads: int = 2, timeout: float = 600) -> list[dict]:
-    """Decode ``files`` with the JavaScript CLI (on ``threads`` threads, 1 or 2); one result
-    dict per file, in order."""
+           repeat: int = 1, threads: int = 2, range_coder: str = "wasm",
+           timeout: float = 600) -> list[dict]:
+    """Decode ``files`` with the JavaScript CLI (on ``threads`` threads, 1 or 2, with the
+    'wasm' or 'js' range decoder loop); one result dict per file, in order."""
     args = [node_executable(), str(CLI), *map(str, files), "--layers", layers,
-            "--threads", str(threads)]
+            "--threads", str(threads), "--range-coder", range_coder]
     if container:
         args.append("--container")
     if repeat > 1:

@@ -3,7 +3,7 @@
  * Command line of the JavaScript receiver.
  *
  *   node decode_cli.mjs FILE... [--layers color|color,semantic] [--container] [--repeat N]
- *                                [--threads 1|2]
+ *                                [--threads 1|2] [--range-coder wasm|js]
  *
  * Prints one JSON object per file, one per line, with the file's name under "file". Scene mode (default): {"ok": true, "count": N, "arrays": {name:
  * {"shape": [...], "sha256": hex}}, "semantic_names": [...], "decode_s": seconds} where each
@@ -15,7 +15,8 @@
  * status 2 (FormatError) or 3 (unsupported). --repeat N decodes N times and reports the
  * fastest decode_s (wall) and decode_cpu_s (CPU time of the process; tables loaded once,
  * outside the timing). --threads 2 (the default, as the Python decoder's) decodes on this
- * thread and one worker thread (parallel_node.mjs); 1 on this thread only.
+ * thread and one worker thread (parallel_node.mjs); 1 on this thread only. --range-coder
+ * picks the range decoder's loop: WebAssembly (default) or plain JavaScript; same output.
  */
 
 import { createHash } from 'node:crypto';
@@ -25,6 +26,7 @@ import { performance } from 'node:perf_hooks';
 import { LAYERS, readLayers } from './container.mjs';
 import { FormatError, UnsupportedError } from './errors.mjs';
 import { WorkerLane, decodeSceneParallel } from './parallel_node.mjs';
+import { setRangeCoder } from './range_decoder.mjs';
 import { loadTables } from './tables_node.mjs';
 
 function sha256(typed) {
@@ -97,21 +99,24 @@ async function main(argv) {
   let container = false;
   let repeat = 1;
   let threads = 2;
+  let rangeCoder = 'wasm';
   for (let i = 0; i < args.length; i++) {
     if (args[i] === '--layers') layers = args[++i].split(',').map((s) => s.trim()).filter(Boolean);
     else if (args[i] === '--container') container = true;
     else if (args[i] === '--repeat') repeat = Math.max(1, parseInt(args[++i], 10));
     else if (args[i] === '--threads') threads = Math.max(1, parseInt(args[++i], 10));
+    else if (args[i] === '--range-coder') rangeCoder = args[++i];
     else files.push(args[i]);
   }
   if (!files.length) {
-    process.stderr.write('usage: node decode_cli.mjs FILE... [--layers color,semantic] [--container] [--repeat N] [--threads 1|2]\n');
+    process.stderr.write('usage: node decode_cli.mjs FILE... [--layers color,semantic] [--container] [--repeat N] [--threads 1|2] [--range-coder wasm|js]\n');
     return 64;
   }
+  setRangeCoder(rangeCoder);
   const wanted = new Set(layers);
   let loaded = null;
   const tables = () => { loaded = loaded || loadTables(); return loaded; };
-  const lane = threads > 1 && !container ? new WorkerLane() : null;
+  const lane = threads > 1 && !container ? new WorkerLane(rangeCoder) : null;
   let status = 0;
   try {
     for (const file of files) {

@@ -77,7 +77,7 @@ class AdaptiveCounts {
       if (effective[s] > effective[best]) best = s;
     }
     freqs[best] += TOTAL - total;
-    return prepareTable(freqs);
+    return prepareTable(freqs, 8);
   }
 }
 
@@ -230,18 +230,27 @@ function readRepeats(data, pos, nPoints, nDistinct) {
   return [counts, end];
 }
 
-/** Read ``width`` bits (MSB first) at bit ``start`` of ``raw`` as [x, y, z] Morton parts. */
-function readDirect(raw, start, r) {
+/** The 3-bit group at bit ``bit`` of ``raw`` (MSB first; bits past the end read as 0). */
+function triple(raw, bit) {
+  const b = bit >> 3;
+  const window = (raw[b] << 8) | (b + 1 < raw.length ? raw[b + 1] : 0);
+  return (window >> (13 - (bit & 7))) & 7;
+}
+
+/**
+ * Read a direct position's 3r-bit Morton field at bit ``start`` (§15.4 step 2): r groups of
+ * (z, y, x) bits, most significant first; writes x, y, z low parts into out[0..2].
+ */
+function readDirect(raw, start, r, out) {
   let x = 0; let y = 0; let z = 0;
   let bit = start;
-  for (let i = r - 1; i >= 0; i--) {
-    for (let axis = 2; axis >= 0; axis--) {
-      const v = (raw[bit >> 3] >> (7 - (bit & 7))) & 1;
-      bit++;
-      if (axis === 2) z |= v << i; else if (axis === 1) y |= v << i; else x |= v << i;
-    }
+  for (let i = r - 1; i >= 0; i--, bit += 3) {
+    const g = triple(raw, bit);
+    z |= ((g >> 2) & 1) << i;
+    y |= ((g >> 1) & 1) << i;
+    x |= (g & 1) << i;
   }
-  return [x >>> 0, y >>> 0, z >>> 0];
+  out[0] = x; out[1] = y; out[2] = z;
 }
 
 /** Decode the octree (§15.4); returns the D distinct positions in Morton order. */
@@ -257,17 +266,18 @@ function decodeTree(decoder, raw, rawOffset, bits, nDistinct) {
   for (let level = 0; level < bits; level++) {
     const r = bits - level;
     const m = nodes.x.length;
-    const eligible = [];
-    for (let i = 0; i < m; i++) if (level === 0 || POPCOUNT[nodes.parentOcc[i]] === 1) eligible.push(i);
-    const flagCtx = new Uint8Array(eligible.length);
-    for (let e = 0; e < eligible.length; e++) {
+    const eligible = new Int32Array(m);
+    let nEligible = 0;
+    for (let i = 0; i < m; i++) if (level === 0 || POPCOUNT[nodes.parentOcc[i]] === 1) eligible[nEligible++] = i;
+    const flagCtx = new Uint8Array(nEligible);
+    for (let e = 0; e < nEligible; e++) {
       flagCtx[e] = level === 0 ? 0 : Math.min(Math.max(nodes.gpPop[eligible[e]], 1), 3);
     }
     flagStats.age();
     const flags = decodeGrouped(decoder, flagCtx, flagStats, 4);
     const direct = new Uint8Array(m);
     let nDirect = 0;
-    for (let e = 0; e < eligible.length; e++) if (flags[e] === 1) { direct[eligible[e]] = 1; nDirect++; }
+    for (let e = 0; e < nEligible; e++) if (flags[e] === 1) { direct[eligible[e]] = 1; nDirect++; }
     const record = { nodes, direct, dx: null, dy: null, dz: null, childStart: null, occ: null };
     if (nDirect) {
       const width = 3 * r;
@@ -275,51 +285,62 @@ function decodeTree(decoder, raw, rawOffset, bits, nDistinct) {
         throw geometryError('raw position bits run past the payload', rawOffset + Math.floor(rawBit / 8));
       }
       record.dx = new Uint32Array(m); record.dy = new Uint32Array(m); record.dz = new Uint32Array(m);
+      const low = new Uint32Array(3);
+      const up = 2 ** r;
       for (let i = 0; i < m; i++) {
         if (!direct[i]) continue;
-        const [lx, ly, lz] = readDirect(raw, rawBit, r);
+        readDirect(raw, rawBit, r, low);
         rawBit += width;
         // r <= 21 and the node's coordinates are below 2^(bits - r): the result is < 2^21.
-        record.dx[i] = nodes.x[i] * 2 ** r + lx;
-        record.dy[i] = nodes.y[i] * 2 ** r + ly;
-        record.dz[i] = nodes.z[i] * 2 ** r + lz;
+        record.dx[i] = nodes.x[i] * up + low[0];
+        record.dy[i] = nodes.y[i] * up + low[1];
+        record.dz[i] = nodes.z[i] * up + low[2];
       }
       nFound += nDirect;
     }
     levels.push(record);
-    const keep = [];
-    for (let i = 0; i < m; i++) if (!direct[i]) keep.push(i);
-    if (keep.length === 0) { nodes = null; break; }
-    const occCtx = new Uint8Array(keep.length);
-    for (let j = 0; j < keep.length; j++) {
+    const keep = new Int32Array(m - nDirect);
+    let nKeep = 0;
+    for (let i = 0; i < m; i++) if (!direct[i]) keep[nKeep++] = i;
+    if (nKeep === 0) { nodes = null; break; }
+    const occCtx = new Uint8Array(nKeep);
+    const parentOcc = nodes.parentOcc;
+    const ks = nodes.k;
+    for (let j = 0; j < nKeep; j++) {
       const i = keep[j];
-      occCtx[j] = level === 0 ? 16 : OCC_CONTEXT[nodes.parentOcc[i] * 8 + nodes.k[i]];
+      occCtx[j] = level === 0 ? 16 : OCC_CONTEXT[parentOcc[i] * 8 + ks[i]];
     }
     occStats.age();
     const symbols = decodeGrouped(decoder, occCtx, occStats, 17);
     const occ = new Uint8Array(m);
     let nChildren = 0;
-    for (let j = 0; j < keep.length; j++) {
+    for (let j = 0; j < nKeep; j++) {
       const i = keep[j];
-      occ[i] = FROM_FRAME[(nodes.parentOcc[i] * 8 + nodes.k[i]) * 256 + symbols[j] + 1];
+      occ[i] = FROM_FRAME[(parentOcc[i] * 8 + ks[i]) * 256 + symbols[j] + 1];
       nChildren += POPCOUNT[occ[i]];
     }
     const next = { x: new Uint32Array(nChildren), y: new Uint32Array(nChildren), z: new Uint32Array(nChildren),
       parentOcc: new Uint8Array(nChildren), k: new Uint8Array(nChildren), gpPop: new Uint8Array(nChildren) };
     const childStart = new Int32Array(m);
+    const { x: px, y: py, z: pz } = nodes;
+    const { x: nx, y: ny, z: nz } = next;
     let c = 0;
     for (let i = 0; i < m; i++) {
       childStart[i] = c;
       if (direct[i]) continue;
       const o = occ[i];
+      const x2 = px[i] * 2;
+      const y2 = py[i] * 2;
+      const z2 = pz[i] * 2;
+      const gp = POPCOUNT[parentOcc[i]];
       for (let k = 0; k < 8; k++) {
         if (!(o & (1 << k))) continue;
-        next.x[c] = nodes.x[i] * 2 + (k & 1);
-        next.y[c] = nodes.y[i] * 2 + ((k >> 1) & 1);
-        next.z[c] = nodes.z[i] * 2 + ((k >> 2) & 1);
+        nx[c] = x2 + (k & 1);
+        ny[c] = y2 + ((k >> 1) & 1);
+        nz[c] = z2 + ((k >> 2) & 1);
         next.parentOcc[c] = o;
         next.k[c] = k;
-        next.gpPop[c] = POPCOUNT[nodes.parentOcc[i]];
+        next.gpPop[c] = gp;
         c++;
       }
     }

@@ -14,8 +14,9 @@ import { decodePrepared, decodeTask, finishScene, makeTargets, prepareScene } fr
 
 /** One worker thread that runs decode jobs one at a time. */
 export class WorkerLane {
-  constructor() {
-    this.worker = new Worker(new URL('./worker_node.mjs', import.meta.url));
+  /** @param {string} rangeCoder 'wasm' or 'js' (see range_decoder.mjs setRangeCoder) */
+  constructor(rangeCoder = 'wasm') {
+    this.worker = new Worker(new URL('./worker_node.mjs', import.meta.url), { workerData: { rangeCoder } });
     this.worker.unref();
   }
 

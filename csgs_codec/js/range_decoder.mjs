@@ -15,6 +15,8 @@ const NEAR = 1 / 67108864; // 2^-26
 const INV24 = 1 / TWO24;
 const MASK24 = 0xffffff;
 
+import { wasmInstance } from './wasm_range.mjs';
+
 /** Thrown when the spec's decoder fails (quantile >= 2^24): the stream is invalid. */
 export class RangeDecodeError extends Error {}
 
@@ -37,29 +39,34 @@ export function coderView(freqs) {
 }
 
 /**
- * A lookup index over a coder view: for each of 4096 buckets of the 24-bit quantile range,
+ * A lookup index over a coder view: for each of 2^bits buckets of the 24-bit quantile range,
  * the first symbol whose interval reaches into the bucket (speeds up step 4 of §16.2.4).
  */
-export function viewIndex(view) {
-  const index = new Int32Array(4097);
+export function viewIndex(view, bits = 12) {
+  const buckets = 1 << bits;
+  const width = TWO24 / buckets;
+  const index = new Int32Array(buckets + 1);
   let s = 0;
   const last = view.length - 2;
-  for (let b = 0; b < 4096; b++) {
-    const q = b * 4096;
+  for (let b = 0; b < buckets; b++) {
+    const q = b * width;
     while (s < last && view[s + 1] <= q) s++;
     index[b] = s;
   }
-  index[4096] = last;
+  index[buckets] = last;
   return index;
 }
 
-/** A prepared table: its coder view and lookup index. */
-export function prepareTable(freqs) {
+/**
+ * A prepared table: its coder view and a lookup index of 2^indexBits buckets (fewer suit
+ * tables used for a handful of symbols, such as the geometry's adaptive ones).
+ */
+export function prepareTable(freqs, indexBits = 12) {
   const view = coderView(freqs);
-  return { view, index: viewIndex(view) };
+  return { view, index: viewIndex(view, indexBits), shift: 24 - indexBits };
 }
 
-export class RangeDecoder {
+export class JsRangeDecoder {
   /**
    * @param {Uint8Array} bytes range_data: W little-endian u32 words
    * @param {number} wordCount W
@@ -102,6 +109,7 @@ export class RangeDecoder {
   decodeMany(table, out, count) {
     const view = table.view;
     const index = table.index;
+    const shift = table.shift;
     const words = this.words;
     const nWords = words.length;
     let pos = this.pos;
@@ -119,7 +127,7 @@ export class RangeDecoder {
         this.pos = pos; this.rangeHi = rHi; this.rangeLo = rLo; this.dHi = dHi; this.dLo = dLo;
         throw new RangeDecodeError(`quantile ${quantile} >= 2^24`);
       }
-      let s = index[quantile >>> 12];
+      let s = index[quantile >>> shift];
       while (view[s + 1] <= quantile) s++;
       out[i] = s;
       const low = view[s];
@@ -153,3 +161,106 @@ function exactQuantile(dHi, dLo, scale) {
 }
 
 const ONE = new Int32Array(1);
+
+/** Bump allocator over a WebAssembly instance's memory, reset for each new decoder. */
+const arena = { generation: 0, top: 64 };
+
+function alloc(memory, bytes) {
+  const at = arena.top;
+  arena.top = at + Math.ceil(bytes / 8) * 8;
+  const missing = arena.top - memory.buffer.byteLength;
+  if (missing > 0) memory.grow(Math.ceil(missing / 65536));
+  return at;
+}
+
+/** The range decoder of §16.2.4 running its loop in WebAssembly (wasm_range.mjs). */
+export class WasmRangeDecoder {
+  /**
+   * @param {Uint8Array} bytes range_data: W little-endian u32 words
+   * @param {number} wordCount W
+   */
+  constructor(bytes, wordCount) {
+    this.exports = wasmInstance().exports;
+    this.bytes = bytes.subarray(0, 4 * wordCount);
+    this.wordCount = wordCount;
+    const view = new DataView(bytes.buffer, bytes.byteOffset, 4 * wordCount);
+    const w0 = wordCount > 0 ? view.getUint32(0, true) : 0;
+    const w1 = wordCount > 1 ? view.getUint32(4, true) : 0;
+    this.d = (BigInt(w0) << 32n) | BigInt(w1);
+    this.range = (1n << 64n) - 1n;
+    this.pos = 2;
+    this.generation = -1;
+  }
+
+  /** Put this decoder's words in the arena (again, if another decoder reset it). */
+  place() {
+    if (this.generation === arena.generation) return;
+    arena.generation += 1;
+    arena.top = 64;
+    const memory = this.exports.memory;
+    this.wordsAt = alloc(memory, this.bytes.length);
+    new Uint8Array(memory.buffer, this.wordsAt, this.bytes.length).set(this.bytes);
+    this.generation = arena.generation;
+  }
+
+  /** The arena addresses of a prepared table's coder view and lookup index. */
+  tableAt(table) {
+    if (table.wasmGeneration === arena.generation) return table.wasmAt;
+    const memory = this.exports.memory;
+    const viewAt = alloc(memory, 4 * table.view.length);
+    const indexAt = alloc(memory, 4 * table.index.length);
+    new Int32Array(memory.buffer, viewAt, table.view.length).set(table.view);
+    new Int32Array(memory.buffer, indexAt, table.index.length).set(table.index);
+    table.wasmGeneration = arena.generation;
+    table.wasmAt = [viewAt, indexAt];
+    return table.wasmAt;
+  }
+
+  /** Decode one symbol against a prepared table. */
+  decode(table) {
+    this.decodeMany(table, ONE_SYMBOL, 1);
+    return ONE_SYMBOL[0];
+  }
+
+  /** Decode ``count`` symbols against one prepared table into ``out[0..count)``. */
+  decodeMany(table, out, count) {
+    this.place();
+    const [viewAt, indexAt] = this.tableAt(table);
+    const memory = this.exports.memory;
+    const outAt = alloc(memory, 4 * count);
+    const state = new DataView(memory.buffer, 0, 32);
+    state.setBigUint64(0, this.d, true);
+    state.setBigUint64(8, this.range, true);
+    state.setUint32(16, this.pos, true);
+    state.setUint32(20, this.wordCount, true);
+    state.setUint32(24, this.wordsAt, true);
+    const done = this.exports.decode(viewAt, indexAt, outAt, count, table.shift);
+    const after = new DataView(memory.buffer, 0, 32);
+    this.d = after.getBigUint64(0, true);
+    this.range = after.getBigUint64(8, true);
+    this.pos = after.getUint32(16, true);
+    out.set(new Int32Array(memory.buffer, outAt, done));
+    arena.top = outAt; // the output is scratch: free it
+    if (done < count) throw new RangeDecodeError('quantile >= 2^24');
+  }
+}
+
+const ONE_SYMBOL = new Int32Array(1);
+
+let useWasm = wasmInstance() !== null;
+
+/**
+ * Choose the implementation new RangeDecoders use: 'wasm' (default where WebAssembly exists)
+ * or 'js'. Both give the same symbols; tests run both.
+ */
+export function setRangeCoder(kind) {
+  if (kind !== 'wasm' && kind !== 'js') throw new Error(`unknown range coder ${kind}`);
+  useWasm = kind === 'wasm' && wasmInstance() !== null;
+}
+
+/** A range decoder over ``wordCount`` words of ``bytes`` (§16.2.4). */
+export class RangeDecoder {
+  constructor(bytes, wordCount) {
+    return useWasm ? new WasmRangeDecoder(bytes, wordCount) : new JsRangeDecoder(bytes, wordCount);
+  }
+}

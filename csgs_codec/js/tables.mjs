@@ -37,7 +37,7 @@ export function parseGaussianFamily(bytes) {
     pos += 2 + 2 * n;
   }
   if (pos !== bytes.length) throw new Error('frozen Gaussian table family has trailing data');
-  return { halfWidths, freqs, prepared: freqs.map(prepareTable) };
+  return { halfWidths, freqs, prepared: freqs.map((table) => prepareTable(table)) };
 }
 
 /**

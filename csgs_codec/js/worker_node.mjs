@@ -3,13 +3,15 @@
  * into the shared output arrays and reports, per task, success or the error it raised.
  */
 
-import { parentPort } from 'node:worker_threads';
+import { parentPort, workerData } from 'node:worker_threads';
 
 import { FormatError } from './errors.mjs';
+import { setRangeCoder } from './range_decoder.mjs';
 import { decodeTask } from './scene.mjs';
 import { loadTables } from './tables_node.mjs';
 
 let tables = null;
+setRangeCoder(workerData.rangeCoder);
 
 parentPort.on('message', (job) => {
   tables = tables || loadTables();

@@ -2,7 +2,7 @@
  * Test helper: decodes the bare-stream conformance vectors (spec/vectors/geometry, entropy,
  * histogram) with the JavaScript receiver's modules and prints one JSON line per vector:
  * {"name", "ok", "values"} (integers as decimal strings) or {"name", "ok": false, "offset"}.
- * Usage: node stream_vectors.mjs VECTOR_ROOT
+ * Usage: node stream_vectors.mjs VECTOR_ROOT [wasm|js]
  */
 
 import { readFileSync, readdirSync } from 'node:fs';
@@ -12,10 +12,12 @@ import { FormatError } from '../../csgs_codec/js/errors.mjs';
 import { decodeGeometry } from '../../csgs_codec/js/geometry.mjs';
 import { decodeHistogram } from '../../csgs_codec/js/histogram.mjs';
 import { forwardIntNet, parseIntNet } from '../../csgs_codec/js/intnet.mjs';
+import { setRangeCoder } from '../../csgs_codec/js/range_decoder.mjs';
 import { decodeSymbols } from '../../csgs_codec/js/residual.mjs';
 import { stepSize } from '../../csgs_codec/js/float_stream.mjs';
 import { loadTables } from '../../csgs_codec/js/tables_node.mjs';
 
+setRangeCoder(process.argv[3] || 'wasm');
 const { family, sine } = loadTables();
 const exact = (decoded, i) => (decoded.big && decoded.big.has(i) ? decoded.big.get(i) : BigInt(decoded.values[i]));
 

@@ -65,10 +65,10 @@ def test_the_vector_sets_are_the_expected_ones():
     assert len(ANCHOR_INVALID) == 7
 
 
-@pytest.mark.parametrize("threads", (1, 2))
+@pytest.mark.parametrize(("threads", "range_coder"), [(1, "js"), (2, "wasm")])
 @pytest.mark.parametrize("layers", LAYER_READS)
-def test_scene_vectors_decode_as_in_python(layers, threads):
-    results = run_js(SCENES, layers=layers, threads=threads)
+def test_scene_vectors_decode_as_in_python(layers, threads, range_coder):
+    results = run_js(SCENES, layers=layers, threads=threads, range_coder=range_coder)
     for path, js in zip(SCENES, results):
         _assert_same(js, _python(path, layers), f"{path.name} [{layers}]")
     # The set holds both kinds, and the colour hyperprior (mode 5) decodes.
@@ -115,12 +115,13 @@ def test_container_vectors_read_as_recorded():
     assert checked >= 28
 
 
-@pytest.mark.parametrize("threads", (1, 2))
-def test_invalid_vectors_are_rejected_naming_chunk_and_offset(threads):
+@pytest.mark.parametrize(("threads", "range_coder"), [(1, "js"), (2, "wasm")])
+def test_invalid_vectors_are_rejected_naming_chunk_and_offset(threads, range_coder):
     """Also on two threads: the error raised is the first in the Python decoder's order,
     whichever thread found it."""
     standard = [p for p in INVALID if p not in ANCHOR_INVALID]
-    results = run_js(standard, layers="color,semantic", threads=threads)
+    results = run_js(standard, layers="color,semantic", threads=threads,
+                     range_coder=range_coder)
     for path, js in zip(standard, results):
         py = _python(path, "color,semantic")
         assert not py["ok"], f"{path.name} decodes in Python"

@@ -28,9 +28,10 @@ def _expected_values(record: dict) -> list[str]:
     return [str(v) for v in values]
 
 
-def test_stream_vectors_decode_as_recorded():
-    done = subprocess.run([node_executable(), str(SCRIPT), str(VECTORS)], capture_output=True,
-                          text=True, timeout=300, check=True)
+@pytest.mark.parametrize("range_coder", ["wasm", "js"])
+def test_stream_vectors_decode_as_recorded(range_coder):
+    done = subprocess.run([node_executable(), str(SCRIPT), str(VECTORS), range_coder],
+                          capture_output=True, text=True, timeout=300, check=True)
     results = [json.loads(line) for line in done.stdout.splitlines()]
     assert len(results) >= 36
     for result in results:
