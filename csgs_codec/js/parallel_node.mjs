@@ -1,8 +1,9 @@
 /**
  * Decoding a standard scene on two threads in Node (worker_threads), like the Python
  * decoder's two threads: geometry and the colour streams are independent (except where the
- * colour hyperprior needs the geometry first; such files decode on one thread), so they are
- * split into two lanes of about equal bytes, one on a worker, writing into shared arrays.
+ * colour hyperprior needs the geometry first; such files decode on one thread), so this thread
+ * and a worker take them one at a time from a shared queue (largest estimated cost first),
+ * writing into shared arrays.
  * The first error in the reference decoder's order (colour streams in order, then geometry)
  * is the one raised, whichever lane found it.
  */
@@ -35,17 +36,23 @@ export class WorkerLane {
   close() { return this.worker.terminate(); }
 }
 
-/** Split ``tasks`` into two lanes of about equal payload bytes (largest first). */
-function lanes(tasks, sizes) {
-  const order = [...tasks].sort((a, b) => sizes[b] - sizes[a]);
-  const load = [0, 0];
-  const split = [[], []];
-  for (const task of order) {
-    const lane = load[0] <= load[1] ? 0 : 1;
-    split[lane].push(task);
-    load[lane] += sizes[task];
+/** Relative decode cost per payload byte (measured): the geometry's octree and the SH bands'
+ * predicted channels cost more than the other streams. */
+const COST_PER_BYTE = { GEOM: 3, SHBA: 2, SHBB: 2, SHBC: 2 };
+
+/** ``tasks`` by estimated cost, largest first (both threads take them in this order). */
+function byCost(tasks, sizes) {
+  const cost = (task) => sizes[task] * (COST_PER_BYTE[task] || 1);
+  return [...tasks].sort((a, b) => cost(b) - cost(a));
+}
+
+/** Run tasks claimed from the shared counter until none is left; per-task results. */
+export function claimTasks(queue, counter, run) {
+  const results = {};
+  for (let i = Atomics.add(counter, 0, 1); i < queue.length; i = Atomics.add(counter, 0, 1)) {
+    results[queue[i]] = run(queue[i]);
   }
-  return split;
+  return results;
 }
 
 /**
@@ -65,18 +72,18 @@ export async function decodeSceneParallel(data, options, lane) {
   const sizes = {};
   for (const entry of prep.container.toc.entries) if (tasks.includes(entry.type)) sizes[entry.type] = (sizes[entry.type] || 0) + entry.length;
   for (const task of tasks) sizes[task] = sizes[task] || 0;
-  const [mine, theirs] = lanes(tasks, sizes);
-  const entries = prep.container.toc.entries.filter((e) => theirs.includes(e.type) || e.type === 'OUTL');
-  const pending = lane.run({ data: shared, entries, header: prep.header, tasks: theirs, out });
-  const results = {};
-  for (const task of mine) {
+  const queue = byCost(tasks, sizes);
+  const counter = new Int32Array(new SharedArrayBuffer(4));
+  const entries = prep.container.toc.entries.filter((e) => tasks.includes(e.type) || e.type === 'OUTL');
+  const pending = lane.run({ data: shared, entries, header: prep.header, queue, counter, out });
+  const results = claimTasks(queue, counter, (task) => {
     try {
       const value = decodeTask(prep, out, task);
-      results[task] = { ok: true, axis: task === 'ROTN' ? value : null };
+      return { ok: true, axis: task === 'ROTN' ? value : null };
     } catch (err) {
-      results[task] = { ok: false, error: err };
+      return { ok: false, error: err };
     }
-  }
+  });
   Object.assign(results, await pending);
   for (const task of tasks) {
     const result = results[task];
