@@ -90,7 +90,7 @@ export function readFloatStream(r, count, channels, priors, family, target = nul
     const mode = r.u8('mode');
     if (mode === 0) {
       steps.push({ constant: r.f32('constant_value') });
-      indices.push(new Float64Array(n));
+      indices.push(new Int32Array(n));
       peaks.push(0);
       continue;
     }
@@ -133,12 +133,15 @@ export function readFloatStream(r, count, channels, priors, family, target = nul
     else decoded = decodeSymbols(stream, table, n, family, r.chunk, at);
     const k = decoded.values;
     const priorMean = prior ? prior.mean : null;
+    // k as int32 too (exact whenever |k| < 2^31, the only case a later prediction reads it).
+    const k32 = new Int32Array(n);
     let top = 0;
     for (let i = 0; i < n; i++) {
       let v = k[i];
       if (priorMean) v += priorMean[i];
       if (prediction) v += prediction[i];
       k[i] = v;
+      k32[i] = v;
       const a = Math.abs(v);
       if (a > top) top = a;
     }
@@ -159,7 +162,7 @@ export function readFloatStream(r, count, channels, priors, family, target = nul
     }
     if (top > peak) peak = top;
     steps.push({ q, mean: meanNum });
-    indices.push(k);
+    indices.push(top < INDEX_LIMIT ? k32 : k);
     peaks.push(top);
   }
   writeValues(array, stride, offset, indices, steps, unit, n);
