@@ -8,13 +8,15 @@ The scene is encoded once (default encoder settings of the quality); both decode
 the same arrays (SHA-256 of each) before anything is timed. Then, ``rounds`` times, Node
 decodes the file ``repeat`` times in one process (tables loaded once, outside the timing;
 the fastest run counts) and Python does the same in this process, alternating so both see
-the same machine load. Rows report the fastest wall and CPU seconds of each, the Node
-process's wall time including its start-up, and the ratios JS / Python.
+the same machine load. Rows report the fastest wall and CPU seconds of each, the medians over
+the rounds, the Node process's wall time (start-up, table loading, ``repeat`` decodes and
+hashing) and the ratios JS / Python.
 """
 
 from __future__ import annotations
 
 import argparse
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -65,6 +67,11 @@ def measure(path: Path, data: bytes, layers: str, rounds: int, repeat: int) -> d
     best["ratio_js_to_python_1thread"] = best["js_decode_s"] / best["python_1thread_decode_s"]
     best["ratio_js_to_python_cpu"] = best["js_decode_cpu_s"] / best["python_decode_cpu_s"]
     best["ratio_js_process_to_python"] = best["js_process_s"] / best["python_decode_s"]
+    # The machine is shared: the medians show what a typical round gave, beside the best.
+    best["median_js_decode_s"] = statistics.median(js_wall)
+    best["median_python_decode_s"] = statistics.median(py_wall)
+    best["median_ratio_js_to_python"] = statistics.median(
+        j / p for j, p in zip(js_wall, py_wall))
     best["rounds"] = pairs
     return best
 
