@@ -45,7 +45,7 @@ from csgs_codec.scene.ply_io import read_ply  # noqa: E402
 SCENES = REPO.parent / "shared" / "data" / "scenes"
 DEFAULT_SCENES = ["donut.ply", "guitar.ply"]
 
-#: How each shared scene was made (DESIGN.md section 5: say which kind each figure is from).
+#: How each shared scene was made (docs/design.md, 'Measuring quality': name each figure's kind).
 SCENE_KINDS = {
     "donut.ply": "full-precision",
     "biker.ply": "decoded-from:playcanvas-compressed-ply",

@@ -40,7 +40,7 @@ from csgs_codec import Decoder, Encoder, read_ply  # noqa: E402
 
 DEFAULT_RD = REPO / "benchmarks" / "results" / "rd_2026-11-23.json"
 DEFAULT_QUALITIES = tuple(range(1, 10))
-#: Score every front is drawn on (DESIGN.md section 5: the headline).
+#: Score every front is drawn on (docs/design.md, 'Measuring quality': the headline).
 FRONT_METRIC = "foreground_psnr"
 #: Front name -> the costs (row keys, minimised) it weighs against the score.
 FRONTS = {"pareto_size": ("bytes",), "pareto_encode": ("encode_s",),

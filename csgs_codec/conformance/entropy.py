@@ -1,10 +1,10 @@
 """Entropy-layer conformance vectors (spec/vectors/entropy/).
 
 * ``tables.json``: SHA-256 and half-widths of the frozen Gaussian family v1 and sine table v1.
-* ``residual_*.bin`` + ``.json``: a residual stream (spec/drafts/entropy.md §3) with its
+* ``residual_*.bin`` + ``.json``: a residual stream (spec/FORMAT.md §16.3) with its
   inputs (values, means, scale and step indices) and the decoded values, or, for invalid
   streams, the error class and byte offset.
-* ``intnet_*.bin`` + ``.json``: a network payload (§4), input positions and expected outputs,
+* ``intnet_*.bin`` + ``.json``: a network payload (§16.4.3), input positions and expected outputs,
   or the error of an invalid payload.
 
 Expected reconstructions are computed here in plain Python integers from the spec's formulas

@@ -1,6 +1,6 @@
 """Geometry payload conformance vectors (spec/vectors/geometry/).
 
-Each vector is ``NAME.bin`` (a geometry payload, spec/drafts/geometry.md) plus ``NAME.json``:
+Each vector is ``NAME.bin`` (a geometry payload, spec/FORMAT.md §15) plus ``NAME.json``:
 a description, the payload's size and SHA-256, and either the decoded points in canonical
 order (valid payloads) or the error class and byte offset (invalid ones). Expected points are
 computed here independently of the coder (a plain-Python Morton sort of the input set), and

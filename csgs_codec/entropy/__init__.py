@@ -1,5 +1,5 @@
 """Entropy layer (numpy + constriction, never torch): frozen tables, residual coding, integer
-networks, geometry coding. spec/drafts/entropy.md defines the bytes and the arithmetic."""
+networks, geometry coding. spec/FORMAT.md §15-§16 defines the bytes and the arithmetic."""
 
 from csgs_codec.entropy.intnet import IntLayer, IntMLP, positional_embedding
 from csgs_codec.entropy.residual import (

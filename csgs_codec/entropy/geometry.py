@@ -1,4 +1,4 @@
-"""Lossless geometry coding: quantized integer positions <-> bytes (spec/drafts/geometry.md).
+"""Lossless geometry coding: quantized integer positions <-> bytes (spec/FORMAT.md §15).
 
 Positions on a ``2^bits`` grid per axis are coded as an octree, level by level. Every node
 that is the only child of its parent (and the root) first says with a flag whether it holds a
@@ -68,7 +68,7 @@ def encode_positions(q: np.ndarray, bits: int) -> bytes:
         bits: bits per axis, 0..21.
 
     Returns:
-        The geometry payload (spec/drafts/geometry.md).
+        The geometry payload (spec/FORMAT.md §15).
 
     Raises:
         InputError: wrong shape or dtype, ``bits`` out of range, or a coordinate off the grid.

@@ -1,7 +1,7 @@
 """Integer context models of the geometry coder and grouped coding through constriction.
 
 Every probability the range coder sees is an integer frequency out of ``2^16`` derived from
-integer symbol counts (spec/drafts/geometry.md, section 5), so encoder and decoder build
+integer symbol counts (spec/FORMAT.md §15.5), so encoder and decoder build
 identical tables on any machine. A coding step (one level's flags or occupancies) is cut into
 blocks of doubling size; within a block, symbols that share a context are coded with one
 constriction call, contexts in increasing order, and the counts are updated after the block.

@@ -5,7 +5,7 @@ Gaussian tables waste bits; a table of the residuals' own frequencies (the empir
 channel "factorized" density) codes them within a few hundredths of a bit of their
 zeroth-order entropy, for a table of a few dozen bytes.
 
-Stream (FORMAT §16.6): varint N, svarint lo, varint K (1..4096), K + 1 varint frequencies
+Stream (FORMAT §16.5): varint N, svarint lo, varint K (1..4096), K + 1 varint frequencies
 (symbol lo + s for s < K, then the escape symbol), each >= 1 and together 2^16; varint word
 count W, W little-endian u32 range-coder words; then one zigzag varint per escaped value
 (values outside [lo, lo + K)), in stream order.

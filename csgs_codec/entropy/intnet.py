@@ -200,7 +200,7 @@ class IntMLP:
         return layers_float64(self.layers, h, self.act_bits, self.out_lo, self.out_hi, buffers)
 
     def to_bytes(self) -> bytes:
-        """The network chunk payload (spec/drafts/entropy.md §4)."""
+        """The network chunk payload (spec/FORMAT.md §16.4.3)."""
         from csgs_codec.entropy.intnet_bytes import intnet_to_bytes
 
         return intnet_to_bytes(self)

@@ -1,6 +1,6 @@
 """Residual coding: integer values against integer means, steps and frozen Gaussian tables.
 
-Arithmetic (spec/drafts/entropy.md §3), all in exact int64:
+Arithmetic (spec/FORMAT.md §16.3), all in exact int64:
 
     q = step_size(step_idx)                      # integer step on the value grid
     r = floor((2 * (a - mu) + q) / (2 * q))      # round half up of (a - mu) / q
@@ -155,7 +155,7 @@ def encode_symbols(residuals: np.ndarray, scale_idx: np.ndarray) -> bytes:
         scale_idx: (N,) integers in [0, 64), the table of each residual.
 
     Returns:
-        The residual stream (spec/drafts/entropy.md §3.3).
+        The residual stream (spec/FORMAT.md §16.3.3).
     """
     r = _check_values("residuals", residuals, RESIDUAL_LIMIT)
     n = r.size

@@ -11,7 +11,7 @@ def table_costs(residuals: np.ndarray) -> np.ndarray:
     """Exact coded size in bits of ``residuals`` (N,) int under each table: (S,) float64.
 
     Counts the range-coded symbols at -log2(f / 2^16) each, and for escaped residuals the
-    escape symbol plus their varint bytes (spec: entropy §3.3).
+    escape symbol plus their varint bytes (spec/FORMAT.md §16.3.3).
     """
     family = gaussian_family()
     r = np.asarray(residuals, dtype=np.int64)

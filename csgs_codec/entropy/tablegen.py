@@ -2,8 +2,9 @@
 
 This is the only place floating-point ``erfc`` and ``sin`` are used. Its outputs are written
 as little-endian integer files into ``csgs_codec/entropy/data/`` and are then frozen: decoders
-load them and check their SHA-256 (spec/drafts/entropy.md) and never recompute them. Running
-the script again must reproduce the same bytes; ``--check`` verifies that without writing.
+load them and check their SHA-256 (spec/FORMAT.md §16.2.1, §16.2.2) and never recompute
+them. Running the script again must reproduce the same bytes; ``--check`` verifies that
+without writing.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Frozen integer tables: the zero-mean Gaussian family v1 and the sine table v1.
 
 Both are read from package data files written once by :mod:`csgs_codec.entropy.tablegen`,
-checked against the SHA-256 in spec/drafts/entropy.md, and never recomputed from erf or sin.
+checked against the SHA-256 in spec/FORMAT.md §16.2, and never recomputed from erf or sin.
 A table with index s has half-width K_s and 2K_s+2 frequencies summing to 2^16: symbol i in
 [0, 2K_s] stands for the residual i - K_s and symbol 2K_s+1 is the escape.
 """

@@ -1,9 +1,9 @@
 """Scoring a candidate scene against a reference by rendering both from the same cameras.
 
 Per view: PSNR and SSIM over the whole frame, and foreground PSNR over the pixels where the
-reference render's accumulated opacity exceeds 0.05 (DESIGN.md section 5; the headline figure,
-since objects often cover a small part of an orbit frame). Images are clipped to [0, 1] before
-scoring, as they would be when saved.
+reference render's accumulated opacity exceeds 0.05 (docs/design.md, 'Measuring quality';
+the headline figure, since objects often cover a small part of an orbit frame). Images are
+clipped to [0, 1] before scoring, as they would be when saved.
 """
 
 from __future__ import annotations

@@ -9,7 +9,8 @@ definitions so figures are comparable with the 3DGS literature:
   padding), averaged over windows and channels. Images smaller than the window are scored on
   the whole image as one window.
 * foreground PSNR: PSNR over the pixels where a mask (the original render's accumulated
-  opacity > 0.05, see DESIGN.md section 5) is set, all channels.
+  opacity > 0.05, see docs/design.md,
+  'Measuring quality') is set, all channels.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Training inputs, loss terms and the semantic stage (torch): the foundation of the
-CSGaussian training stages (DESIGN.md section 2).
+CSGaussian training stages (docs/design.md, 'Training').
 
 * :mod:`.views`: :class:`~.views.TrainingView`, an image with its camera and instance mask.
 * :mod:`.datasets`: images + cameras from transforms.json, INRIA cameras.json or COLMAP, with

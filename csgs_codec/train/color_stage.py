@@ -61,7 +61,7 @@ class ColorStageSettings:
     Attributes:
         iterations: optimisation steps (one view each).
         rate_weight: lambda_rate (see :data:`RATE_WEIGHT_PRESETS`); 0 trains for quality only.
-        mask_weight: lambda_mask, inside the rate term as in DESIGN.md section 2.
+        mask_weight: lambda_mask, inside the rate term as in docs/design.md, 'Training'.
         quality: encoder quality whose steps the quantization noise uses (1..9).
         feat_dim: F; n_offsets: K.
         initial_anchors: anchors the initial points are voxelized into (about).

@@ -8,7 +8,7 @@ product instead of a rasterization. The rendered value of group g is
 
     v_g = (s_g + u_g) * w_g,   u_g ~ U(-Q/2, Q/2) (Q = 1),   w = quality_aware_weights(q_f)
 
-(the noise proxy of quantization and the quality-aware weighting of DESIGN.md section 2) and
+(the noise proxy of quantization and the quality-aware weighting of docs/design.md, 'Training') and
 the loss of a view is L_s + lambda_c L_c over its mask (:mod:`csgs_codec.train.losses`),
 averaged over views. Stage 3 adds lambda_rate * R, R the mean over groups of the bits of
 s_g + u_g under an entropy model (:func:`csgs_codec.train.quantization.gaussian_rate_bits`
@@ -41,7 +41,7 @@ from csgs_codec.train.quantization import (
 )
 from csgs_codec.train.views import TrainingView
 
-#: Width D of the semantic feature s (DESIGN.md section 2).
+#: Width D of the semantic feature s (docs/design.md, 'Training').
 SEMANTIC_DIM = 6
 #: Contributions below this weight are dropped from the contribution matrix.
 MIN_CONTRIBUTION = 1e-4

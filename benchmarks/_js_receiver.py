@@ -1,0 +1,62 @@
+"""Running the JavaScript receiver (csgs_codec/js/decode_cli.mjs) under Node, and the same
+per-array hashes computed from the Python decoder's output, for tests and benchmarks."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+CLI = REPO / "csgs_codec" / "js" / "decode_cli.mjs"
+
+
+def node_executable() -> str | None:
+    """The ``node`` on PATH, or None."""
+    return shutil.which("node")
+
+
+def run_js(files: list[Path], *, layers: str = "color", container: bool = False,
+           repeat: int = 1, threads: int = 2, range_coder: str = "wasm",
+           timeout: float = 600) -> list[dict]:
+    """Decode ``files`` with the JavaScript CLI (on ``threads`` threads, 1 or 2, with the
+    'wasm' or 'js' range decoder loop); one result dict per file, in order."""
+    args = [node_executable(), str(CLI), *map(str, files), "--layers", layers,
+            "--threads", str(threads), "--range-coder", range_coder]
+    if container:
+        args.append("--container")
+    if repeat > 1:
+        args += ["--repeat", str(repeat)]
+    done = subprocess.run(args, capture_output=True, text=True, timeout=timeout, check=False)
+    if done.returncode not in (0, 2, 3):
+        raise RuntimeError(f"node failed ({done.returncode}): {done.stderr[-2000:]}")
+    results = [json.loads(line) for line in done.stdout.splitlines() if line.strip()]
+    if len(results) != len(files):
+        raise RuntimeError(f"node printed {len(results)} results for {len(files)} files: "
+                           f"{done.stderr[-2000:]}")
+    return results
+
+
+def _digest(values: np.ndarray, dtype: str) -> str:
+    return hashlib.sha256(np.ascontiguousarray(values, dtype=dtype).tobytes()).hexdigest()
+
+
+def scene_hashes(scene) -> dict[str, dict]:
+    """{name: {"shape", "sha256"}} of a decoded GaussianScene in the CLI's canonical layout:
+    little-endian row-major float32 arrays (int32 labels)."""
+    arrays = {
+        "positions": scene.positions, "sh_dc": scene.sh_dc, "sh_rest": scene.sh_rest,
+        "opacity": scene.opacity, "scales": scene.scales, "rotations": scene.rotations,
+    }
+    if scene.semantic is not None:
+        arrays["semantic"] = scene.semantic
+    out = {name: {"shape": list(v.shape), "sha256": _digest(v, "<f4")}
+           for name, v in arrays.items()}
+    if scene.labels is not None:
+        out["labels"] = {"shape": list(scene.labels.shape),
+                         "sha256": _digest(scene.labels, "<i4")}
+    return out

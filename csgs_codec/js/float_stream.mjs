@@ -1,0 +1,189 @@
+/**
+ * Float stream bodies (spec/FORMAT.md §12.8): per channel a constant, or quantization indices
+ * k coded with a frozen table (modes 1, 2), a histogram (mode 4) or the colour hyperprior's
+ * per-Gaussian tables (mode 5), optionally predicted from the channels before it; values
+ * decode as float32((mu + q k) 2^-F).
+ */
+
+import { decodeHistogram } from './histogram.mjs';
+import { decodeSymbols } from './residual.mjs';
+
+const MAX_COUNT = 2 ** 28;
+const COEF_LIMIT = 2n ** 15n;
+const BIAS_LIMIT = 2n ** 40n;
+const INDEX_LIMIT = 2 ** 31;
+const TWO53 = 2 ** 53;
+
+/** Integer step q of step index j (§16.3.1). */
+export function stepSize(j) {
+  const m = j + 1;
+  return m < 16 ? m : (8 + (m % 8)) * 2 ** (Math.floor(m / 8) - 1);
+}
+
+/**
+ * Prediction P_i = floor((sum_j A_j k_j,i + B) / 2^12) for all i, exact: float64 when the
+ * worst-case sum stays within 2^53, BigInt otherwise.
+ */
+function predict(indices, peaks, coefs, bias, n) {
+  let bound = Math.abs(Number(bias));
+  coefs.forEach((a, j) => { bound += Math.abs(Number(a)) * peaks[j]; });
+  const out = new Float64Array(n);
+  if (bound <= TWO53) {
+    const b = Number(bias);
+    const active = [];
+    for (let j = 0; j < coefs.length; j++) if (coefs[j]) active.push([Number(coefs[j]), indices[j]]);
+    // Rows in blocks, so the block of ``out`` stays in cache while every channel adds to it;
+    // four channels per pass (integer sums within 2^53 are exact in any order).
+    for (let start = 0; start < n; start += 4096) {
+      const end = Math.min(n, start + 4096);
+      for (let i = start; i < end; i++) out[i] = b;
+      let j = 0;
+      for (; j + 4 <= active.length; j += 4) {
+        const [a0, k0] = active[j];
+        const [a1, k1] = active[j + 1];
+        const [a2, k2] = active[j + 2];
+        const [a3, k3] = active[j + 3];
+        for (let i = start; i < end; i++) out[i] += a0 * k0[i] + a1 * k1[i] + a2 * k2[i] + a3 * k3[i];
+      }
+      for (; j < active.length; j++) {
+        const [a, k] = active[j];
+        for (let i = start; i < end; i++) out[i] += a * k[i];
+      }
+      for (let i = start; i < end; i++) out[i] = Math.floor(out[i] * (1 / 4096));
+    }
+    return out;
+  }
+  for (let i = 0; i < n; i++) {
+    let total = bias;
+    coefs.forEach((a, j) => { total += a * BigInt(indices[j][i]); });
+    out[i] = Number(total >> 12n);
+  }
+  return out;
+}
+
+/**
+ * Read a float stream body.
+ * @param {import('./bytes.mjs').ByteReader} r positioned at the body
+ * @param {number} count N the chunk expects
+ * @param {number} channels C the chunk expects
+ * @param {Map<number, {mean: Float64Array, scale: Uint8Array}>|null} priors the colour
+ *   hyperprior's per-Gaussian mean and table of the channels it models
+ * @param {object} family the Gaussian tables
+ * @param {{array: Float32Array, stride: number, offset: number}|null} target where value i
+ *   of channel c goes: array[i * stride + offset + c] (default: a new N x C array)
+ * @returns {Float32Array} the target array
+ */
+export function readFloatStream(r, count, channels, priors, family, target = null) {
+  const n = r.varint('count', MAX_COUNT);
+  if (n !== count) throw r.error(`stream holds ${n} values, the scene has ${count} Gaussians`);
+  const cCount = r.u8('channel_count');
+  if (cCount !== channels) throw r.error(`stream has ${cCount} channels, expected ${channels}`);
+  const f = r.u8('frac_bits');
+  if (f > 24) throw r.error(`frac_bits ${f} exceeds 24`);
+  const unit = 2 ** -f;
+  const { array, stride, offset } = target || { array: new Float32Array(n * cCount), stride: cCount, offset: 0 };
+  const steps = [];
+  const indices = [];
+  const peaks = [];
+  let peak = 0;
+  for (let c = 0; c < cCount; c++) {
+    const mode = r.u8('mode');
+    if (mode === 0) {
+      steps.push({ constant: r.f32('constant_value') });
+      indices.push(new Int32Array(n));
+      peaks.push(0);
+      continue;
+    }
+    if (![1, 2, 4, 5].includes(mode)) throw r.error(`channel ${c} has unknown mode ${mode}`);
+    let prior = null;
+    if (mode === 5) {
+      prior = priors ? priors.get(c) : undefined;
+      if (!prior) throw r.error(`channel ${c} uses the colour hyperprior, which does not model it`);
+    }
+    const mean = r.svarintBig('mean');
+    const table = mode === 4 || mode === 5 ? 0 : r.u8('scale_index');
+    const step = r.u8('step_index');
+    if ((mean < 0n ? -mean : mean) > 2n ** 53n || table >= 64 || step >= 176) {
+      throw r.error(`channel ${c}: mean, scale index or step index out of range`);
+    }
+    let prediction = null;
+    let m = 0;
+    if (mode === 4 || mode === 5) {
+      m = r.varint('coefficient_count', cCount);
+      if (m !== 0 && m !== c) throw r.error(`channel ${c} has ${m} coefficients, expected 0 or ${c}`);
+    }
+    if (mode === 2 || m) {
+      if (mode === 2) m = r.varint('coefficient_count', cCount);
+      if (m !== c) throw r.error(`channel ${c} has ${m} coefficients, expected ${c}`);
+      const coefs = [];
+      for (let j = 0; j < m; j++) coefs.push(r.svarintBig('coefficient'));
+      const bias = r.svarintBig('bias');
+      const abs = (v) => (v < 0n ? -v : v);
+      if (coefs.some((a) => abs(a) >= COEF_LIMIT) || abs(bias) >= BIAS_LIMIT) {
+        throw r.error(`channel ${c}: prediction coefficient out of range`);
+      }
+      if (peak >= INDEX_LIMIT) throw r.error(`channel ${c}: earlier indices too large to predict from`);
+      prediction = predict(indices, peaks, coefs, bias, n);
+    }
+    const stream = r.byteString('residual_stream');
+    const at = r.offset - stream.length;
+    let decoded;
+    if (mode === 5) decoded = decodeSymbols(stream, prior.scale, n, family, r.chunk, at);
+    else if (mode === 4) decoded = decodeHistogram(stream, n, r.chunk, at);
+    else decoded = decodeSymbols(stream, table, n, family, r.chunk, at);
+    const k = decoded.values;
+    const priorMean = prior ? prior.mean : null;
+    // k as int32 too (exact whenever |k| < 2^31, the only case a later prediction reads it).
+    const k32 = new Int32Array(n);
+    let top = 0;
+    for (let i = 0; i < n; i++) {
+      let v = k[i];
+      if (priorMean) v += priorMean[i];
+      if (prediction) v += prediction[i];
+      k[i] = v;
+      k32[i] = v;
+      const a = Math.abs(v);
+      if (a > top) top = a;
+    }
+    if (decoded.big) {
+      for (const [i, s] of decoded.big) {
+        const exact = s + BigInt((priorMean ? priorMean[i] : 0) + (prediction ? prediction[i] : 0));
+        k[i] = Number(exact);
+        if ((exact < 0n ? -exact : exact) > 2n ** 53n) top = Infinity;
+      }
+    }
+    const q = stepSize(step);
+    const meanNum = Number(mean);
+    const room = TWO53 - Math.abs(meanNum);
+    let limit = Math.floor(room / q);
+    if (limit * q > room) limit -= 1; // floor of the exact quotient
+    if (top > limit) {
+      throw r.error(`channel ${c}: decoded value exceeds 2^53 on its grid`);
+    }
+    if (top > peak) peak = top;
+    steps.push({ q, mean: meanNum });
+    indices.push(top < INDEX_LIMIT ? k32 : k);
+    peaks.push(top);
+  }
+  writeValues(array, stride, offset, indices, steps, unit, n);
+  return array;
+}
+
+/** Write value i of channel c, float32((mu + q k) 2^-F), to array[i * stride + offset + c],
+ * rows in blocks so that a block of interleaved rows stays in cache across the channels. */
+function writeValues(array, stride, offset, indices, steps, unit, n) {
+  for (let start = 0; start < n; start += 2048) {
+    const end = Math.min(n, start + 2048);
+    for (let c = 0; c < steps.length; c++) {
+      const step = steps[c];
+      let at = start * stride + offset + c;
+      if (step.constant !== undefined) {
+        for (let i = start; i < end; i++, at += stride) array[at] = step.constant;
+        continue;
+      }
+      const { q, mean } = step;
+      const k = indices[c];
+      for (let i = start; i < end; i++, at += stride) array[at] = (k[i] * q + mean) * unit;
+    }
+  }
+}

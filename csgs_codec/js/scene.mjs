@@ -1,0 +1,127 @@
+/**
+ * Decoding a standard (Gaussian) scene: the colour codec's chunks of spec/FORMAT.md §12.4 -
+ * §12.19 on top of the container. Anchor scenes (§17) are not implemented here: a file with
+ * an ANCH chunk raises UnsupportedError.
+ */
+
+import { decodePositions, readHeader } from './base_layer.mjs';
+import { single } from './chunks.mjs';
+import { BAND_CODES, SH_REST, decodeStream, rotations } from './colour_layer.mjs';
+import { channelPriors, modelledStreams, parseColourPrior } from './colour_prior.mjs';
+import { readLayers } from './container.mjs';
+import { FormatError, UnsupportedError } from './errors.mjs';
+import { decodeSemantic } from './semantic_layer.mjs';
+
+const MAX_GAUSSIANS = 2 ** 24;
+const MAX_GAUSSIANS_PER_BYTE = 64;
+
+/**
+ * The checks and parameters every decode starts with: container, header, colour hyperprior.
+ * @returns {object} the prepared decode (container, header, codes, prior, modelled, ...)
+ */
+export function prepareScene(data, options) {
+  const layers = new Set(['color', ...(options.layers || [])]);
+  const { family, sine } = options.tables;
+  const container = readLayers(data, layers);
+  if (container.toc.entries.some((e) => e.type === 'ANCH')) {
+    throw new UnsupportedError('anchor scenes (spec/FORMAT.md §17) are not implemented in the JavaScript receiver');
+  }
+  const header = readHeader(container);
+  const limit = Math.min(options.maxGaussians ?? MAX_GAUSSIANS, (options.maxGaussiansPerByte ?? MAX_GAUSSIANS_PER_BYTE) * data.length);
+  if (header.count > limit) throw new FormatError(`declares ${header.count} Gaussians, above this decoder's limit of ${limit}`, { chunk: 'SCNE' });
+  const codes = ['SHDC', ...BAND_CODES.slice(0, header.coded), 'OPAC', 'SCAL', 'ROTN'];
+  let prior = null;
+  if (container.toc.entries.some((e) => e.type === 'CHYP')) {
+    const [bytes, offset] = single(container, 'CHYP');
+    const posBits = Math.max(header.bits, 1);
+    if (posBits > 32) throw new FormatError('the colour hyperprior needs a grid of at most 32 bits', { chunk: 'CHYP', offset });
+    prior = parseColourPrior(bytes, offset, codes, posBits, family);
+  }
+  const present = new Set(container.toc.entries.map((e) => e.type));
+  const extra = [...BAND_CODES, 'SHDC', 'OPAC', 'SCAL', 'ROTN'].filter((c) => present.has(c) && !codes.includes(c)).sort();
+  if (extra.length) throw new FormatError(`unexpected colour chunk(s) ${extra} for SH degree ${header.coded}`, { chunk: extra[0] });
+  const modelled = prior ? modelledStreams(prior, codes) : new Set();
+  return { layers, family, sine, container, header, codes, prior, modelled };
+}
+
+/**
+ * The output arrays of the colour streams, each stream's place in them ({array, stride,
+ * offset}) and the positions array; ``Buffer`` makes their storage (ArrayBuffer or
+ * SharedArrayBuffer).
+ */
+export function makeTargets(header, Buffer = ArrayBuffer) {
+  const n = header.count;
+  const f32 = (length) => new Float32Array(new Buffer(4 * length));
+  const restCount = SH_REST[header.stored];
+  const shRest = f32(n * restCount * 3);
+  const targets = {
+    SHDC: { array: f32(3 * n), stride: 3, offset: 0 },
+    OPAC: { array: f32(n), stride: 1, offset: 0 },
+    SCAL: { array: f32(3 * n), stride: 3, offset: 0 },
+    ROTN: { array: f32(3 * n), stride: 3, offset: 0 },
+  };
+  BAND_CODES.forEach((code, b) => { targets[code] = { array: shRest, stride: restCount * 3, offset: SH_REST[b] * 3 }; });
+  return { targets, shRest, positions: f32(3 * n) };
+}
+
+/** Decode one task ('GEOM' or a colour stream code) of a prepared scene into its targets;
+ * returns the dropped-component indices for ROTN. */
+export function decodeTask(prep, out, code, priors = null) {
+  if (code === 'GEOM') return decodePositions(prep.container, prep.header, out.positions);
+  return decodeStream(prep.container, prep.header, code, priors, prep.family, out.targets[code]);
+}
+
+/** The scene object of decoded targets, with the semantic layer when it was asked for. */
+export function finishScene(prep, out, axis) {
+  const n = prep.header.count;
+  const scene = {
+    count: n,
+    positions: out.positions,
+    sh_dc: out.targets.SHDC.array,
+    sh_rest: out.shRest,
+    opacity: out.targets.OPAC.array,
+    scales: out.targets.SCAL.array,
+    rotations: rotations(axis, out.targets.ROTN.array, n),
+    semantic: null,
+    semanticNames: [],
+    labels: null,
+  };
+  if (prep.layers.has('semantic')) decodeSemantic(prep.container, prep.header, scene, prep.family);
+  return scene;
+}
+
+/**
+ * Decode a standard scene on this thread (parallel_node.mjs spreads it over two in Node).
+ * @param {Uint8Array} data the .csgs bytes (or a prefix holding the requested layers)
+ * @param {{layers?: string[], tables: {family: object, sine: Int32Array},
+ *   maxGaussians?: number, maxGaussiansPerByte?: number}} options
+ * @returns {object} count, positions (N x 3), sh_dc (N x 3), sh_rest (N x R x 3), opacity,
+ *   scales (N x 3), rotations (N x 4, w x y z), semantic (N x S) and semanticNames, labels
+ */
+export function decodeScene(data, options) {
+  return decodePrepared(prepareScene(data, options));
+}
+
+/** The rest of decodeScene after prepareScene, on this thread. Errors come in the order the
+ * reference decoder reports them: hyperprior cells, colour streams in order, geometry. */
+export function decodePrepared(prep) {
+  const out = makeTargets(prep.header);
+  let priors = new Map();
+  let geometryDone = false;
+  if (prep.modelled.size) {
+    const cells = decodeTask(prep, out, 'GEOM');
+    geometryDone = true;
+    const cellLimit = 2 ** prep.prior.net.posBits;
+    for (const axis of [cells.x, cells.y, cells.z]) {
+      for (let i = 0; i < axis.length; i++) if (axis[i] >= cellLimit) throw new FormatError('the colour hyperprior needs smaller cells', { chunk: 'CHYP' });
+    }
+    priors = channelPriors(prep.prior, cells, prep.header.count, prep.codes, prep.sine);
+  }
+  let axis = null;
+  for (const code of prep.codes) {
+    const result = decodeTask(prep, out, code, priors.get(code) || null);
+    if (code === 'ROTN') axis = result;
+  }
+  if (!geometryDone) decodeTask(prep, out, 'GEOM');
+  return finishScene(prep, out, axis);
+}

@@ -1,0 +1,143 @@
+/**
+ * The range decoder loop of spec/FORMAT.md §16.2.4 as a small WebAssembly function, for
+ * speed: WebAssembly has the 64-bit unsigned integers the spec's arithmetic uses, so the loop
+ * is the spec's steps one for one. The module is assembled here from the instruction list
+ * below (no build step, no binary blob): ``assemble`` writes the standard binary format.
+ *
+ * Memory layout of an instance: bytes 0..31 hold the decoder state (d = point - lower as u64
+ * at 0, range u64 at 8, pos u32 at 16, word count u32 at 20, address of the words u32 at
+ * 24); from byte 64 on, an arena holds the words of the current decoder, the coder views and
+ * lookup indices of the tables in use, and the output symbols.
+ */
+
+const I32 = 0x7f;
+const I64 = 0x7e;
+
+/** Unsigned LEB128. */
+function uleb(value) {
+  const out = [];
+  let v = value;
+  do {
+    let byte = v & 0x7f;
+    v = Math.floor(v / 128);
+    if (v) byte |= 0x80;
+    out.push(byte);
+  } while (v);
+  return out;
+}
+
+/** Signed LEB128 of a BigInt. */
+function sleb(value) {
+  const out = [];
+  let v = BigInt(value);
+  while (true) {
+    const byte = Number(v & 0x7fn);
+    v >>= 7n;
+    const done = (v === 0n && !(byte & 0x40)) || (v === -1n && (byte & 0x40));
+    out.push(done ? byte : byte | 0x80);
+    if (done) return out;
+  }
+}
+
+const vec = (items) => [...uleb(items.length), ...items.flat()];
+const section = (id, bytes) => [id, ...uleb(bytes.length), ...bytes];
+const name = (text) => vec([...text].map((c) => [c.charCodeAt(0)]));
+
+// Instructions used by the loop (opcode bytes of the WebAssembly core specification).
+const op = {
+  block: [0x02, 0x40], loop: [0x03, 0x40], if: [0x04, 0x40], ifI64: [0x04, I64], else: [0x05],
+  end: [0x0b], br: (d) => [0x0c, ...uleb(d)], brIf: (d) => [0x0d, ...uleb(d)],
+  get: (i) => [0x20, ...uleb(i)], set: (i) => [0x21, ...uleb(i)],
+  i32Load: (offset) => [0x28, 2, ...uleb(offset)], i64Load: (offset) => [0x29, 3, ...uleb(offset)],
+  i64Load32U: (offset) => [0x35, 2, ...uleb(offset)],
+  i32Store: (offset) => [0x36, 2, ...uleb(offset)], i64Store: (offset) => [0x37, 3, ...uleb(offset)],
+  i32Const: (v) => [0x41, ...sleb(v)], i64Const: (v) => [0x42, ...sleb(v)],
+  i32LtU: [0x49], i32GtU: [0x4b], i32GeU: [0x4f], i64LtU: [0x54], i64GeU: [0x5a],
+  i32Add: [0x6a], i32Sub: [0x6b], i32Shl: [0x74], i32ShrU: [0x76],
+  i64Sub: [0x7d], i64Mul: [0x7e], i64DivU: [0x80], i64Or: [0x84], i64Shl: [0x86], i64ShrU: [0x88],
+  i32WrapI64: [0xa7], i64ExtendI32U: [0xad],
+};
+
+// Parameters and locals of decode(view, index, out, count, shift) -> symbols decoded.
+const VIEW = 0; const INDEX = 1; const OUT = 2; const COUNT = 3; const SHIFT = 4;
+const I = 5; const S = 6; const Q32 = 7; const LOW = 8; const WIDTH = 9; const POS = 10;
+const NWORDS = 11; const WORDS = 12; const P = 13;
+const D = 14; const RANGE = 15; const SCALE = 16; const Q = 17;
+
+/** The body of decode: §16.2.4 steps 1-6 for ``count`` symbols of one table. */
+function decodeBody() {
+  const addr4 = (base, index) => [op.get(base), op.get(index), op.i32Const(2), op.i32Shl, op.i32Add];
+  return [
+    // Load the state.
+    op.i32Const(0), op.i64Load(0), op.set(D),
+    op.i32Const(0), op.i64Load(8), op.set(RANGE),
+    op.i32Const(0), op.i32Load(16), op.set(POS),
+    op.i32Const(0), op.i32Load(20), op.set(NWORDS),
+    op.i32Const(0), op.i32Load(24), op.set(WORDS),
+    op.i32Const(0), op.set(I),
+    op.block, op.loop,
+    op.get(I), op.get(COUNT), op.i32GeU, op.brIf(1),
+    // 1. scale = range >> 24;  2. quantile = d / scale;  3. fail if quantile >= 2^24.
+    op.get(RANGE), op.i64Const(24), op.i64ShrU, op.set(SCALE),
+    op.get(D), op.get(SCALE), op.i64DivU, op.set(Q),
+    op.get(Q), op.i64Const(16777216), op.i64GeU, op.brIf(1),
+    op.get(Q), op.i32WrapI64, op.set(Q32),
+    // 4. the symbol: start at index[quantile >> shift], step while L[s + 1] <= quantile.
+    op.get(INDEX), op.get(Q32), op.get(SHIFT), op.i32ShrU, op.i32Const(2), op.i32Shl, op.i32Add,
+    op.i32Load(0), op.set(S),
+    op.block, op.loop,
+    ...addr4(VIEW, S), op.i32Load(4), op.get(Q32), op.i32GtU, op.brIf(1),
+    op.get(S), op.i32Const(1), op.i32Add, op.set(S), op.br(0),
+    op.end, op.end,
+    ...addr4(OUT, I), op.get(S), op.i32Store(0),
+    ...addr4(VIEW, S), op.set(P),
+    op.get(P), op.i32Load(0), op.set(LOW),
+    op.get(P), op.i32Load(4), op.get(LOW), op.i32Sub, op.set(WIDTH),
+    // 5. d -= scale * L[s]  (lower += scale * L[s]);  range = scale * (L[s+1] - L[s]).
+    op.get(D), op.get(SCALE), op.get(LOW), op.i64ExtendI32U, op.i64Mul, op.i64Sub, op.set(D),
+    op.get(SCALE), op.get(WIDTH), op.i64ExtendI32U, op.i64Mul, op.set(RANGE),
+    // 6. renormalise when range < 2^32: shift in the next word (0 past the end).
+    op.get(RANGE), op.i64Const(4294967296n), op.i64LtU, op.if,
+    op.get(RANGE), op.i64Const(32), op.i64Shl, op.set(RANGE),
+    op.get(D), op.i64Const(32), op.i64Shl,
+    op.get(POS), op.get(NWORDS), op.i32LtU, op.ifI64,
+    ...addr4(WORDS, POS), op.i64Load32U(0),
+    op.else, op.i64Const(0), op.end,
+    op.i64Or, op.set(D),
+    op.get(POS), op.i32Const(1), op.i32Add, op.set(POS),
+    op.end,
+    op.get(I), op.i32Const(1), op.i32Add, op.set(I), op.br(0),
+    op.end, op.end,
+    // Store the state; return how many symbols were decoded (count unless step 3 failed).
+    op.i32Const(0), op.get(D), op.i64Store(0),
+    op.i32Const(0), op.get(RANGE), op.i64Store(8),
+    op.i32Const(0), op.get(POS), op.i32Store(16),
+    op.get(I),
+    op.end,
+  ].flat();
+}
+
+/** The module's bytes: one function ``decode`` and one exported memory. */
+export function assemble() {
+  const type = [0x60, ...vec([[I32], [I32], [I32], [I32], [I32]]), ...vec([[I32]])];
+  const locals = vec([[...uleb(9), I32], [...uleb(4), I64]]);
+  const body = [...locals, ...decodeBody()];
+  return new Uint8Array([
+    0x00, 0x61, 0x73, 0x6d, 0x01, 0x00, 0x00, 0x00,
+    ...section(1, vec([type])),
+    ...section(3, vec([[0]])),
+    ...section(5, vec([[0x00, ...uleb(2)]])),
+    ...section(7, vec([[...name('decode'), 0x00, 0], [...name('memory'), 0x02, 0]])),
+    ...section(10, vec([[...uleb(body.length), ...body]])),
+  ]);
+}
+
+let instance = null;
+
+/** This thread's instance, or null where WebAssembly is not available. */
+export function wasmInstance() {
+  if (instance === null && typeof WebAssembly === 'object') {
+    instance = new WebAssembly.Instance(new WebAssembly.Module(assemble()), {});
+  }
+  return instance;
+}
