@@ -77,7 +77,10 @@ def _write(out_dir: Path, name: str, data: bytes, description: str, reads: list[
     (out_dir / f"{name}.json").write_text(json.dumps(doc, indent=2) + "\n")
 
 
-def _invalid(data: bytes, drop: str | None = None, cut: str | None = None) -> bytes:
+def _invalid(data: bytes, drop: str | None = None, cut: str | None = None,
+             patch: tuple[str, int, int] | None = None) -> bytes:
+    """``data`` rewritten without chunk ``drop``, with chunk ``cut``'s payload halved, or
+    with byte ``patch[1]`` of chunk ``patch[0]``'s payload set to ``patch[2]``."""
     container = read_layers(data, layers={"color", "semantic"})
     chunks = []
     for e in container.toc:
@@ -86,6 +89,10 @@ def _invalid(data: bytes, drop: str | None = None, cut: str | None = None) -> by
             continue
         if e.type == cut:
             payload = payload[: len(payload) // 2]
+        if patch is not None and e.type == patch[0]:
+            changed = bytearray(payload)
+            changed[patch[1]] = patch[2]
+            payload = bytes(changed)
         chunks.append(Chunk(e.type, e.layer, payload, e.tile))
     return write_container(chunks)
 
@@ -118,6 +125,7 @@ def generate(out_dir: Path) -> None:
            _reads(bad))
     _colour_prior_vectors(out_dir, donut)
     _far_point_vectors(out_dir, donut)
+    _view_pruned_vectors(out_dir, donut)
 
 
 def _colour_prior_vectors(out_dir: Path, donut: GaussianScene) -> None:
@@ -173,3 +181,18 @@ def _far_point_vectors(out_dir: Path, donut: GaussianScene) -> None:
             ("far_floaters_truncated_outq", _invalid(data, cut="OUTQ"),
              "with the OUTQ payload cut in half (frame and CRC rewritten)")):
         _write(out_dir, name, bad, f"far_floaters_q5 {what}", _reads(bad))
+
+
+def _view_pruned_vectors(out_dir: Path, donut: GaussianScene) -> None:
+    """A view-pruned encode (it carries the optional ``vdis`` record in its base layer) and
+    the same file with a ``vdis`` payload of an unknown version, which a decoder that only
+    decodes must skip (the chunk is optional) and ``csgs info`` must refuse."""
+    head = donut.subset(np.arange(0, len(donut), 12))
+    data = Encoder(quality=5, hyperprior=False, view_pruning=True).encode(head)
+    _write(out_dir, "view_pruned_q5", data,
+           "every 12th Gaussian of samples/donut.ply (3,802) at quality 5 with view pruning "
+           "on the default sphere of views (a vdis record in the base layer)", _reads(data))
+    bad = _invalid(data, patch=("vdis", 0, 9))
+    _write(out_dir, "view_pruned_vdis_version_9", bad,
+           "view_pruned_q5 with the vdis version byte set to 9 (frame and CRC rewritten): "
+           "decoders skip the optional chunk, so the scene still decodes", _reads(bad))
