@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from csgs_codec.codec.payloads import SceneHeader
 from csgs_codec.codec.view_record import ViewRecord
+from csgs_codec.errors import FormatError
 from csgs_codec.format import describe, read_layers
 from csgs_codec.format.primitives import ByteReader
 
@@ -35,10 +36,14 @@ def describe_bitstream(source, *, verify: bool = True) -> dict:
                  grid_bits=header.grid_bits, far_outliers=header.far_count)
     relative = _outq_count(container)
     facts.update(far_relative=relative, far_exact=header.far_count - relative)
-    record = _view_record(container)
-    if record is not None:
-        facts["views"] = {"source": record.source, "count": record.views,
-                          "left_out": record.left_out, "description": record.description}
+    try:
+        record = _view_record(container)
+    except FormatError as err:  # informative only: the file stays valid (§12.21)
+        facts["views"] = {"unreadable": str(err)}
+    else:
+        if record is not None:
+            facts["views"] = {"source": record.source, "count": record.views,
+                              "left_out": record.left_out, "description": record.description}
     if n:
         facts["bits_per_gaussian"] = 8 * facts["file_bytes"] / n
         for layer in facts["layers"].values():

@@ -12,10 +12,10 @@ black scoring background). Many faint Gaussians over the same pixels err togethe
 sum of their costs understates what removing all of them does (on plant it let a third of
 the scene go for 12 dB): how many of the ranked Gaussians go is measured instead. The
 encoder renders the quantized scene on probe views of the distribution and removes the
-longest prefix of the ranking (found by bisection) whose renders stay within
-``(1 + budget)`` times the quantized scene's squared error against the original; Gaussians
-no view reaches always go. Pruning so adds at most about 10 log10(1 + budget) dB of error on
-the probe views.
+longest prefix of the ranking (found by bisection) whose renders stay, on every probe view,
+within ``(1 + budget)`` times that view's squared error of the quantized scene against the
+original; Gaussians no view reaches always go. Pruning so costs each probe view at most
+10 log10(1 + budget) dB.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from csgs_codec.scene.gaussian_scene import GaussianScene
 #: Default budget: pruning may add this fraction of the quantization's squared error.
 DEFAULT_BUDGET = 0.1
 #: Probe views (of the distribution, evenly spaced) on which quantization error is measured.
-PROBE_VIEWS = 8
+PROBE_VIEWS = 12
 #: SH degree-0 basis constant: colour = 0.5 + C0 * dc.
 _C0 = 0.28209479177387814
 
@@ -83,11 +83,12 @@ def render_images(scene: GaussianScene, cameras: Sequence[Camera]) -> list[np.nd
 
 
 def render_sse(reference: list[np.ndarray], candidate: GaussianScene,
-               cameras: Sequence[Camera]) -> float:
-    """Summed squared difference between ``reference`` renders and ``candidate``'s renders
-    on ``cameras`` (colours in [0, 1], summed over pixels and channels)."""
-    return float(sum(np.sum((a - b) ** 2) for a, b in
-                     zip(reference, render_images(candidate, cameras))))
+               cameras: Sequence[Camera]) -> np.ndarray:
+    """(V,) float64 squared difference between each ``reference`` render and
+    ``candidate``'s render of the same camera (colours in [0, 1], summed over pixels and
+    channels)."""
+    return np.array([float(np.sum((a - b) ** 2)) for a, b in
+                     zip(reference, render_images(candidate, cameras))])
 
 
 #: Bisection steps over the ranked prefix (the kept share is found to about 1/2^steps).
@@ -107,6 +108,9 @@ def decide(scene: GaussianScene, reconstruction: GaussianScene, weight_sq: np.nd
     probes = probe_cameras(cameras)
     reference = render_images(scene, probes)
     quantized_sse = render_sse(reference, reconstruction, probes)
+    # Per view, not in total: scores average PSNR over views, so the views quantization
+    # barely touches would otherwise take most of the loss (measured: 1.09x in total on the
+    # probes was -2 dB of mean held-out PSNR on donut at quality 2).
     allowed = (1.0 + budget) * quantized_sse
     costs = drop_costs(scene, weight_sq)
     ranked = np.argsort(costs, kind="stable")
@@ -121,7 +125,8 @@ def decide(scene: GaussianScene, reconstruction: GaussianScene, weight_sq: np.nd
         return keep
 
     def fits(k: int) -> bool:
-        return render_sse(reference, reconstruction.subset(keep_for(k)), probes) <= allowed
+        return bool(np.all(render_sse(reference, reconstruction.subset(keep_for(k)), probes)
+                           <= allowed))
 
     lo, hi = 0, limit  # prefix lengths: lo fits the budget, hi is the largest still open
     if hi and fits(hi):
@@ -132,5 +137,5 @@ def decide(scene: GaussianScene, reconstruction: GaussianScene, weight_sq: np.nd
         mid = (lo + hi) // 2
         lo, hi = (mid, hi) if fits(mid) else (lo, mid)
     keep = keep_for(lo)
-    return PruneDecision(keep, int(unseen.sum()), int((~keep).sum()), quantized_sse,
-                         float(costs[~keep].sum()))
+    return PruneDecision(keep, int(unseen.sum()), int((~keep).sum()),
+                         float(quantized_sse.sum()), float(costs[~keep].sum()))

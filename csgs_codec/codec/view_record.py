@@ -1,8 +1,9 @@
 """The ``vdis`` chunk: which viewing distribution an encode followed (FORMAT §12.21).
 
 Optional and informative: decoders need nothing from it (a decoder that does not know it skips
-it, as the critical bit says); ``csgs info`` reports it. It records where the views came from,
-how many there were and how many Gaussians view pruning left out for them.
+it, as the critical bit says); ``csgs info`` reports it. A record that cannot be read does not
+make the file invalid: readers report no distribution (§12.21). It records where the views
+came from, how many there were and how many Gaussians view pruning left out for them.
 """
 
 from __future__ import annotations
@@ -57,10 +58,10 @@ class ViewRecord:
         r = ByteReader(data, base_offset=base_offset, chunk="vdis")
         version = r.fixed("u8", "version")
         if version != VERSION:
-            raise r.error(f"unknown view-distribution version {version}")
+            raise r.error(f"unknown view-distribution version {version}", at=r.offset - 1)
         code = r.fixed("u8", "source")
         if code not in SOURCES:
-            raise r.error(f"unknown view source {code}")
+            raise r.error(f"unknown view source {code}", at=r.offset - 1)
         views = r.varint("view_count", maximum=1 << 32)
         left_out = r.varint("left_out", maximum=1 << 32)
         raw = r.byte_string("description", maximum=MAX_DESCRIPTION)

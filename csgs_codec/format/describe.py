@@ -95,8 +95,10 @@ def format_description(facts: dict) -> str:
         lines.append(f"  coded apart      {facts['far_outliers']:,} positions outside the grid "
                      f"({relative:,} relative precision, OUTQ; "
                      f"{facts['far_outliers'] - relative:,} exact, OUTL)")
-    if facts.get("views"):
-        views = facts["views"]
+    views = facts.get("views")
+    if views and "unreadable" in views:
+        lines.append(f"  views            record unreadable, ignored ({views['unreadable']})")
+    elif views:
         lines.append(f"  views            {views['description']} ({views['source']}); "
                      f"{views['left_out']:,} Gaussians left out for them")
     lines.append(f"  header + TOC     {facts['header_bytes']:>12,} bytes")
