@@ -1,11 +1,12 @@
 /**
  * The base layer of a standard scene: the scene header SCNE (§12.5) and the positions of
- * GEOM (§12.6, §15) and OUTL (§12.7).
+ * GEOM (§12.6, §15), OUTQ (§12.20, in far_points.mjs) and OUTL (§12.7).
  */
 
 import { ByteReader } from './bytes.mjs';
 import { checkFinite, single } from './chunks.mjs';
 import { FormatError } from './errors.mjs';
+import { readFarPoints } from './far_points.mjs';
 import { decodeGeometry } from './geometry.mjs';
 
 /** The SCNE payload (§12.5). */
@@ -28,7 +29,7 @@ export function readHeader(container) {
 }
 
 /** Base layer: float32 positions written into ``positions`` (§12.4 "Positions", §12.6,
- * §12.7); returns the grid cells. */
+ * §12.7, §12.20): grid points, then OUTQ's, then OUTL's; returns the grid cells. */
 export function decodePositions(container, header, positions) {
   const gridCount = header.count - header.far;
   const [data, offset] = single(container, 'GEOM');
@@ -54,19 +55,45 @@ export function decodePositions(container, header, positions) {
     positions[3 * i + 2] = oz + cells.z[i] * cell;
   }
   if (header.far) {
-    const [outl, at] = single(container, 'OUTL');
-    const r = new ByteReader(outl, at, 'OUTL');
-    const n = r.varint('far_count', header.far);
-    if (n !== header.far) throw r.error(`${n} outliers, the header says ${header.far}`);
-    const far = new Float32Array(3 * n);
-    if (3 * n > Math.floor(r.remaining / 4)) {
-      throw r.error(`truncated: field 'positions' needs ${3 * n} x 4 bytes`, r.baseOffset + r.bytes.length);
-    }
-    for (let i = 0; i < 3 * n; i++) far[i] = r.f32('positions');
-    r.expectEnd('the outlier list');
-    checkFinite(far, 'OUTL');
-    positions.set(far, 3 * gridCount);
+    positions.set(farPositions(container, header), 3 * gridCount);
+  } else {
+    for (const code of ['OUTQ', 'OUTL']) refuseChunk(container, code, 'the header declares no far points');
   }
   checkFinite(positions, 'GEOM');
   return cells;
+}
+
+/** The far_count far positions (§12.4 "Order of the Gaussians"): those of OUTQ (§12.20),
+ * when present, then those of OUTL (§12.7). */
+function farPositions(container, header) {
+  const far = new Float32Array(3 * header.far);
+  let q = 0;
+  if (container.toc.entries.some((e) => e.type === 'OUTQ')) {
+    const [data, offset] = single(container, 'OUTQ');
+    const points = readFarPoints(data, offset, header.far);
+    far.set(points);
+    q = points.length / 3;
+  }
+  const exact = header.far - q;
+  if (!exact) {
+    refuseChunk(container, 'OUTL', 'OUTQ holds every far point');
+    return far;
+  }
+  const [outl, at] = single(container, 'OUTL');
+  const r = new ByteReader(outl, at, 'OUTL');
+  const n = r.varint('far_count', exact);
+  if (n !== exact) throw r.error(`${n} outliers, the header and OUTQ leave ${exact}`);
+  if (3 * n > Math.floor(r.remaining / 4)) {
+    throw r.error(`truncated: field 'positions' needs ${3 * n} x 4 bytes`, r.baseOffset + r.bytes.length);
+  }
+  for (let i = 3 * q; i < 3 * header.far; i++) far[i] = r.f32('positions');
+  r.expectEnd('the outlier list');
+  checkFinite(far.subarray(3 * q), 'OUTL');
+  return far;
+}
+
+/** FormatError at the frame of a ``code`` chunk that ``container`` must not hold. */
+function refuseChunk(container, code, why) {
+  const entry = container.toc.entries.find((e) => e.type === code);
+  if (entry) throw new FormatError(`unexpected ${code} chunk: ${why}`, { chunk: code, offset: entry.offset });
 }

@@ -9,8 +9,9 @@
  * {"shape": [...], "sha256": hex}}, "semantic_names": [...], "decode_s": seconds} where each
  * hash is the SHA-256 of the array's little-endian bytes in row-major order (positions,
  * sh_dc, sh_rest (N x R x 3), opacity, scales, rotations (w x y z) as float32; semantic as
- * float32; labels as int32). Container mode (--container): the header, every TOC entry and
- * the size and SHA-256 of each payload read. On a rejection: {"ok": false, "error":
+ * float32; labels as int32) and "views", the vdis record (§12.21: source, count, left_out,
+ * description) or null. Container mode (--container): the header, every TOC entry and the
+ * size and SHA-256 of each payload read. On a rejection: {"ok": false, "error":
  * "FormatError" | "UnsupportedError", "chunk": ..., "offset": ..., "message": ...}, exit
  * status 2 (FormatError) or 3 (unsupported). --repeat N decodes N times and reports the
  * fastest decode_s (wall) and decode_cpu_s (CPU time of the process), and first_decode_s,
@@ -49,7 +50,9 @@ function sceneSummary(scene) {
   if (scene.labels) arrays.labels = [scene.labels, [n]];
   const out = {};
   for (const [name, [values, shape]] of Object.entries(arrays)) out[name] = { shape, sha256: sha256(values) };
-  return { count: n, arrays: out, semantic_names: scene.semanticNames };
+  const v = scene.metadata.views;
+  const views = v && { source: v.source, count: v.count, left_out: v.leftOut, description: v.description };
+  return { count: n, arrays: out, semantic_names: scene.semanticNames, views };
 }
 
 function containerSummary(data, layers) {

@@ -74,7 +74,7 @@ export async function decodeSceneParallel(data, options, lane) {
   for (const task of tasks) sizes[task] = sizes[task] || 0;
   const queue = byCost(tasks, sizes);
   const counter = new Int32Array(new SharedArrayBuffer(4));
-  const entries = prep.container.toc.entries.filter((e) => tasks.includes(e.type) || e.type === 'OUTL');
+  const entries = prep.container.toc.entries.filter((e) => tasks.includes(e.type) || e.type === 'OUTQ' || e.type === 'OUTL');
   const pending = lane.run({ data: shared, entries, header: prep.header, queue, counter, out });
   const results = claimTasks(queue, counter, (task) => {
     try {

@@ -11,6 +11,7 @@ import { channelPriors, modelledStreams, parseColourPrior } from './colour_prior
 import { readLayers } from './container.mjs';
 import { FormatError, UnsupportedError } from './errors.mjs';
 import { decodeSemantic } from './semantic_layer.mjs';
+import { readViews } from './view_record.mjs';
 
 const MAX_GAUSSIANS = 2 ** 24;
 const MAX_GAUSSIANS_PER_BYTE = 64;
@@ -85,6 +86,7 @@ export function finishScene(prep, out, axis) {
     semantic: null,
     semanticNames: [],
     labels: null,
+    metadata: readViews(prep.container),
   };
   if (prep.layers.has('semantic')) decodeSemantic(prep.container, prep.header, scene, prep.family);
   return scene;
@@ -96,7 +98,8 @@ export function finishScene(prep, out, axis) {
  * @param {{layers?: string[], tables: {family: object, sine: Int32Array},
  *   maxGaussians?: number, maxGaussiansPerByte?: number}} options
  * @returns {object} count, positions (N x 3), sh_dc (N x 3), sh_rest (N x R x 3), opacity,
- *   scales (N x 3), rotations (N x 4, w x y z), semantic (N x S) and semanticNames, labels
+ *   scales (N x 3), rotations (N x 4, w x y z), semantic (N x S) and semanticNames, labels,
+ *   metadata {views, skipped}: the informative vdis record (§12.21; view_record.mjs)
  */
 export function decodeScene(data, options) {
   return decodePrepared(prepareScene(data, options));

@@ -17,6 +17,8 @@ import pytest
 from benchmarks._js_receiver import REPO, node_executable, run_js, scene_hashes
 from csgs_codec import Decoder
 from csgs_codec.errors import FormatError
+from csgs_codec.format.source import open_source
+from csgs_codec.format.toc import read_toc
 
 pytestmark = pytest.mark.skipif(node_executable() is None,
                                 reason="node (Node.js >= 18) is not on PATH")
@@ -60,9 +62,30 @@ def _assert_same(js: dict, py: dict, what: str) -> None:
         assert (js["chunk"] or "container") in js["message"], what
 
 
+def _has_anchor_chunk(path: Path) -> bool | None:
+    """Whether the TOC of ``path`` lists an ANCH chunk (None when its TOC is unreadable)."""
+    try:
+        toc = read_toc(open_source(path.read_bytes()))
+    except FormatError:
+        return None
+    return any(e.type == "ANCH" for e in toc.entries)
+
+
 def test_the_vector_sets_are_the_expected_ones():
-    assert len(SCENES) >= 14 and len(CONTAINER) >= 28 and len(INVALID) >= 30
+    assert len(SCENES) >= 19 and len(CONTAINER) >= 28 and len(INVALID) >= 30
     assert len(ANCHOR_INVALID) == 7
+    names = {p.stem for p in SCENES}
+    assert {"far_floaters_q5", "far_floaters_missing_outq", "far_floaters_truncated_outq",
+            "view_pruned_q5", "view_pruned_vdis_version_9"} <= names
+
+
+def test_only_anchor_scenes_are_expected_unsupported():
+    """The "unsupported" lists hide no standard scene: every vector on them is an anchor
+    scene, and every other vector with a readable TOC is a standard one."""
+    expected = ANCHORS + ANCHOR_INVALID
+    assert all(_has_anchor_chunk(p) for p in expected)
+    others = SCENES + [p for p in INVALID if p not in ANCHOR_INVALID]
+    assert [p.name for p in others if _has_anchor_chunk(p)] == []
 
 
 @pytest.mark.parametrize(("threads", "range_coder"), [(1, "js"), (2, "wasm")])
