@@ -38,9 +38,12 @@ from csgs_codec.scene.gaussian_scene import GaussianScene
 #: Distances of the default distribution's shells, as multiples of the framing distance.
 DEFAULT_DISTANCES = (0.65, 1.0, 1.5)
 #: Directions per shell of the default distribution.
-DEFAULT_DIRECTIONS = 24
-#: Image size of the default distribution's views (pixels).
-DEFAULT_SIZE = (400, 300)
+DEFAULT_DIRECTIONS = 16
+#: Image size of the default distribution's views (pixels): the size scenes are scored and
+#: commonly viewed at. Sub-pixel Gaussians that vanish at 400x300 are detail at 800x600: on
+#: plant, pruning allocated at 400x300 cost 1.7 dB of held-out PSNR at 800x600 (0.16 dB when
+#: allocated at 800x600).
+DEFAULT_SIZE = (800, 600)
 #: Field of view (vertical, degrees) and the fraction of the frame the robust extent fills at
 #: distance 1, as for the orbit views.
 _FOV_Y_DEG = 40.0
@@ -125,7 +128,7 @@ def default_distribution(scene: GaussianScene, *, directions: int = DEFAULT_DIRE
 #: Most cameras of a camera file the sensitivity pass renders (evenly spaced), and the
 #: largest image side it renders them at: capture cameras run to hundreds of 4K frames.
 MAX_CAMERAS = 96
-MAX_SIDE = 400
+MAX_SIDE = 800
 
 
 def camera_distribution(cameras: list[Camera], origin: str) -> ViewDistribution:

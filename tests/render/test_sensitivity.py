@@ -86,5 +86,5 @@ def test_camera_distribution_caps_count_and_size():
     cameras = [_camera((0.0, 0.0, -4.0 - i), size=(1600, 1200)) for i in range(200)]
     views = camera_distribution(cameras, "cams.json")
     assert len(views.cameras) == 96
-    assert max(max(c.width, c.height) for c in views.cameras) == 400
+    assert max(max(c.width, c.height) for c in views.cameras) == 800
     assert "of 200 cameras from cams.json" in views.description
