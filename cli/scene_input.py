@@ -22,13 +22,40 @@ def is_anchor_input(path: str | Path) -> bool:
     or a PLY whose header has ``f_anchor_feat_*`` properties."""
     path = Path(path)
     if path.is_dir():
+        if inria_output(path) is not None:
+            return False
         return (path / "point_cloud.ply").is_file() or (path / "point_cloud").is_dir()
+    return _is_anchor_ply(path)
+
+
+def _is_anchor_ply(path: Path) -> bool:
     if not path.is_file():
         return False
     with open(path, "rb") as fh:
         head = fh.read(HEADER_PEEK)
     end = head.find(b"end_header")
     return head.startswith(b"ply") and ANCHOR_PROPERTY in head[: end if end >= 0 else None]
+
+
+def inria_output(path: str | Path) -> tuple[Path, Path] | None:
+    """(point cloud PLY, cameras.json) of an INRIA 3DGS output folder, or None.
+
+    Such a folder holds ``cameras.json`` and ``point_cloud/iteration_N/point_cloud.ply`` for
+    one or more N; the highest N is taken. A Scaffold-GS checkpoint has the same layout with
+    an anchor PLY: it is not an INRIA output.
+    """
+    path = Path(path)
+    if not path.is_dir() or not (path / "cameras.json").is_file():
+        return None
+    found = []
+    for ply in path.glob("point_cloud/iteration_*/point_cloud.ply"):
+        number = ply.parent.name[len("iteration_"):]
+        if number.isdigit():
+            found.append((int(number), ply))
+    if not found:
+        return None
+    ply = max(found)[1]
+    return None if _is_anchor_ply(ply) else (ply, path / "cameras.json")
 
 
 def load_anchor_scene(path: str | Path):

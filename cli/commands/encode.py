@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import os
 
 from tqdm import tqdm
@@ -44,42 +45,53 @@ def add_arguments(parser) -> None:
                              "(auto) or never (none)")
     parser.add_argument("--prune-opacity", type=float, default=None, metavar="T",
                         help="drop Gaussians with opacity below T (lossy, opt-in)")
-    parser.add_argument("--view-prune", dest="view_pruning", action="store_true",
+    parser.add_argument("--view-prune", dest="view_pruning", default=None,
+                        action=argparse.BooleanOptionalAction,
                         help="3DGS scenes: leave out the Gaussians that add least to renders "
                              "from the viewing distribution, within 10%% of the quantization's "
-                             "own squared error on probe views (lossy; a sphere of views "
-                             "around the scene unless --cameras is given)")
+                             "own squared error on each probe view (lossy; a sphere of views "
+                             "around the scene unless cameras are known). Default: on when "
+                             "cameras are given (--cameras, or an INRIA output folder), else "
+                             "off")
     parser.add_argument("--cameras", default=None, metavar="FILE",
                         help="3DGS scenes: the views the scene will be seen from (INRIA "
-                             "cameras.json, transforms.json or a COLMAP folder); implies "
-                             "--view-prune. Give them for a scene walked through from inside")
+                             "cameras.json, transforms.json or a COLMAP folder). Give them "
+                             "for a scene walked through from inside")
     parser.add_argument("--sanitize", action="store_true",
                         help="drop Gaussians with NaN/Inf values instead of failing")
 
 
 def run(args) -> int:
     """Read, encode and write atomically; print the sizes."""
-    from csgs_cli.scene_input import is_anchor_input
+    from csgs_cli.scene_input import inria_output, is_anchor_input
     from csgs_codec.atomic_write import check_output, write_atomically
     from csgs_codec.codec.encoder import Encoder
     from csgs_codec.scene.ply_io import read_ply
 
     _check_exclusive(args)
-    check_output(args.output, [args.scene])  # before a long encode, not after it
+    inria = inria_output(args.scene)
+    # Before a long encode, not after it.
+    check_output(args.output, [args.scene] + ([str(inria[0])] if inria else []))
     if is_anchor_input(args.scene):
         return _encode_anchors(args, write_atomically)
+    scene_path, cameras_path = args.scene, args.cameras
+    if inria is not None:  # an INRIA output folder: its latest point cloud, its cameras
+        scene_path = str(inria[0])
+        cameras_path = cameras_path or str(inria[1])
     cameras = None
-    if args.cameras is not None:
+    if cameras_path is not None:
         from csgs_codec.render.cameras_io import load_cameras
 
-        cameras = load_cameras(args.cameras)
+        cameras = load_cameras(cameras_path)
+    view_pruning = (cameras is not None if args.view_pruning is None
+                    else args.view_pruning)
     encoder = Encoder(quality=args.quality, target_psnr=args.target_psnr, lambda_=args.lambda_,
                       fast=args.fast, semantic=args.semantic, prune_opacity=args.prune_opacity,
                       hyperprior=args.hyperprior,
-                      view_pruning=args.view_pruning or cameras is not None, cameras=cameras)
-    scene = read_ply(args.scene, sanitize=args.sanitize)
+                      view_pruning=view_pruning, cameras=cameras)
+    scene = read_ply(scene_path, sanitize=args.sanitize)
     searching = args.target_psnr is not None or args.lambda_ is not None
-    bar = tqdm(total=None if searching or args.view_pruning else len(STAGES), desc="encode",
+    bar = tqdm(total=None if searching or view_pruning else len(STAGES), desc="encode",
                unit="stage",
                disable=args.quiet, leave=False)
 
@@ -114,15 +126,15 @@ def run(args) -> int:
         result = encoder.encode_with_report(scene)
     except InputError as err:  # the scene's errors (row, property) belong to the input file
         if err.file is None:
-            err.file = args.scene
+            err.file = scene_path
         raise
     finally:
         for open_bar in fit_bar + view_bar:
             open_bar.close()
         bar.close()
-    write_atomically(args.output, result.data, [args.scene])
+    write_atomically(args.output, result.data, [args.scene, scene_path])
     n = len(result.reconstruction)
-    in_bytes = os.path.getsize(args.scene)
+    in_bytes = os.path.getsize(scene_path)
     bits = 8 * len(result.data) / max(n, 1)
     print(f"{args.output}: {len(result.data):,} bytes, {n:,} Gaussians, {bits:.2f} bits/Gaussian"
           f", {in_bytes / max(len(result.data), 1):.1f}x smaller than the input, "
@@ -142,9 +154,11 @@ def _encode_anchors(args, write_atomically) -> int:
     from csgs_cli.scene_input import load_anchor_scene
     from csgs_codec.codec.anchor_encoder import AnchorEncoder
 
-    if args.prune_opacity is not None or args.sanitize or args.target_psnr is not None:
-        raise InputError("--prune-opacity, --sanitize and --target-psnr apply to 3DGS PLY "
-                         "input, not to anchor scenes", file=args.scene)
+    if (args.prune_opacity is not None or args.sanitize or args.target_psnr is not None
+            or args.cameras is not None or args.view_pruning):
+        raise InputError("--prune-opacity, --sanitize, --target-psnr, --cameras and "
+                         "--view-prune apply to 3DGS PLY input, not to anchor scenes",
+                         file=args.scene)
     encoder = AnchorEncoder(quality=args.quality, lambda_=args.lambda_, fast=args.fast,
                             semantic=args.semantic)
     scene = load_anchor_scene(args.scene)

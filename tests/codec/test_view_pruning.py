@@ -189,3 +189,40 @@ def test_an_unreadable_view_record_is_reported_not_refused(capsys):
     out = capsys.readouterr().out
     assert "record unreadable, ignored" in out and "unknown view-distribution version 9" in out
     assert len(Decoder().decode(path)) == 3662
+
+
+def _inria_folder(root, scene, cameras):
+    """An INRIA output folder: cameras.json and two point-cloud iterations."""
+    for iteration, part in ((7000, scene.subset(np.arange(1100))), (30000, scene)):
+        folder = root / "point_cloud" / f"iteration_{iteration}"
+        folder.mkdir(parents=True)
+        write_ply(part, folder / "point_cloud.ply")
+    entries = []
+    for i, cam in enumerate(cameras):
+        c2w = cam.camera_to_world
+        entries.append({"id": i, "img_name": cam.name, "width": cam.width,
+                        "height": cam.height, "position": c2w[:3, 3].tolist(),
+                        "rotation": c2w[:3, :3].tolist(), "fx": cam.fx, "fy": cam.fy})
+    (root / "cameras.json").write_text(json.dumps(entries))
+    return root
+
+
+def test_an_inria_output_folder_encodes_its_latest_cloud_with_its_cameras(
+        tmp_path, capsys, donut_part):
+    views = default_distribution(donut_part, directions=3, distances=(1.0,), size=(160, 120))
+    folder = _inria_folder(tmp_path / "run", donut_part, views.cameras)
+    out = tmp_path / "run.csgs"
+    assert main(["encode", str(folder), "-o", str(out), "--no-hyperprior", "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert "3 of 3 cameras from the given cameras" in printed
+    decoded = Decoder().decode(out.read_bytes())
+    assert 1100 < len(decoded) < len(donut_part)  # iteration 30000, pruned for its cameras
+
+
+def test_an_inria_folder_without_pruning_keeps_every_gaussian(tmp_path, capsys, donut_part):
+    views = default_distribution(donut_part, directions=3, distances=(1.0,), size=(160, 120))
+    folder = _inria_folder(tmp_path / "run", donut_part, views.cameras)
+    out = tmp_path / "run.csgs"
+    assert main(["encode", str(folder), "-o", str(out), "--no-view-prune", "--no-hyperprior",
+                 "--quiet"]) == 0
+    assert len(Decoder().decode(out.read_bytes())) == len(donut_part)
