@@ -12,6 +12,7 @@ import warnings
 from csgs_codec import __version__
 from csgs_codec.atomic_write import sigterm_as_interrupt
 from csgs_codec.errors import CsgsError, CsgsWarning, DataLossWarning
+from csgs_codec.extras import missing_extra_message
 
 EXIT_OK = 0
 EXIT_FAILURE = 1
@@ -88,6 +89,15 @@ def main(argv: list[str] | None = None) -> int:
             if args.debug:
                 traceback.print_exc()
             print(f"csgs: error: {err}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        except ModuleNotFoundError as err:
+            # A core install (no extras) reaching code that needs torch, pyvista, ...
+            message = missing_extra_message(err, args.command)
+            if message is None:
+                raise
+            if args.debug:
+                traceback.print_exc()
+            print(f"csgs: error: {message}", file=sys.stderr)
             return EXIT_BAD_INPUT
         except KeyboardInterrupt:
             print("csgs: interrupted", file=sys.stderr)

@@ -13,6 +13,29 @@ torch is imported by the model and training code alone.
 from __future__ import annotations
 
 import importlib
+from typing import TYPE_CHECKING
+
+from csgs_codec.errors import (
+    CsgsError,
+    CsgsWarning,
+    DataLossWarning,
+    FormatError,
+    InputError,
+    ModelError,
+    UnsupportedError,
+)
+
+if TYPE_CHECKING:  # what the lazy names below resolve to, for IDEs and type checkers
+    from csgs_codec.codec.anchor_decoder import AnchorDecoder
+    from csgs_codec.codec.anchor_encoder import AnchorEncoder
+    from csgs_codec.codec.decoder import Decoder
+    from csgs_codec.codec.encoder import Encoder, EncodeResult
+    from csgs_codec.codec.files import decode_file, encode_file
+    from csgs_codec.scene.anchor_scene import AnchorScene
+    from csgs_codec.scene.gaussian_scene import GaussianScene
+    from csgs_codec.scene.ply_io import read_ply, write_ply
+    from csgs_codec.scene.scaffold_io import read_scaffold, write_scaffold
+    from csgs_codec.semantic.selection import select_at_click
 
 __version__ = "0.1.0"
 
@@ -32,10 +55,23 @@ _LAZY = {
     "write_scaffold": "csgs_codec.scene.scaffold_io",
     "select_at_click": "csgs_codec.semantic.selection",
 }
-__all__ = ["__version__", *_LAZY]
+__all__ = [
+    "__version__",
+    "Encoder", "EncodeResult", "Decoder", "encode_file", "decode_file",
+    "GaussianScene", "read_ply", "write_ply",
+    "AnchorScene", "AnchorEncoder", "AnchorDecoder", "read_scaffold", "write_scaffold",
+    "select_at_click",
+    "CsgsError", "InputError", "FormatError", "UnsupportedError", "ModelError",
+    "CsgsWarning", "DataLossWarning",
+]
 
 
 def __getattr__(name: str):
     if name in _LAZY:
         return getattr(importlib.import_module(_LAZY[name]), name)
     raise AttributeError(f"module 'csgs_codec' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    """The public names, lazy ones included (module ``__getattr__`` hides them otherwise)."""
+    return sorted(__all__)

@@ -59,6 +59,15 @@ class GaussianScene:
         )
 
     # ----------------------------------------------------------------- basic facts
+    def __repr__(self) -> str:
+        """A one-line summary (counts, SH degree, layers), not the arrays."""
+        parts = [f"{len(self):,} Gaussians", f"SH degree {self.sh_degree_stored}"]
+        if self.semantic is not None:
+            parts.append(f"{self.semantic.shape[1]} semantic channels")
+        if self.labels is not None:
+            parts.append("labels")
+        return f"GaussianScene({', '.join(parts)})"
+
     def __len__(self) -> int:
         return int(self.positions.shape[0])
 

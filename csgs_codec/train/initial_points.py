@@ -37,18 +37,18 @@ def read_ply_points(path: str | Path) -> np.ndarray:
     Raises:
         InputError: unreadable file, no vertex element, or x/y/z missing or not finite.
     """
-    from plyfile import PlyData, PlyParseError
+    from csgs_codec.scene.ply_reader import read_vertex_columns
 
     path = Path(path)
     try:
-        vertex = PlyData.read(str(path))["vertex"]
-    except (OSError, ValueError, KeyError, IndexError, struct.error, PlyParseError) as error:
-        raise InputError(f"cannot read points: {error}", file=path) from None
-    names = vertex.data.dtype.names or ()
+        data = path.read_bytes()
+    except OSError as error:
+        raise InputError(f"cannot read points: {error.strerror or error}", file=path) from None
+    _, _, columns = read_vertex_columns(data, source=str(path))
     for axis in "xyz":
-        if axis not in names:
+        if axis not in columns:
             raise InputError("vertex has no position property", file=path, property=axis)
-    points = np.stack([np.asarray(vertex[a], np.float64) for a in "xyz"], axis=1)
+    points = np.stack([np.asarray(columns[a], np.float64) for a in "xyz"], axis=1)
     _check_finite(points, path)
     return points
 
