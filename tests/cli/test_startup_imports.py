@@ -8,7 +8,7 @@ import sys
 
 
 def test_building_the_cli_parser_loads_no_torch():
-    code = ("import sys; from cli.main import build_parser; build_parser(); "
+    code = ("import sys; from csgs_cli.main import build_parser; build_parser(); "
             "print('torch' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True)
@@ -16,7 +16,7 @@ def test_building_the_cli_parser_loads_no_torch():
 
 
 def test_train_option_defaults_match_the_settings_classes():
-    from cli.main import build_parser
+    from csgs_cli.main import build_parser
     from csgs_codec.train.color_stage import ColorStageSettings
     from csgs_codec.train.pipeline import TrainSettings
 

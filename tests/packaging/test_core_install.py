@@ -56,7 +56,7 @@ def test_every_conformance_vector_decodes_without_optional_packages():
 def test_the_cli_decodes_and_describes_without_optional_packages(tmp_path):
     vector = VECTORS / "scenes" / "donut_q3.csgs"
     out = _run_core(f"""
-        from cli.main import main
+        from csgs_cli.main import main
         codes = [main(["-q", "decode", {str(vector)!r}, "-o", {str(tmp_path / "d.ply")!r}]),
                  main(["-q", "info", {str(vector)!r}]),
                  main(["-q", "info", {str(tmp_path / "d.ply")!r}])]
@@ -73,7 +73,7 @@ def test_commands_needing_an_extra_name_it(tmp_path, command, extra):
     argv = (["encode", str(sample), "-o", str(tmp_path / "x.csgs")] if command == "encode"
             else ["view", str(sample), "--screenshot", str(tmp_path / "x.png")])
     out = _run_core(f"""
-        from cli.main import main
+        from csgs_cli.main import main
         print("code", main(["-q", *{argv!r}]))
     """)
     assert out.returncode == 0, out.stderr
