@@ -27,6 +27,7 @@ from csgs_codec.entropy.anchor_attributes import (
 )
 from csgs_codec.entropy.geometry import decode_positions
 from csgs_codec.entropy.intnet import IntMLP
+from csgs_codec.entropy.intnet_bytes import intnet_from_bytes
 from csgs_codec.entropy.intnet_dense import IntDenseMLP
 from csgs_codec.entropy.offset_masks import decode_masks
 from csgs_codec.entropy.residual import decode_symbols, from_grid
@@ -142,7 +143,7 @@ class AnchorDecoder:
 
     def _position_net(self, container, code: str, pos_bits: int) -> IntMLP:
         data, offset = single_payload(container, code)
-        net = IntMLP.from_bytes(data, chunk=code, base_offset=offset)
+        net = intnet_from_bytes(data, chunk=code, base_offset=offset)
         if net.pos_bits != pos_bits:
             raise FormatError(f"network pos_bits {net.pos_bits} differs from the grid's "
                               f"{pos_bits}", chunk=code, offset=offset)

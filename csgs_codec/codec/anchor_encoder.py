@@ -41,6 +41,7 @@ from csgs_codec.entropy.anchor_attributes import (
     step_values,
 )
 from csgs_codec.entropy.geometry import canonical_order, encode_positions
+from csgs_codec.entropy.intnet_bytes import intnet_to_bytes
 from csgs_codec.entropy.offset_masks import encode_masks
 from csgs_codec.entropy.residual import encode_symbols, from_grid, to_grid
 from csgs_codec.entropy.table_choice import best_table
@@ -245,7 +246,7 @@ class AnchorEncoder:
             for settings in self._candidate_fits(m):
                 hyper, _ = fit_prior(cells, pos_bits, [target], settings=settings,
                                      name="semantic hyperprior")
-                network = hyper.to_bytes()
+                network = intnet_to_bytes(hyper)
                 (params,) = hyper_params(hyper, cells, [width])
                 stream, rec = encode_block(grid_values, params)
                 if best is None or len(network) + len(stream) < best[0]:
@@ -352,7 +353,7 @@ def _code_colour(s: AnchorScene, cells: np.ndarray, hyper, carm) -> _ColourCodin
     offsets[mask] = _floats(rec_kept)
     steps = {"f": step_values(p_f.step), "offsets": step_values(p_off.step),
              "scaling": step_values(p_scl.step)}
-    return _ColourCoding(hyper.to_bytes(), carm_bytes, layer, _floats(rec_f), offsets,
+    return _ColourCoding(intnet_to_bytes(hyper), carm_bytes, layer, _floats(rec_f), offsets,
                          _floats(rec_scl), steps)
 
 

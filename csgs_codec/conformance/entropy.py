@@ -20,7 +20,12 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.entropy.intnet import IntLayer, IntMLP
-from csgs_codec.entropy.intnet_bytes import INTNET_VERSION, INTNET_VERSION_RAW, intnet_to_bytes
+from csgs_codec.entropy.intnet_bytes import (
+    INTNET_VERSION,
+    INTNET_VERSION_RAW,
+    intnet_from_bytes,
+    intnet_to_bytes,
+)
 from csgs_codec.entropy.residual import decode_residuals, encode_residuals
 from csgs_codec.entropy.tables import (
     DATA_DIR,
@@ -141,7 +146,7 @@ def generate(out_dir: Path) -> None:
     net = _network()
     positions = _positions()
     payload = intnet_to_bytes(net, INTNET_VERSION_RAW)
-    outputs = IntMLP.from_bytes(payload).forward(np.array(positions), path="int64")
+    outputs = intnet_from_bytes(payload).forward(np.array(positions), path="int64")
     assert (outputs == net.forward(np.array(positions), path="float64")).all()
     _write(out_dir, "intnet_small", payload, {
         "description": "3-layer network, L = 2, widths 12-16-16-3, 8-bit weights, "
@@ -151,7 +156,7 @@ def generate(out_dir: Path) -> None:
         "embedding_first_row": net.embed(np.array(positions[:1]))[0].tolist(),
         "outputs": outputs.tolist()})
     coded = intnet_to_bytes(net, INTNET_VERSION)
-    assert coded[0] == 2 and (IntMLP.from_bytes(coded).forward(np.array(positions),
+    assert coded[0] == 2 and (intnet_from_bytes(coded).forward(np.array(positions),
                                                                path="int64") == outputs).all()
     _write(out_dir, "intnet_small_v2", coded, {
         "description": "intnet_small in payload version 2 (entropy-coded weights, varint "
@@ -167,7 +172,7 @@ def generate(out_dir: Path) -> None:
             ("intnet_over_bound",
              "Second layer: worst-case sum 2 (2^23 - 1)(2^30 - 1) exceeds 2^53.",
              _over_bound_payload())):
-        outcome = _error_of(lambda b=blob: IntMLP.from_bytes(b))
+        outcome = _error_of(lambda b=blob: intnet_from_bytes(b))
         _write(out_dir, name, blob, {"description": text, "kind": "intnet", **outcome})
 
 

@@ -10,7 +10,8 @@ from __future__ import annotations
 import constriction
 import numpy as np
 
-from csgs_codec.entropy.geometry_models import TOTAL, normalized_frequencies
+from csgs_codec.entropy.coder_model import TOTAL, categorical_model
+from csgs_codec.entropy.geometry_models import normalized_frequencies
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format.primitives import ByteReader, ByteWriter
 
@@ -27,7 +28,7 @@ def encode_categorical(symbols: np.ndarray, alphabet: int) -> bytes:
     freqs = normalized_frequencies(np.bincount(s, minlength=alphabet)[None, :])[0]
     encoder = constriction.stream.queue.RangeEncoder()
     if s.size:
-        encoder.encode(s.astype(np.int32), _model(freqs))
+        encoder.encode(s.astype(np.int32), categorical_model(freqs))
     words = encoder.get_compressed()
     out = ByteWriter()
     out.varint(int(s.size))
@@ -61,12 +62,10 @@ def decode_categorical(data: bytes, count: int, *, chunk: str | None = None,
     if n == 0:
         return np.zeros(0, np.int64)
     try:
-        decoded = constriction.stream.queue.RangeDecoder(words).decode(_model(freqs), n)
+        decoded = constriction.stream.queue.RangeDecoder(words).decode(categorical_model(freqs), n)
     except (AssertionError, ValueError, RuntimeError, OverflowError) as exc:
         raise FormatError(f"range decoder failed ({exc})", chunk=chunk,
                           offset=base_offset) from exc
     return decoded.astype(np.int64)
 
 
-def _model(freqs: np.ndarray):
-    return constriction.stream.model.Categorical(freqs / float(TOTAL), perfect=False)

@@ -9,15 +9,12 @@ constriction call, contexts in increasing order, and the counts are updated afte
 
 from __future__ import annotations
 
-import constriction
 import numpy as np
 
+from csgs_codec.entropy.coder_model import TOTAL, categorical_model
 from csgs_codec.entropy.grouping import groups_by_key
 from csgs_codec.errors import FormatError
 
-#: Frequencies of every table sum to ``2^PRECISION_BITS``.
-PRECISION_BITS = 16
-TOTAL = 1 << PRECISION_BITS
 #: Largest first block of a coding step (symbols coded before the tables are first updated).
 FIRST_BLOCK = 1024
 
@@ -82,10 +79,6 @@ def block_bounds(m: int) -> list[int]:
     return ends[::-1]
 
 
-def _model(freqs: np.ndarray):
-    # Dyadic probabilities f / 2^16 are exact in float64, so constriction quantizes them the
-    # same way on every machine.
-    return constriction.stream.model.Categorical(freqs / float(TOTAL), perfect=False)
 
 
 def encode_grouped(encoder, symbols: np.ndarray, contexts: np.ndarray,
@@ -103,7 +96,7 @@ def encode_grouped(encoder, symbols: np.ndarray, contexts: np.ndarray,
         freqs = stats.frequencies()
         ctx, sym = contexts[start:end], symbols[start:end]
         for c, idx in groups_by_key(ctx):
-            encoder.encode(sym[idx].astype(np.int32), _model(freqs[c]))
+            encoder.encode(sym[idx].astype(np.int32), categorical_model(freqs[c]))
         stats.observe(ctx, sym)
         start = end
 
@@ -118,7 +111,7 @@ def decode_grouped(decoder, contexts: np.ndarray, stats: AdaptiveCounts) -> np.n
         block = out[start:end]
         for c, idx in groups_by_key(ctx):
             try:
-                block[idx] = decoder.decode(_model(freqs[c]), idx.size)
+                block[idx] = decoder.decode(categorical_model(freqs[c]), idx.size)
             except (AssertionError, ValueError, RuntimeError, OverflowError) as exc:
                 raise FormatError(f"geometry: range decoder failed ({exc})") from exc
         stats.observe(ctx, block)

@@ -16,7 +16,8 @@ from __future__ import annotations
 import constriction
 import numpy as np
 
-from csgs_codec.entropy.geometry_models import TOTAL, normalized_frequencies
+from csgs_codec.entropy.coder_model import TOTAL, categorical_model
+from csgs_codec.entropy.geometry_models import normalized_frequencies
 from csgs_codec.entropy.varints import decode_varints, encode_varints
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format.primitives import ByteReader, ByteWriter
@@ -55,8 +56,6 @@ def _unzigzag(codes: np.ndarray) -> np.ndarray:
     return ((c >> np.uint64(1)).astype(np.int64)) ^ -((c & np.uint64(1)).astype(np.int64))
 
 
-def _model(freqs: np.ndarray):
-    return constriction.stream.model.Categorical(freqs / float(TOTAL), perfect=False)
 
 
 def _table(values: np.ndarray) -> tuple[int, int, np.ndarray]:
@@ -98,7 +97,7 @@ def encode_histogram(values: np.ndarray) -> bytes:
     for f in freqs:
         out.varint(int(f))
     encoder = constriction.stream.queue.RangeEncoder()
-    encoder.encode(symbols, _model(freqs))
+    encoder.encode(symbols, categorical_model(freqs))
     words = encoder.get_compressed()
     out.varint(int(words.size))
     out.array(words, "<u4")
@@ -132,7 +131,7 @@ def decode_histogram(data: bytes, count: int, *, chunk: str | None = None,
     n_words = r.varint("word_count", maximum=r.remaining // 4)
     words = r.array(n_words, "<u4", "range_data").astype(np.uint32)
     try:
-        symbols = constriction.stream.queue.RangeDecoder(words).decode(_model(freqs), n)
+        symbols = constriction.stream.queue.RangeDecoder(words).decode(categorical_model(freqs), n)
     except (AssertionError, ValueError, RuntimeError, OverflowError) as exc:
         raise r.error(f"range decoder failed ({exc})") from exc
     symbols = symbols.astype(np.int64)

@@ -199,20 +199,6 @@ class IntMLP:
     def _forward_float64(self, h: np.ndarray, buffers: list[np.ndarray]) -> np.ndarray:
         return layers_float64(self.layers, h, self.act_bits, self.out_lo, self.out_hi, buffers)
 
-    def to_bytes(self) -> bytes:
-        """The network chunk payload (spec/FORMAT.md §16.4.3)."""
-        from csgs_codec.entropy.intnet_bytes import intnet_to_bytes
-
-        return intnet_to_bytes(self)
-
-    @classmethod
-    def from_bytes(cls, data: bytes, *, chunk: str | None = None,
-                   base_offset: int = 0) -> IntMLP:
-        """Parse a network payload; FormatError (with offset) on anything malformed."""
-        from csgs_codec.entropy.intnet_bytes import intnet_from_bytes
-
-        return intnet_from_bytes(data, chunk=chunk, base_offset=base_offset)
-
 
 def _frozen(a) -> np.ndarray:
     arr = np.asarray(a)

@@ -15,7 +15,8 @@ from functools import lru_cache
 import constriction
 import numpy as np
 
-from csgs_codec.entropy.geometry_models import TOTAL, normalized_frequencies
+from csgs_codec.entropy.coder_model import TOTAL, binary_model
+from csgs_codec.entropy.geometry_models import normalized_frequencies
 from csgs_codec.entropy.grouping import groups_by_key
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format.primitives import ByteReader, ByteWriter
@@ -25,9 +26,6 @@ MAX_SLOTS = 64
 
 
 @lru_cache(maxsize=4096)
-def _model(f1: int):
-    probs = np.array([TOTAL - f1, f1], dtype=np.float64) / TOTAL  # dyadic: exact in float64
-    return constriction.stream.model.Categorical(probs, perfect=False)
 
 
 def _contexts(k: int) -> int:
@@ -52,7 +50,7 @@ def encode_masks(mask: np.ndarray) -> bytes:
     for slot in range(k):
         base = _contexts(slot)
         for j, rows in groups_by_key(before[:, slot]):
-            encoder.encode(bits[rows, slot].astype(np.int32), _model(int(f1[base + j])))
+            encoder.encode(bits[rows, slot].astype(np.int32), binary_model(int(f1[base + j])))
     words = encoder.get_compressed()
     out = ByteWriter()
     out.varint(m)
@@ -86,7 +84,7 @@ def decode_masks(data: bytes, count: int, slots: int, *, chunk: str | None = Non
         base = _contexts(slot)
         for j, rows in groups_by_key(before):
             try:
-                symbols = decoder.decode(_model(int(f1[base + j])), rows.size)
+                symbols = decoder.decode(binary_model(int(f1[base + j])), rows.size)
             except (AssertionError, ValueError, RuntimeError, OverflowError) as exc:
                 raise FormatError(f"range decoder failed in mask slot {slot} ({exc})",
                                   chunk=chunk, offset=base_offset) from None

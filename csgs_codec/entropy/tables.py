@@ -13,14 +13,12 @@ from dataclasses import dataclass
 from functools import cache, lru_cache
 from pathlib import Path
 
-import constriction
 import numpy as np
 
+from csgs_codec.entropy.coder_model import TOTAL, categorical_model
 from csgs_codec.errors import FormatError
 
 DATA_DIR = Path(__file__).resolve().parent / "data"
-PRECISION = 16
-TOTAL = 1 << PRECISION
 
 GAUSSIAN_V1_SHA256 = "be7447d49ca61827969ac45ce3fe504e5014afe6197cef91ff2c27303434d3ff"
 SINE_V1_SHA256 = "a776046b72ec50a186312712e4065b05eaba980074502b920f3cee8a071f311a"
@@ -67,7 +65,7 @@ def table_model(index: int):
     quantization to its 24-bit precision is the same on every machine.
     """
     freqs = gaussian_family().freqs[index]
-    return constriction.stream.model.Categorical(freqs / float(TOTAL), perfect=False)
+    return categorical_model(freqs)
 
 
 def parse_gaussian_family(data: bytes) -> TableFamily:

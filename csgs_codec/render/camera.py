@@ -6,6 +6,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: Largest camera file (cameras.json, transforms.json, COLMAP) read into memory (bytes); real
+#: ones are a few MB at most.
+MAX_CAMERA_FILE_BYTES = 256 * 1024 * 1024
+#: Largest image side accepted from a camera file (pixels).
+MAX_IMAGE_SIDE = 1 << 16
 #: Near plane in camera-space z (world units) of a camera that does not set one: Gaussians
 #: closer are culled.
 DEFAULT_NEAR_PLANE = 0.01

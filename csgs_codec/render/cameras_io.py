@@ -29,12 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.errors import CsgsWarning, InputError
-from csgs_codec.render.camera import Camera
-
-#: Largest cameras file read into memory (bytes); real ones are a few MB at most.
-MAX_CAMERA_FILE_BYTES = 256 * 1024 * 1024
-#: Largest image side accepted from a camera file (pixels).
-MAX_IMAGE_SIDE = 1 << 16
+from csgs_codec.render.camera import MAX_CAMERA_FILE_BYTES, MAX_IMAGE_SIDE, Camera
+from csgs_codec.render.colmap_io import is_colmap_path, load_colmap_cameras
 
 #: OpenGL camera axes (x right, y up, z back) to OpenCV (x right, y down, z forward).
 OPENGL_TO_OPENCV = np.diag([1.0, -1.0, -1.0, 1.0])
@@ -51,8 +47,6 @@ def load_cameras(path: str | Path) -> list[Camera]:
     Raises:
         InputError: unreadable file, unknown format or a malformed field (named).
     """
-    from csgs_codec.render.colmap_io import is_colmap_path, load_colmap_cameras
-
     path = Path(path)
     if not path.exists():
         raise InputError("no such file or folder", file=path)

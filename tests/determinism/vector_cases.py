@@ -96,9 +96,9 @@ def _residual_run(data_path: Path, inputs: dict) -> Callable[[], str]:
 
 def _network_run(data_path: Path, positions: list) -> Callable[[], str]:
     def run() -> str:
-        from csgs_codec.entropy.intnet import IntMLP
+        from csgs_codec.entropy.intnet_bytes import intnet_from_bytes
 
-        net = IntMLP.from_bytes(data_path.read_bytes())
+        net = intnet_from_bytes(data_path.read_bytes())
         x = np.array(positions, dtype=np.int64)
         return json_digest({"embedding_first_row": net.embed(x[:1])[0].tolist(),
                             "float64": net.forward(x, "float64").tolist(),

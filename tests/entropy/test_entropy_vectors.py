@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 
 from csgs_codec.conformance import VECTORS_DIR
-from csgs_codec.entropy.intnet import IntMLP
-from csgs_codec.entropy.intnet_bytes import intnet_to_bytes
+from csgs_codec.entropy.intnet_bytes import intnet_from_bytes, intnet_to_bytes
 from csgs_codec.entropy.residual import decode_residuals, encode_residuals
 from csgs_codec.entropy.tables import GAUSSIAN_V1_SHA256, SINE_V1_SHA256, gaussian_family
 from csgs_codec.errors import CsgsError
@@ -64,7 +63,7 @@ def test_residual_vector_decodes_as_recorded(path):
 def test_network_vector_decodes_as_recorded(path):
     doc, data = _load(path)
     if doc["outcome"] == "ok":
-        net = IntMLP.from_bytes(data)
+        net = intnet_from_bytes(data)
         positions = _ints(doc["positions"])
         assert net.embed(positions[:1])[0].tolist() == doc["embedding_first_row"]
         for route in ("float64", "int64"):
@@ -72,6 +71,6 @@ def test_network_vector_decodes_as_recorded(path):
         assert intnet_to_bytes(net, data[0]) == data  # re-encodes to the same bytes
     else:
         with pytest.raises(CsgsError) as info:
-            IntMLP.from_bytes(data)
+            intnet_from_bytes(data)
         assert type(info.value).__name__ == doc["error"]
         assert info.value.offset == doc["offset"]
