@@ -9,7 +9,7 @@ import numpy as np
 from csgs_cli.main import main
 from csgs_codec.scene.ply_io import read_ply, write_ply
 from tests.codec.helpers import random_scene
-from tests.conftest import FIXTURES, SAMPLE
+from tests.conftest import SAMPLE, fixture
 
 
 def test_encode_info_decode_round_trip(tmp_path, capsys):
@@ -55,7 +55,7 @@ def test_bad_ply_gives_exit_2_and_no_output(tmp_path, capsys):
 
 def test_damaged_csgs_gives_exit_2_and_no_output(tmp_path, capsys):
     good = tmp_path / "good.csgs"
-    assert main(["encode", str(FIXTURES / "three_points_sh3.ply"), "-o", str(good), "-q"]) == 0
+    assert main(["encode", str(fixture("three_points_sh3.ply")), "-o", str(good), "-q"]) == 0
     data = bytearray(good.read_bytes())
     data[-10] ^= 0x40
     bad = tmp_path / "bad.csgs"
@@ -74,7 +74,7 @@ def test_decode_of_a_ply_is_a_clear_error(tmp_path, capsys):
 
 def test_info_reports_bits_per_gaussian_per_chunk(tmp_path, capsys):
     out = tmp_path / "three.csgs"
-    assert main(["encode", str(FIXTURES / "three_points_sh3.ply"), "-o", str(out), "-q"]) == 0
+    assert main(["encode", str(fixture("three_points_sh3.ply")), "-o", str(out), "-q"]) == 0
     capsys.readouterr()
     assert main(["info", str(out), "--json"]) == 0
     facts = json.loads(capsys.readouterr().out)

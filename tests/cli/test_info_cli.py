@@ -11,7 +11,7 @@ import pytest
 
 from csgs_cli.main import main
 from csgs_codec import __version__
-from tests.conftest import FIXTURES, SAMPLE, SCENES
+from tests.conftest import SAMPLE, fixture, shared_path
 from tests.scene.ply_samples import make_ply, property_names, random_values
 
 
@@ -21,13 +21,13 @@ def run_json(capsys, *argv) -> dict:
 
 
 def test_info_playbot_reports_count_and_degree(capsys):
-    facts = run_json(capsys, str(SCENES / "playbot.ply"))
+    facts = run_json(capsys, str(shared_path("scenes", "playbot.ply")))
     assert facts["gaussians"] == 248155
     assert facts["sh_degree_stored"] == 2 and facts["sh_degree_in_use"] == 2
 
 
 def test_info_zero_sh_tile_reports_degree_three_stored_zero_in_use(capsys):
-    facts = run_json(capsys, str(FIXTURES / "flat_tile_zero_sh.ply"))
+    facts = run_json(capsys, str(fixture("flat_tile_zero_sh.ply")))
     assert facts["sh_degree_stored"] == 3 and facts["sh_degree_in_use"] == 0
     assert facts["zero_sh_bands"] == [1, 2, 3]
 

@@ -13,9 +13,9 @@ from csgs_codec.scene.attribute_forms import normalize_quaternions
 from csgs_codec.scene.ply_io import read_ply
 from csgs_codec.scene.position_grid import PositionGrid
 from tests.codec.helpers import random_scene
-from tests.conftest import FIXTURES, SAMPLE, SCENES
+from tests.conftest import SAMPLE, SCENES, fixture, fixture_files
 
-ALL_FILES = sorted(SCENES.glob("*.ply")) + sorted(FIXTURES.glob("*.ply"))
+ALL_FILES = sorted(SCENES.glob("*.ply")) + fixture_files()
 
 
 def round_trip(scene, quality=6, **kw):
@@ -63,14 +63,14 @@ def test_higher_quality_means_more_bytes_and_smaller_errors():
 
 
 def test_zero_sh_tile_spends_no_bytes_on_sh():
-    scene = read_ply(FIXTURES / "flat_tile_zero_sh.ply")
+    scene = read_ply(fixture("flat_tile_zero_sh.ply"))
     result, decoded = round_trip(scene)
     assert not {"SHBA", "SHBB", "SHBC"} & set(result.stream_bytes)
     assert decoded.sh_rest.shape == (len(scene), 15, 3) and not decoded.sh_rest.any()
 
 
 def test_three_point_sh3_fixture_codes_every_band():
-    scene = read_ply(FIXTURES / "three_points_sh3.ply")
+    scene = read_ply(fixture("three_points_sh3.ply"))
     result, decoded = round_trip(scene, quality=9)
     assert {"SHBA", "SHBB", "SHBC"} <= set(result.stream_bytes)
     ref = scene.subset(result.order)

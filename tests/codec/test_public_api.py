@@ -6,15 +6,15 @@ import subprocess
 import sys
 
 import csgs_codec
-from tests.conftest import FIXTURES
+from tests.conftest import fixture
 
 
 def test_readme_api_round_trip(tmp_path):
-    scene = csgs_codec.read_ply(FIXTURES / "three_points_sh3.ply")
+    scene = csgs_codec.read_ply(fixture("three_points_sh3.ply"))
     data = csgs_codec.Encoder(quality=9).encode(scene)
     decoded = csgs_codec.Decoder().decode(data, layers="color")
     assert isinstance(decoded, csgs_codec.GaussianScene) and len(decoded) == 3
-    result = csgs_codec.encode_file(FIXTURES / "three_points_sh3.ply", tmp_path / "s.csgs",
+    result = csgs_codec.encode_file(fixture("three_points_sh3.ply"), tmp_path / "s.csgs",
                                     quality=9)
     assert (tmp_path / "s.csgs").read_bytes() == result.data == data
     assert csgs_codec.decode_file(tmp_path / "s.csgs", tmp_path / "s.ply") == 3

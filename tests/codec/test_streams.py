@@ -10,11 +10,11 @@ from csgs_codec.codec.streams import constant_channels, join_streams, split_stre
 from csgs_codec.errors import InputError
 from csgs_codec.scene.attribute_forms import normalize_quaternions
 from csgs_codec.scene.ply_io import read_ply
-from tests.conftest import FIXTURES, SAMPLE
+from tests.conftest import SAMPLE, fixture
 
 
 def test_zero_sh_bands_get_no_stream_and_decode_as_zeros():
-    scene = read_ply(FIXTURES / "flat_tile_zero_sh.ply")
+    scene = read_ply(fixture("flat_tile_zero_sh.ply"))
     streams = split_streams(scene)
     assert not any(name.startswith("rest") for name in streams.float_streams)
     back = join_streams(streams, scene.positions)
@@ -22,7 +22,7 @@ def test_zero_sh_bands_get_no_stream_and_decode_as_zeros():
 
 
 def test_split_then_join_restores_every_attribute():
-    scene = read_ply(FIXTURES / "sh3_iter7000.ply")
+    scene = read_ply(fixture("sh3_iter7000.ply"))
     back = join_streams(split_streams(scene), scene.positions)
     np.testing.assert_array_equal(back.sh_dc, scene.sh_dc)
     np.testing.assert_array_equal(back.sh_rest, scene.sh_rest)
@@ -33,7 +33,7 @@ def test_split_then_join_restores_every_attribute():
 
 
 def test_sh_bands_are_split_per_band():
-    scene = read_ply(FIXTURES / "three_points_sh3.ply")
+    scene = read_ply(fixture("three_points_sh3.ply"))
     streams = split_streams(scene).float_streams
     assert streams["rest1"].shape == (3, 9)
     assert streams["rest2"].shape == (3, 15)

@@ -8,7 +8,7 @@ import pytest
 from csgs_codec.errors import InputError
 from csgs_codec.render.orbit import guess_up_axis, orbit_cameras, parse_up, robust_bounds
 from csgs_codec.scene.gaussian_scene import GaussianScene
-from tests.conftest import SCENES
+from tests.conftest import shared_path
 from tests.render.synthetic import blob_scene, project, scene_from
 
 
@@ -98,7 +98,7 @@ def test_guess_up_defaults_to_minus_y_for_captures():
 def test_guess_up_on_real_scenes(name, up):
     from csgs_codec.scene.ply_io import read_ply
 
-    path = SCENES / f"{name}.ply"
+    path = shared_path("scenes", f"{name}.ply")
     if not path.exists():
         pytest.skip(f"shared data not present: {path}")
     assert tuple(guess_up_axis(read_ply(path))) == up

@@ -8,10 +8,10 @@ import pytest
 
 from csgs_codec.scene import GaussianScene
 from csgs_codec.scene.ply_io import parse_ply_bytes, ply_bytes, read_ply, write_ply
-from tests.conftest import FIXTURES, SAMPLE, SCENES
+from tests.conftest import SAMPLE, SCENES, fixture, fixture_files, shared_path
 from tests.scene.ply_samples import make_ply, property_names, random_values
 
-SHARED_FILES = sorted(SCENES.glob("*.ply")) + sorted(FIXTURES.glob("*.ply"))
+SHARED_FILES = sorted(SCENES.glob("*.ply")) + fixture_files()
 
 
 @pytest.mark.parametrize("path", SHARED_FILES + [SAMPLE], ids=lambda p: p.name)
@@ -39,7 +39,7 @@ def test_reader_agrees_with_plyfile(path):
 
 
 def test_three_points_nonstandard_order_maps_by_name():
-    path = FIXTURES / "three_points_sh3.ply"
+    path = fixture("three_points_sh3.ply")
     scene = read_ply(path)
     vertex = plyfile.PlyData.read(str(path))["vertex"]
     assert len(scene) == 3 and scene.sh_degree_stored == 3
@@ -48,13 +48,13 @@ def test_three_points_nonstandard_order_maps_by_name():
 
 
 def test_playbot_is_degree_two():
-    scene = read_ply(SCENES / "playbot.ply")
+    scene = read_ply(shared_path("scenes", "playbot.ply"))
     assert len(scene) == 248155
     assert scene.sh_degree_stored == 2 and scene.sh_degree_in_use() == 2
 
 
 def test_zero_sh_tile_stores_degree_three_uses_zero():
-    scene = read_ply(FIXTURES / "flat_tile_zero_sh.ply")
+    scene = read_ply(fixture("flat_tile_zero_sh.ply"))
     assert scene.sh_degree_stored == 3
     assert scene.sh_degree_in_use() == 0
     assert scene.zero_sh_bands() == [1, 2, 3]
@@ -130,7 +130,7 @@ def test_other_elements_before_vertex_are_skipped():
 
 
 def test_writer_uses_inria_order():
-    scene = read_ply(FIXTURES / "three_points_sh3.ply")
+    scene = read_ply(fixture("three_points_sh3.ply"))
     header = ply_bytes(scene).split(b"end_header")[0].decode()
     props = [ln.split()[-1] for ln in header.splitlines() if ln.startswith("property")]
     assert props == property_names(45)
@@ -144,7 +144,7 @@ def test_empty_scene_round_trips(tmp_path):
 
 
 def test_write_never_leaves_partial_file(tmp_path, monkeypatch):
-    scene = read_ply(FIXTURES / "three_points_sh3.ply")
+    scene = read_ply(fixture("three_points_sh3.ply"))
     target = tmp_path / "out.ply"
     import os
 
@@ -162,7 +162,7 @@ def test_written_file_has_ordinary_permissions(tmp_path):
     import os
     import stat
 
-    write_ply(read_ply(FIXTURES / "three_points_sh3.ply"), tmp_path / "p.ply")
+    write_ply(read_ply(fixture("three_points_sh3.ply")), tmp_path / "p.ply")
     mask = os.umask(0)
     os.umask(mask)
     mode = stat.S_IMODE((tmp_path / "p.ply").stat().st_mode)
