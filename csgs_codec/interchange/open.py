@@ -1,0 +1,179 @@
+"""Opening any scene file: the format is recognised by content, the extension only where
+the content cannot tell (``.splat`` has no header)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from csgs_codec.errors import InputError, UnsupportedError
+from csgs_codec.format import MAGIC as CSGS_MAGIC
+from csgs_codec.interchange.source import SceneSource
+from csgs_codec.scene.gaussian_scene import GaussianScene
+
+#: How many leading bytes :func:`detect_format` looks at.
+SNIFF_BYTES = 64
+#: Every format :func:`detect_format` can name, with what reads it.
+FORMATS = ("csgs", "ply", "compressed-ply", "splat", "ksplat", "spz", "sog", "glb")
+
+
+def _head(path: Path) -> bytes:
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(SNIFF_BYTES)
+    except FileNotFoundError:
+        raise InputError("no such file", file=path) from None
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror or exc}", file=path) from None
+
+
+def detect_format(path: str | os.PathLike) -> str:
+    """The format of the scene file or folder at ``path``: one of :data:`FORMATS`.
+
+    A folder is a SOG when it holds ``meta.json`` (so is a ``meta.json`` file). Files are
+    recognised by their first bytes: the .csgs magic, ``ply`` (a compressed PLY is told
+    apart when read), gzip or ``NGSP`` (SPZ), ``PK`` (a SOG zip), ``glTF``, the .ksplat
+    version and header fields; a file with none of these is a ``.splat`` only when so
+    named (that format has no header).
+
+    Raises:
+        InputError: a missing file, a folder without ``meta.json``, or bytes that are none
+            of the formats.
+    """
+    from csgs_codec.interchange import ksplat, spz
+    from csgs_codec.interchange.gltf import GLB_MAGIC
+    from csgs_codec.interchange.sog import ZIP_MAGIC
+
+    path = Path(path)
+    if path.is_dir():
+        if (path / "meta.json").is_file():
+            return "sog"
+        raise InputError("a folder without meta.json is no scene (a SOG folder holds "
+                         "meta.json and its images)", file=path)
+    if path.name == "meta.json":
+        return "sog"
+    head = _head(path)
+    suffix = path.suffix.lower()
+    if head.startswith(CSGS_MAGIC):
+        return "csgs"
+    if head.startswith(b"ply"):
+        return "ply"
+    if head.startswith(spz.GZIP_MAGIC) or head.startswith(spz.NGSP_MAGIC):
+        return "spz"
+    if head.startswith(ZIP_MAGIC):
+        return "sog"
+    if head.startswith(GLB_MAGIC):
+        return "glb"
+    if suffix == ".splat":
+        return "splat"
+    if ksplat.looks_like_ksplat(head) and suffix != ".splat":
+        return "ksplat"
+    if not head:
+        raise InputError("empty file", file=path, offset=0)
+    if suffix == ".gltf":
+        raise UnsupportedError("a .gltf JSON file: csgs reads the binary .glb form", file=path)
+    raise InputError("not a scene file csgs knows (expected PLY, compressed PLY, .splat, "
+                     ".ksplat, SPZ, SOG, GLB or .csgs content)", file=path, offset=0)
+
+
+def _read_bytes(path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror or exc}", file=path) from None
+
+
+def read_scene(path: str | os.PathLike, *, sanitize: bool = False,
+               layers: str = "color,semantic") -> tuple[GaussianScene, SceneSource]:
+    """Read the scene in ``path`` whatever its format (see :func:`detect_format`).
+
+    Args:
+        path: a scene file, a SOG folder or its ``meta.json``.
+        sanitize: PLY only: drop Gaussians with NaN/Inf values instead of failing.
+        layers: ``.csgs`` only: the layers to decode.
+
+    Returns:
+        (scene in INRIA PLY conventions, what the file was).
+
+    Raises:
+        InputError: unreadable or malformed input, naming the file and byte offset,
+            property or chunk.
+        FormatError: a malformed ``.csgs``.
+        UnsupportedError: something well formed csgs does not read (an anchor-scene
+            ``.csgs``, SPZ SH degree 4, a missing optional package).
+    """
+    path = Path(path)
+    kind = detect_format(path)
+    source = str(path)
+    if kind == "csgs":
+        return _read_csgs(path, layers)
+    if kind == "sog":
+        from csgs_codec.interchange.sog import read_sog
+
+        scene, info = read_sog(path)
+    elif kind == "ply":
+        scene, info = _read_ply(path, sanitize)
+    else:
+        parse = _PARSERS[kind]()
+        scene, info = parse(_read_bytes(path), source)
+    scene.validate(source)
+    return scene, info
+
+
+def open_scene(path: str | os.PathLike, *, sanitize: bool = False,
+               layers: str = "color,semantic") -> GaussianScene:
+    """The Gaussian scene in ``path`` (any format csgs reads); see :func:`read_scene`."""
+    return read_scene(path, sanitize=sanitize, layers=layers)[0]
+
+
+def _read_ply(path: Path, sanitize: bool) -> tuple[GaussianScene, SceneSource]:
+    from csgs_codec.interchange.compressed_ply import is_compressed_ply, parse_compressed_ply
+    from csgs_codec.scene.ply_header import MAX_HEADER_BYTES, parse_header
+    from csgs_codec.scene.ply_reader import parse_ply_bytes
+
+    data = _read_bytes(path)
+    header = parse_header(data[:MAX_HEADER_BYTES], str(path))
+    if is_compressed_ply(header):
+        return parse_compressed_ply(data, str(path))
+    scene, report = parse_ply_bytes(data, source=str(path), sanitize=sanitize)
+    details = {"ply_format": report.format, "ignored_properties": report.dropped_properties,
+               "nonfinite_dropped": report.nonfinite_dropped}
+    return scene, SceneSource("ply", "3DGS PLY", details=details)
+
+
+def _read_csgs(path: Path, layers: str) -> tuple[GaussianScene, SceneSource]:
+    from csgs_codec.codec.anchor_decoder import is_anchor_file
+    from csgs_codec.codec.decoder import Decoder
+
+    if is_anchor_file(path):
+        raise UnsupportedError("an anchor-scene .csgs (Scaffold-GS anchors, not Gaussians): "
+                               "AnchorDecoder reads it", file=path)
+    scene = Decoder().decode(path, layers=layers)
+    return scene, SceneSource("csgs", "csgs bitstream", lossy=True)
+
+
+def _splat():
+    from csgs_codec.interchange.splat import parse_splat
+
+    return parse_splat
+
+
+def _ksplat():
+    from csgs_codec.interchange.ksplat import parse_ksplat
+
+    return parse_ksplat
+
+
+def _spz():
+    from csgs_codec.interchange.spz import parse_spz
+
+    return parse_spz
+
+
+def _glb():
+    from csgs_codec.interchange.gltf import parse_glb
+
+    return parse_glb
+
+
+_PARSERS = {"splat": _splat, "ksplat": _ksplat, "spz": _spz, "glb": _glb}
