@@ -158,8 +158,8 @@ def main() -> int:
                "brush_sh3.v4.spz", "donut_sh0.v4.spz", "brush_sh3.l0.ksplat",
                "brush_sh3.l1.ksplat", "brush_sh3.l2.ksplat", "brush_sh3.l2_sh1.ksplat",
                "donut_sh0.l1.ksplat", "brush_sh3.splat", "donut_sh0.splat"]
-    if (OUT / "donut_sh0_sog_v1" / "meta.json").is_file():
-        oracles.append("donut_sh0_sog_v1/meta.json")
+    if (OUT / "brush_sh1_sog_v1" / "meta.json").is_file():
+        oracles.append("brush_sh1_sog_v1/meta.json")
     for name in oracles:
         target = OUT / "oracle" / (name.replace("/meta.json", "").replace(".", "_") + ".ply")
         splat_transform(str(OUT / name), str(target))

@@ -20,7 +20,8 @@ needs zstandard (same extra).
 from __future__ import annotations
 
 from csgs_codec.interchange.open import detect_format, open_scene, read_scene
-from csgs_codec.interchange.source import SceneSource
+from csgs_codec.interchange.source import SceneSource, warn_if_lossy
 from csgs_codec.interchange.writers import WRITERS, write_scene
 
-__all__ = ["SceneSource", "WRITERS", "detect_format", "open_scene", "read_scene", "write_scene"]
+__all__ = ["SceneSource", "WRITERS", "detect_format", "open_scene", "read_scene", "warn_if_lossy",
+           "write_scene"]

@@ -45,13 +45,14 @@ DEFAULT_SH_RANGE = 1.5
 
 def looks_like_ksplat(head: bytes) -> bool:
     """True when ``head`` (the first bytes) could start a .ksplat: version 0.x with x >= 1,
-    a compression level 0-2 and a non-zero section count."""
+    a compression level 0-2 and a non-zero section count (checked against the file when
+    read)."""
     if len(head) < 24:
         return False
     major, minor = head[0], head[1]
     sections = int.from_bytes(head[4:8], "little")
     level = int.from_bytes(head[20:22], "little")
-    return major == 0 and minor >= 1 and level <= 2 and 0 < sections <= 1 << 16
+    return major == 0 and minor >= 1 and level <= 2 and sections > 0
 
 
 def parse_ksplat(data: bytes, source: str = "<bytes>") -> tuple[GaussianScene, SceneSource]:

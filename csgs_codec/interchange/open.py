@@ -13,8 +13,11 @@ from csgs_codec.scene.gaussian_scene import GaussianScene
 
 #: How many leading bytes :func:`detect_format` looks at.
 SNIFF_BYTES = 64
-#: Every format :func:`detect_format` can name, with what reads it.
-FORMATS = ("csgs", "ply", "compressed-ply", "splat", "ksplat", "spz", "sog", "glb")
+#: Every format :func:`detect_format` can name.
+FORMATS = ("csgs", "ply", "splat", "ksplat", "spz", "sog", "glb")
+#: The readable formats as users know them, for messages and help.
+READABLE = ("3DGS PLY, PlayCanvas compressed PLY, .splat, .ksplat, SPZ, SOG (.sog or a folder "
+            "with meta.json), glTF .glb with KHR_gaussian_splatting")
 
 
 def _head(path: Path) -> bytes:
@@ -22,13 +25,14 @@ def _head(path: Path) -> bytes:
         with open(path, "rb") as fh:
             return fh.read(SNIFF_BYTES)
     except FileNotFoundError:
-        raise InputError("no such file", file=path) from None
+        raise InputError("file not found", file=path) from None
     except OSError as exc:
         raise InputError(f"cannot read: {exc.strerror or exc}", file=path) from None
 
 
 def detect_format(path: str | os.PathLike) -> str:
-    """The format of the scene file or folder at ``path``: one of :data:`FORMATS`.
+    """The format of the scene file or folder at ``path``: one of :data:`FORMATS` ("ply"
+    covers the compressed PLY too, told apart when read).
 
     A folder is a SOG when it holds ``meta.json`` (so is a ``meta.json`` file). Files are
     recognised by their first bytes: the .csgs magic, ``ply`` (a compressed PLY is told
@@ -37,8 +41,8 @@ def detect_format(path: str | os.PathLike) -> str:
     named (that format has no header).
 
     Raises:
-        InputError: a missing file, a folder without ``meta.json``, or bytes that are none
-            of the formats.
+        InputError: a missing or empty file, a folder without ``meta.json``.
+        UnsupportedError: bytes that are none of the formats.
     """
     from csgs_codec.interchange import ksplat, spz
     from csgs_codec.interchange.gltf import GLB_MAGIC
@@ -72,8 +76,8 @@ def detect_format(path: str | os.PathLike) -> str:
         raise InputError("empty file", file=path, offset=0)
     if suffix == ".gltf":
         raise UnsupportedError("a .gltf JSON file: csgs reads the binary .glb form", file=path)
-    raise InputError("not a scene file csgs knows (expected PLY, compressed PLY, .splat, "
-                     ".ksplat, SPZ, SOG, GLB or .csgs content)", file=path, offset=0)
+    raise UnsupportedError(f"neither a .csgs bitstream (no .csgs magic) nor a scene file csgs "
+                           f"reads ({READABLE})", file=path, offset=0)
 
 
 def _read_bytes(path: Path) -> bytes:

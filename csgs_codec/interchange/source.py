@@ -28,3 +28,17 @@ class SceneSource:
     def title(self) -> str:
         """``label`` with its version, e.g. "Niantic SPZ v4"."""
         return f"{self.label} v{self.version}" if self.version else self.label
+
+
+def warn_if_lossy(source: SceneSource, path) -> None:
+    """Warn (:class:`~csgs_codec.errors.CompoundedLossWarning`) when ``source`` is a lossy
+    format: re-encoding quantized values compounds the loss."""
+    import warnings
+
+    from csgs_codec.errors import CompoundedLossWarning
+
+    if source.lossy and source.format != "csgs":
+        warnings.warn(f"{path}: {source.title()} is a lossy format; encoding it quantizes "
+                      "values that were already quantized, so the losses add up (encode "
+                      "the full-precision original when you have it)", CompoundedLossWarning,
+                      stacklevel=3)

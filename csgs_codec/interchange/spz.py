@@ -108,6 +108,9 @@ def _parse_legacy(raw: Bytes) -> tuple[dict, dict]:
     except zlib.error as exc:
         raise raw.error(f"corrupt gzip stream ({exc})",
                         offset=len(raw) - len(d.unconsumed_tail)) from None
+    if not d.eof:
+        raise raw.error("the gzip stream ends before its end marker and checksum (truncated "
+                        "file)", offset=len(raw))
     if len(trailer) > MAX_LEGACY_TRAILER or (trailer and not flags & FLAG_EXTENSIONS):
         raise raw.error(f"{len(trailer)} bytes follow the attribute blocks and the header "
                         "declares no extensions", offset=len(raw) - len(d.unconsumed_tail))
