@@ -66,6 +66,9 @@ def parse_compressed_ply(data: bytes, source: str = "<bytes>"
         offset += el.count * el.row_bytes
     if offset != len(data):
         raise raw.error(f"{len(data) - offset} bytes follow the last element", offset=offset)
+    for name in ("chunk", "vertex"):
+        if name not in columns:
+            raise raw.error(f"no '{name}' element (not a compressed PLY)", offset=0)
     chunk, vertex = columns["chunk"], columns["vertex"]
     for name in BOUNDS:
         if name not in chunk.dtype.names:

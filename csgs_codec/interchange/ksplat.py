@@ -131,12 +131,15 @@ def _section(raw, offset, count, level, record, components, sh_min, sh_max, buck
         centres = raw.array(offset + 4 * partial, np.float32, 3 * buckets,
                             f"section {s} bucket centres").reshape(buckets, 3)
         storage = 12 * buckets + 4 * partial
-        sizes = np.concatenate([np.full(full, bucket_size, np.int64),
-                                lengths.astype(np.int64)])
-        if int(sizes.sum()) < count:
-            raise raw.error(f"section {s}: buckets hold {int(sizes.sum())} splats, {count} "
-                            "declared", offset=offset)
-        bucket_of = np.repeat(np.arange(buckets), sizes)[:count]
+        if partial and int(lengths.max()) > bucket_size:
+            raise raw.error(f"section {s}: a partial bucket of {int(lengths.max())} splats "
+                            f"in buckets of {bucket_size}", offset=offset)
+        ends = np.cumsum(np.concatenate([np.full(full, bucket_size, np.int64),
+                                         lengths.astype(np.int64)]))
+        if not buckets or int(ends[-1]) < count:
+            raise raw.error(f"section {s}: buckets hold {int(ends[-1]) if buckets else 0} "
+                            f"splats, {count} declared", offset=offset)
+        bucket_of = np.searchsorted(ends, np.arange(count), side="right")
     rows = raw.array(offset + storage, np.uint8, record * count,
                      f"section {s} splats").reshape(count, record)
     at = 0

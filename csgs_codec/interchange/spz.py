@@ -143,20 +143,31 @@ def _parse_v4(raw: Bytes) -> tuple[dict, dict]:
             raise raw.error(f"stream {i} ({name}) declares {unpacked} bytes, expected {size}",
                             offset=toc + 16 * i + 8)
         raw.need(at, packed, f"stream {i} ({name})")
-        try:
-            blocks[name] = zstd.ZstdDecompressor().decompress(raw.data[at:at + packed],
-                                                              max_output_size=size)
-        except zstd.ZstdError as exc:
-            raise raw.error(f"corrupt zstd stream {i} ({name}): {exc}", offset=at) from None
-        if len(blocks[name]) != size:
-            raise raw.error(f"stream {i} ({name}) holds {len(blocks[name])} bytes, {size} "
-                            "declared", offset=at)
+        blocks[name] = _unzstd(zstd, raw, at, packed, size, f"stream {i} ({name})")
         at += packed
     if at != len(raw):
         raise raw.error(f"{len(raw) - at} bytes follow the last stream", offset=at)
     header = {"version": version, "n": n, "sh_degree": sh_degree, "fractional_bits":
               fractional, "flags": flags}
     return header, blocks
+
+
+def _unzstd(zstd, raw: Bytes, at: int, packed: int, size: int, what: str) -> bytes:
+    """The ``size`` bytes of the zstd frame at ``at``, never decompressing more (a frame may
+    declare any content size)."""
+    frame = raw.data[at:at + packed]
+    try:
+        declared = zstd.frame_content_size(frame)
+        if declared not in (-1, size):
+            raise raw.error(f"{what}: the zstd frame declares {declared} bytes, {size} "
+                            "expected", offset=at)
+        with zstd.ZstdDecompressor().stream_reader(frame, read_across_frames=False) as reader:
+            out = reader.read(size + 1)
+    except zstd.ZstdError as exc:
+        raise raw.error(f"corrupt zstd {what}: {exc}", offset=at) from None
+    if len(out) != size:
+        raise raw.error(f"{what} holds {len(out)} bytes, {size} declared", offset=at)
+    return out
 
 
 def parse_spz(data: bytes, source: str = "<bytes>") -> tuple[GaussianScene, SceneSource]:
