@@ -13,7 +13,7 @@ $(STAMP): pyproject.toml setup.py scripts/system-deps.sh
 	$(PY) -m pip install --quiet --upgrade pip
 	# torch first, pinned, so nothing later pulls a CUDA build.
 	$(PY) -m pip install --quiet torch==2.13.0
-	$(PY) -m pip install --quiet -e '.[dev,fast]'
+	$(PY) -m pip install --quiet -e '.[dev,fast,formats]'
 	touch $(STAMP)
 
 demo: $(STAMP)

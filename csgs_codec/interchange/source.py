@@ -37,7 +37,7 @@ def warn_if_lossy(source: SceneSource, path) -> None:
 
     from csgs_codec.errors import CompoundedLossWarning
 
-    if source.lossy and source.format != "csgs":
+    if source.lossy:
         warnings.warn(f"{path}: {source.title()} is a lossy format; encoding it quantizes "
                       "values that were already quantized, so the losses add up (encode "
                       "the full-precision original when you have it)", CompoundedLossWarning,

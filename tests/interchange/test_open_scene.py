@@ -77,3 +77,15 @@ def test_missing_empty_and_unknown_files(tmp_path):
     (tmp_path / "scene.gltf").write_text("{}")
     with pytest.raises(UnsupportedError, match="binary .glb"):
         open_scene(tmp_path / "scene.gltf")
+
+
+def test_a_missing_optional_package_names_the_extra(monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "zstandard", None)  # import raises ImportError
+    with pytest.raises(UnsupportedError, match=r"'formats' extra.*csgs\[formats\]"):
+        open_scene(DATA / "brush_sh3.v4.spz")
+    monkeypatch.setitem(sys.modules, "PIL.Image", None)
+    with pytest.raises(UnsupportedError, match="'formats' extra"):
+        open_scene(DATA / "brush_sh3.sog")
+    assert len(open_scene(DATA / "brush_sh3.v3.spz")) == 200  # gzip: no extra needed
