@@ -83,11 +83,11 @@ def parse_compressed_ply(data: bytes, source: str = "<bytes>"
     which = np.arange(n) // CHUNK
     bound = {name: chunk[name].astype(np.float64)[which] for name in chunk.dtype.names}
     scene = GaussianScene(
-        positions=_lerp_11_10_11(vertex["packed_position"], bound, "", ""),
+        positions=_lerp_11_10_11(vertex["packed_position"], bound, ""),
         sh_dc=_colours(vertex["packed_color"], bound),
         sh_rest=_sh(columns.get("sh"), n, raw),
         opacity=alpha_to_logit((vertex["packed_color"] & 0xFF) / 255.0),
-        scales=_lerp_11_10_11(vertex["packed_scale"], bound, "scale_", ""),
+        scales=_lerp_11_10_11(vertex["packed_scale"], bound, "scale_"),
         rotations=_rotations(vertex["packed_rotation"]),
     )
     details = {"chunks": len(chunk), "colour_bounds": all(c in chunk.dtype.names
@@ -100,7 +100,9 @@ def _unorm(values: np.ndarray, shift: int, bits: int) -> np.ndarray:
     return ((values.astype(np.int64) >> shift) & ((1 << bits) - 1)) / float((1 << bits) - 1)
 
 
-def _lerp_11_10_11(packed, bound, prefix, _suffix) -> np.ndarray:
+def _lerp_11_10_11(packed, bound, prefix: str) -> np.ndarray:
+    """(N, 3) float32 of 11/10/11-bit fields spread over the chunks' ``min_<prefix>x`` ..
+    ``max_<prefix>z`` boxes."""
     out = []
     for axis, (shift, bits) in zip("xyz", ((21, 11), (11, 10), (0, 11))):
         lo, hi = bound[f"min_{prefix}{axis}"], bound[f"max_{prefix}{axis}"]
