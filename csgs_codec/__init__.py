@@ -32,8 +32,8 @@ _LAZY = {
     "read_scaffold": "csgs_codec.scene.scaffold_io",
     "write_scaffold": "csgs_codec.scene.scaffold_io",
     "select_at_click": "csgs_codec.semantic.selection",
-    "open_scene": "csgs_codec.interchange",
-    "read_scene": "csgs_codec.interchange",
+    "open_scene": "csgs_codec.scene_files",
+    "read_scene": "csgs_codec.scene_files",
     "write_scene": "csgs_codec.interchange",
 }
 __all__ = ["__version__", *_LAZY]

@@ -69,7 +69,8 @@ def run(args) -> int:
     from csgs_cli.scene_input import inria_output, is_anchor_input
     from csgs_codec.atomic_write import check_output, write_atomically
     from csgs_codec.codec.encoder import Encoder
-    from csgs_codec.interchange import read_scene, warn_if_lossy
+    from csgs_codec.interchange import warn_if_lossy
+    from csgs_codec.scene_files import read_scene
 
     _check_exclusive(args)
     inria = inria_output(args.scene)

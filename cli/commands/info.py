@@ -51,8 +51,8 @@ def describe_file(path: str, *, sanitize: bool = False) -> dict:
     """JSON-ready facts about the scene in ``path`` (any format csgs reads): ``format``
     (short name), ``format_name`` (with its version), ``format_version``, ``lossy``,
     ``details`` (format-specific), the scene summary, and for PLY input ``ply_format``."""
-    from csgs_codec.interchange import read_scene
     from csgs_codec.scene.summary import summarize_scene
+    from csgs_codec.scene_files import read_scene
 
     scene, source = read_scene(path, sanitize=sanitize)
     details = dict(source.details)

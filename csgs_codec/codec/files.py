@@ -7,18 +7,18 @@ import os
 from csgs_codec.atomic_write import check_output, write_atomically
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder, EncodeResult
-from csgs_codec.interchange import read_scene, warn_if_lossy, write_scene
+from csgs_codec.interchange import read_interchange, warn_if_lossy, write_scene
 
 
 def encode_file(ply_path: str | os.PathLike, csgs_path: str | os.PathLike, *,
                 quality: int = 5, semantic: str = "auto", prune_opacity: float | None = None,
                 sanitize: bool = False) -> EncodeResult:
     """Encode the scene at ``ply_path`` (a 3DGS PLY or any format
-    :func:`csgs_codec.interchange.read_scene` reads; a lossy one warns) into ``csgs_path``
+    :func:`csgs_codec.interchange.read_interchange` reads; a lossy one warns) into ``csgs_path``
     (written atomically; an output that is the input, not a regular file or not writable is
     refused up front)."""
     check_output(csgs_path, [ply_path])
-    scene, source = read_scene(ply_path, sanitize=sanitize)
+    scene, source = read_interchange(ply_path, sanitize=sanitize)
     warn_if_lossy(source, ply_path)
     result = Encoder(quality=quality, semantic=semantic,
                      prune_opacity=prune_opacity).encode_with_report(scene)

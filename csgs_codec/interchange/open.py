@@ -1,5 +1,5 @@
-"""Opening any scene file: the format is recognised by content, the extension only where
-the content cannot tell (``.splat`` has no header)."""
+"""Recognising a scene file's format by its content (the extension only where the content
+cannot tell: ``.splat`` has no header) and reading the interchange formats."""
 
 from __future__ import annotations
 
@@ -70,7 +70,7 @@ def detect_format(path: str | os.PathLike) -> str:
         return "glb"
     if suffix == ".splat":
         return "splat"
-    if ksplat.looks_like_ksplat(head) and suffix != ".splat":
+    if ksplat.looks_like_ksplat(head):
         return "ksplat"
     if not head:
         raise InputError("empty file", file=path, offset=0)
@@ -87,14 +87,14 @@ def _read_bytes(path: Path) -> bytes:
         raise InputError(f"cannot read: {exc.strerror or exc}", file=path) from None
 
 
-def read_scene(path: str | os.PathLike, *, sanitize: bool = False,
-               layers: str = "color,semantic") -> tuple[GaussianScene, SceneSource]:
-    """Read the scene in ``path`` whatever its format (see :func:`detect_format`).
+def read_interchange(path: str | os.PathLike, *, sanitize: bool = False
+                     ) -> tuple[GaussianScene, SceneSource]:
+    """Read the scene in ``path`` in any format :func:`detect_format` names but ``.csgs``
+    (that one is the codec's: :func:`csgs_codec.scene_files.read_scene` reads both).
 
     Args:
         path: a scene file, a SOG folder or its ``meta.json``.
         sanitize: PLY only: drop Gaussians with NaN/Inf values instead of failing.
-        layers: ``.csgs`` only: the layers to decode.
 
     Returns:
         (scene in INRIA PLY conventions, what the file was).
@@ -102,15 +102,15 @@ def read_scene(path: str | os.PathLike, *, sanitize: bool = False,
     Raises:
         InputError: unreadable or malformed input, naming the file and byte offset,
             property or chunk.
-        FormatError: a malformed ``.csgs``.
-        UnsupportedError: something well formed csgs does not read (an anchor-scene
-            ``.csgs``, SPZ SH degree 4, a missing optional package).
+        UnsupportedError: something well formed csgs does not read here (a ``.csgs``, SPZ SH
+            degree 4, a missing optional package).
     """
     path = Path(path)
     kind = detect_format(path)
     source = str(path)
     if kind == "csgs":
-        return _read_csgs(path, layers)
+        raise UnsupportedError("a .csgs bitstream: csgs_codec.open_scene (or Decoder) decodes "
+                               "it", file=path)
     if kind == "sog":
         from csgs_codec.interchange.sog import read_sog
 
@@ -122,12 +122,6 @@ def read_scene(path: str | os.PathLike, *, sanitize: bool = False,
         scene, info = parse(_read_bytes(path), source)
     scene.validate(source)
     return scene, info
-
-
-def open_scene(path: str | os.PathLike, *, sanitize: bool = False,
-               layers: str = "color,semantic") -> GaussianScene:
-    """The Gaussian scene in ``path`` (any format csgs reads); see :func:`read_scene`."""
-    return read_scene(path, sanitize=sanitize, layers=layers)[0]
 
 
 def _read_ply(path: Path, sanitize: bool) -> tuple[GaussianScene, SceneSource]:
@@ -143,17 +137,6 @@ def _read_ply(path: Path, sanitize: bool) -> tuple[GaussianScene, SceneSource]:
     details = {"ply_format": report.format, "ignored_properties": report.dropped_properties,
                "nonfinite_dropped": report.nonfinite_dropped}
     return scene, SceneSource("ply", "3DGS PLY", details=details)
-
-
-def _read_csgs(path: Path, layers: str) -> tuple[GaussianScene, SceneSource]:
-    from csgs_codec.codec.anchor_decoder import is_anchor_file
-    from csgs_codec.codec.decoder import Decoder
-
-    if is_anchor_file(path):
-        raise UnsupportedError("an anchor-scene .csgs (Scaffold-GS anchors, not Gaussians): "
-                               "AnchorDecoder reads it", file=path)
-    scene = Decoder().decode(path, layers=layers)
-    return scene, SceneSource("csgs", "csgs bitstream", lossy=True)
 
 
 def _splat():

@@ -15,7 +15,7 @@ import zipfile
 import pytest
 
 from csgs_codec.errors import CsgsError, InputError
-from csgs_codec.interchange import read_scene
+from csgs_codec.scene_files import read_scene
 from tests.interchange.helpers import DATA
 
 FILES = ["brush_sh3.compressed.ply", "brush_sh3.sog", "brush_sh3.v2.spz", "brush_sh3.v3.spz",

@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from csgs_codec.errors import DataLossWarning
-from csgs_codec.interchange import read_scene, write_scene
+from csgs_codec.interchange import write_scene
 from csgs_codec.interchange.gltf import glb_bytes
 from csgs_codec.scene.ply_io import read_ply, write_ply
+from csgs_codec.scene_files import read_scene
 from tests.conftest import SAMPLE
 from tests.interchange.helpers import (
     DATA,

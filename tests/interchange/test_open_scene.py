@@ -12,7 +12,8 @@ from csgs_codec import open_scene as lazy_open_scene
 from csgs_codec.codec.encoder import Encoder
 from csgs_codec.errors import InputError, UnsupportedError
 from csgs_codec.format import MAGIC
-from csgs_codec.interchange import detect_format, open_scene, read_scene
+from csgs_codec.interchange import detect_format
+from csgs_codec.scene_files import open_scene, read_scene
 from tests.interchange.helpers import DATA, matched
 
 CONTENT = {"brush_sh3.ply": "ply", "brush_sh3.compressed.ply": "ply",

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from csgs_codec.interchange import read_scene
+from csgs_codec.scene_files import read_scene
 from tests.interchange.helpers import (
     DATA,
     alphas,

@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 
 from csgs_codec.errors import DataLossWarning, InputError, UnsupportedError
-from csgs_codec.interchange import read_scene, write_scene
+from csgs_codec.interchange import write_scene
 from csgs_codec.interchange.gltf import glb_bytes, parse_glb
 from csgs_codec.interchange.splat import RECORD, parse_splat, splat_bytes
 from csgs_codec.interchange.spz import parse_spz, spz_bytes
+from csgs_codec.scene_files import read_scene
 from tests.interchange.helpers import DATA, alphas, colours, rotation_error
 
 SH_C0 = 0.28209479177387814
