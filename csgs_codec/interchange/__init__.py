@@ -12,10 +12,10 @@ was. Public API:
 - :func:`detect_format`: which format a file holds, from its first bytes.
 
 Read: 3DGS PLY (any property order, e.g. Brush's alphabetical one), PlayCanvas compressed
-PLY, antimatter15 ``.splat``, mkkellogg ``.ksplat`` (levels 0-2), Niantic SPZ (v1-v4),
-PlayCanvas SOG (v1 and v2, ``.sog`` zip or a folder with ``meta.json``), glTF/GLB with
-``KHR_gaussian_splatting``. SOG needs Pillow (the ``formats`` extra) and SPZ v4
-needs zstandard (same extra).
+PLY, antimatter15 ``.splat``, mkkellogg ``.ksplat`` (levels 0-2), Niantic SPZ (v2-v4, and
+the unreleased v1 layout, untested), PlayCanvas SOG (v1 and v2, ``.sog`` zip or a folder
+with ``meta.json``), glTF/GLB with ``KHR_gaussian_splatting``. SOG needs Pillow (the
+``formats`` extra) and SPZ v4 needs zstandard (same extra).
 """
 
 from __future__ import annotations
