@@ -1,15 +1,12 @@
-"""Opening the scene a command is given: the one place that knows which file types are scenes."""
+"""Opening the scene a command is given: anchor scenes and INRIA output folders here, every
+other file through :func:`csgs_codec.scene_files.read_scene`, which knows the file types."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from csgs_codec.errors import InputError, UnsupportedError
-
-#: File suffixes accepted as scene input by render, compare and view.
-SCENE_SUFFIXES = (".ply", ".csgs")
-CSGS_MAGIC = b"\x89CSG\r\n\x1a\n"
-
+from csgs_codec.errors import UnsupportedError
+from csgs_codec.interchange.open import READABLE
 
 ANCHOR_PROPERTY = b"f_anchor_feat_"
 #: Commands that also take anchor scenes (AnchorScene) from a .csgs.
@@ -67,26 +64,29 @@ def load_anchor_scene(path: str | Path):
 
 
 def load_scene(path: str | Path, *, command: str, layers: str = "color,semantic"):
-    """Read the scene in ``path`` for ``csgs <command>``: a 3DGS PLY, or a .csgs bitstream
-    (recognised by its magic or its suffix) decoded with ``layers``: a GaussianScene, or for
-    the commands in :data:`ANCHOR_COMMANDS` an AnchorScene when the file holds one.
+    """Read the scene in ``path`` for ``csgs <command>``: any format
+    :func:`csgs_codec.scene_files.read_scene` recognises by content (PLY, compressed PLY,
+    .splat, .ksplat, SPZ, SOG, GLB), or a .csgs bitstream decoded with ``layers``: a
+    GaussianScene, or for the commands in :data:`ANCHOR_COMMANDS` an AnchorScene when the
+    .csgs holds one.
 
     Raises:
-        InputError: missing file, a folder, or a malformed PLY.
+        InputError: missing file, a folder that is no SOG, or malformed input.
         FormatError: a malformed .csgs.
         UnsupportedError: a file type that is not a scene input of this command.
     """
+    from csgs_codec.interchange import detect_format
+    from csgs_codec.scene_files import open_scene
+
     path = Path(path)
-    if not path.exists():
-        raise InputError("no such file", file=path)
-    if path.is_dir():
-        raise InputError("is a directory", file=path)
-    with open(path, "rb") as fh:
-        is_csgs = fh.read(len(CSGS_MAGIC)) == CSGS_MAGIC
-    suffix = path.suffix.lower()
-    if is_csgs or suffix == ".csgs":
+    try:
+        kind = detect_format(path)
+    except UnsupportedError:
+        raise UnsupportedError(f"'{path.suffix or path.name}' files are not supported as input "
+                               f"to 'csgs {command}' (supported: {READABLE}, .csgs)",
+                               file=path) from None
+    if kind == "csgs":
         from csgs_codec.codec.anchor_decoder import AnchorDecoder, is_anchor_file
-        from csgs_codec.codec.decoder import Decoder
 
         if is_anchor_file(path):
             if command not in ANCHOR_COMMANDS:
@@ -94,11 +94,4 @@ def load_scene(path: str | Path, *, command: str, layers: str = "color,semantic"
                                        "anchor scene (csgs decode writes it as a Scaffold-GS "
                                        "checkpoint)", file=path)
             return AnchorDecoder().decode(path, layers=layers)
-        return Decoder().decode(path, layers=layers)
-    if suffix not in SCENE_SUFFIXES:
-        raise UnsupportedError(f"'{suffix or path.name}' files are not supported as input to "
-                               f"'csgs {command}' (supported: {', '.join(SCENE_SUFFIXES)})",
-                               file=path)
-    from csgs_codec.scene.ply_io import read_ply
-
-    return read_ply(path)
+    return open_scene(path, layers=layers)

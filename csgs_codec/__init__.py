@@ -2,9 +2,10 @@
 
 Public API (imported on first use, so ``import csgs_codec`` stays light)::
 
-    from csgs_codec import Encoder, Decoder, read_ply, write_ply
-    data = Encoder(quality=5).encode(read_ply("scene.ply"))      # -> bytes
+    from csgs_codec import Encoder, Decoder, open_scene, write_scene
+    data = Encoder(quality=5).encode(open_scene("scene.spz"))    # -> bytes (any scene format)
     scene = Decoder().decode(data, layers="color")               # -> GaussianScene
+    write_scene(scene, "scene.glb")                              # format by extension
 
 The decode path (format, entropy, codec.decoder) imports numpy and constriction only;
 torch is imported by the model and training code alone.
@@ -54,6 +55,9 @@ _LAZY = {
     "read_scaffold": "csgs_codec.scene.scaffold_io",
     "write_scaffold": "csgs_codec.scene.scaffold_io",
     "select_at_click": "csgs_codec.semantic.selection",
+    "open_scene": "csgs_codec.scene_files",
+    "read_scene": "csgs_codec.scene_files",
+    "write_scene": "csgs_codec.interchange",
 }
 __all__ = [
     "__version__",

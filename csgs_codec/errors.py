@@ -90,3 +90,8 @@ class CsgsWarning(UserWarning):
 class DataLossWarning(CsgsWarning):
     """Input data was dropped (Gaussians with NaN/Inf under ``sanitize``, unknown PLY
     properties): the CLI prints it even with ``--quiet``."""
+
+
+class CompoundedLossWarning(DataLossWarning):
+    """The input was itself lossily coded (SPZ, SOG, .splat, ...): encoding it again adds a
+    second quantization to the first. Shown even with ``--quiet``."""

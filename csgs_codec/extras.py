@@ -15,6 +15,7 @@ EXTRA_OF_MODULE = {
     "pyvista": ("pyvista", "view"),
     "vtk": ("pyvista", "view"),
     "numba": ("numba", "fast"),
+    "zstandard": ("zstandard", "formats"),
 }
 
 

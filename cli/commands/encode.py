@@ -11,14 +11,17 @@ from csgs_codec.codec.presets import DEFAULT_QUALITY
 from csgs_codec.errors import InputError
 
 NAME = "encode"
-HELP = "compress a 3DGS .ply scene (or a Scaffold-GS anchor scene) into a .csgs bitstream"
+HELP = ("compress a 3DGS scene (PLY, compressed PLY, .splat, .ksplat, SPZ, SOG, GLB) or a "
+        "Scaffold-GS anchor scene into a .csgs bitstream")
 STAGES = ("geometry", "colour", "colour hyperprior", "semantic", "container")
 
 
 def add_arguments(parser) -> None:
     """Arguments of ``csgs encode``."""
-    parser.add_argument("scene", help="input 3DGS .ply, or a Scaffold-GS checkpoint folder / "
-                                      "anchor .ply (coded as an anchor scene)")
+    parser.add_argument("scene", help="input scene (3DGS PLY, compressed PLY, .splat, .ksplat, "
+                                      "SPZ, SOG .sog or folder, GLB; recognised by content), "
+                                      "an INRIA output folder, or a Scaffold-GS checkpoint "
+                                      "folder / anchor .ply (coded as an anchor scene)")
     parser.add_argument("-o", "--output", required=True, help="output .csgs file")
     parser.add_argument("--quality", type=int, default=None, choices=range(1, 10),
                         metavar="1-9", help=f"1 smallest .. 9 near-lossless "
@@ -66,7 +69,8 @@ def run(args) -> int:
     from csgs_cli.scene_input import inria_output, is_anchor_input
     from csgs_codec.atomic_write import check_output, write_atomically
     from csgs_codec.codec.encoder import Encoder
-    from csgs_codec.scene.ply_io import read_ply
+    from csgs_codec.interchange import warn_if_lossy
+    from csgs_codec.scene_files import read_scene
 
     _check_exclusive(args)
     inria = inria_output(args.scene)
@@ -89,7 +93,8 @@ def run(args) -> int:
                       fast=args.fast, semantic=args.semantic, prune_opacity=args.prune_opacity,
                       hyperprior=args.hyperprior,
                       view_pruning=view_pruning, cameras=cameras)
-    scene = read_ply(scene_path, sanitize=args.sanitize)
+    scene, source = read_scene(scene_path, sanitize=args.sanitize)
+    warn_if_lossy(source, scene_path)
     searching = args.target_psnr is not None or args.lambda_ is not None
     bar = tqdm(total=None if searching or view_pruning else len(STAGES), desc="encode",
                unit="stage",
@@ -134,7 +139,7 @@ def run(args) -> int:
         bar.close()
     write_atomically(args.output, result.data, [args.scene, scene_path])
     n = len(result.reconstruction)
-    in_bytes = os.path.getsize(scene_path)
+    in_bytes = _input_bytes(scene_path)
     bits = 8 * len(result.data) / max(n, 1)
     print(f"{args.output}: {len(result.data):,} bytes, {n:,} Gaussians, {bits:.2f} bits/Gaussian"
           f", {in_bytes / max(len(result.data), 1):.1f}x smaller than the input, "
@@ -170,6 +175,13 @@ def _encode_anchors(args, write_atomically) -> int:
           f"{8 * len(result.data) / max(m, 1):.1f} bits/anchor, {result.seconds:.2f} s "
           f"(fit {result.fit_seconds:.2f} s)")
     return 0
+
+
+def _input_bytes(path: str) -> int:
+    """Size of the input: a file, or the files of a folder (a SOG folder)."""
+    if os.path.isdir(path):
+        return sum(f.stat().st_size for f in os.scandir(path) if f.is_file())
+    return os.path.getsize(path)
 
 
 def _check_exclusive(args) -> None:

@@ -1,20 +1,19 @@
-"""``csgs info FILE``: what is in a PLY scene or a .csgs bitstream."""
+"""``csgs info FILE``: what is in a scene file (any format csgs reads) or a .csgs bitstream."""
 
 from __future__ import annotations
 
 import json
 import os
 
-from csgs_codec.errors import InputError
-
 NAME = "info"
-HELP = "show what a scene (.ply) or bitstream (.csgs) holds"
-CSGS_MAGIC_PREFIX = b"\x89CSG\r\n\x1a\n"
+HELP = ("show what a scene file (PLY, compressed PLY, .splat, .ksplat, SPZ, SOG, GLB) or a "
+        ".csgs bitstream holds")
 
 
 def add_arguments(parser) -> None:
     """Arguments of ``csgs info``."""
-    parser.add_argument("file", help="a 3DGS .ply scene or a .csgs bitstream")
+    parser.add_argument("file", help="a scene file or SOG folder (format recognised by content) "
+                                     "or a .csgs bitstream")
     parser.add_argument("--json", action="store_true", help="print machine-readable JSON")
     parser.add_argument("--sanitize", action="store_true",
                         help="drop Gaussians with NaN/Inf values instead of failing")
@@ -22,7 +21,9 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     """Print the summary of ``args.file`` as text or JSON."""
-    if is_csgs(args.file):
+    from csgs_codec.interchange import detect_format
+
+    if detect_format(args.file) == "csgs":
         from csgs_codec.codec.describe import describe_bitstream
         from csgs_codec.format import format_description
 
@@ -30,9 +31,8 @@ def run(args) -> int:
         print(json.dumps(facts, indent=2) if args.json
               else with_semantic_share(format_description(facts), facts))
         return 0
-    _check_ply_signature(args.file)
     facts = describe_file(args.file, sanitize=args.sanitize)
-    print(json.dumps(facts, indent=2) if args.json else format_ply_facts(facts))
+    print(json.dumps(facts, indent=2) if args.json else format_scene_facts(facts))
     return 0
 
 
@@ -47,42 +47,34 @@ def with_semantic_share(text: str, facts: dict) -> str:
     return "\n".join(lines[:at] + [share] + lines[at:])
 
 
-def is_csgs(path: str) -> bool:
-    """True when ``path`` starts with the .csgs magic (the extension is not trusted)."""
-    try:
-        with open(path, "rb") as fh:
-            return fh.read(len(CSGS_MAGIC_PREFIX)) == CSGS_MAGIC_PREFIX
-    except OSError:
-        return False  # the PLY path reports the missing or unreadable file
-
-
-def _check_ply_signature(path: str) -> None:
-    """InputError when ``path`` is readable, not empty and starts neither with the .csgs
-    magic nor with "ply": say it is neither, rather than only "not a PLY file"."""
-    try:
-        with open(path, "rb") as fh:
-            start = fh.read(len(CSGS_MAGIC_PREFIX))
-    except OSError:
-        return  # the PLY path reports the missing or unreadable file
-    if start and not start.startswith(b"ply"):
-        raise InputError("neither a .csgs bitstream (no .csgs magic) nor a PLY "
-                         "file (does not start with 'ply')", file=path, offset=0)
-
-
 def describe_file(path: str, *, sanitize: bool = False) -> dict:
-    """JSON-ready facts about ``path`` (a PLY scene)."""
-    from csgs_codec.scene.ply_io import read_ply_with_report
+    """JSON-ready facts about the scene in ``path`` (any format csgs reads): ``format``
+    (short name), ``format_name`` (with its version), ``format_version``, ``lossy``,
+    ``details`` (format-specific), the scene summary, and for PLY input ``ply_format``."""
     from csgs_codec.scene.summary import summarize_scene
+    from csgs_codec.scene_files import read_scene
 
-    if os.path.isdir(path):
-        raise InputError("is a directory", file=path)
-    scene, report = read_ply_with_report(path, sanitize=sanitize)
-    facts = {"file": path, "kind": "ply", "bytes": os.path.getsize(path),
-             "ply_format": report.format}
+    scene, source = read_scene(path, sanitize=sanitize)
+    details = dict(source.details)
+    facts = {"file": path, "kind": source.format, "format": source.format,
+             "format_name": source.title(), "format_version": source.version,
+             "lossy": source.lossy, "bytes": _size(path)}
+    if source.format == "ply":
+        facts["ply_format"] = details.pop("ply_format")
+    facts["details"] = {k: v for k, v in details.items()
+                        if k not in ("ignored_properties", "nonfinite_dropped")}
     facts.update(summarize_scene(scene))
-    facts["ignored_properties"] = report.dropped_properties
-    facts["nonfinite_dropped"] = report.nonfinite_dropped
+    facts["ignored_properties"] = details.get("ignored_properties", [])
+    facts["nonfinite_dropped"] = details.get("nonfinite_dropped", 0)
     return facts
+
+
+def _size(path: str) -> int:
+    """Bytes of a file, or of the files in a folder (a SOG folder)."""
+    if os.path.isdir(path):
+        return sum(os.path.getsize(os.path.join(path, f)) for f in os.listdir(path)
+                   if os.path.isfile(os.path.join(path, f)))
+    return os.path.getsize(path)
 
 
 def _range(entry: dict) -> str:
@@ -91,12 +83,14 @@ def _range(entry: dict) -> str:
     return f"{min(entry['min']):.6g} .. {max(entry['max']):.6g}"
 
 
-def format_ply_facts(f: dict) -> str:
-    """Human-readable text for the facts of a PLY scene."""
+def format_scene_facts(f: dict) -> str:
+    """Human-readable text for the facts of a scene file (see :func:`describe_file`)."""
     lo, hi = f["bounding_box"]["min"], f["bounding_box"]["max"]
     vec = lambda v: "(" + ", ".join(f"{x:.4g}" for x in v) + ")"  # noqa: E731
     lines = [
-        f"{f['file']}: 3DGS PLY ({f['ply_format']}), {f['bytes']:,} bytes",
+        f"{f['file']}: {f['format_name']}"
+        + (f" ({f['ply_format']})" if "ply_format" in f else "") + f", {f['bytes']:,} bytes"
+        + (", lossy (quantized by its format)" if f["lossy"] else ""),
         f"  Gaussians        {f['gaussians']:,}",
         f"  SH degree        {f['sh_degree_stored']} stored, {f['sh_degree_in_use']} in use"
         + (f" (all-zero bands: {f['zero_sh_bands']})" if f["zero_sh_bands"] else ""),
@@ -119,4 +113,6 @@ def format_ply_facts(f: dict) -> str:
         lines.append(f"  ignored          {', '.join(f['ignored_properties'])}")
     if f["nonfinite_dropped"]:
         lines.append(f"  dropped          {f['nonfinite_dropped']} Gaussians with NaN/Inf")
+    if f["details"]:
+        lines.append("  format details   " + ", ".join(f"{k} {v}" for k, v in f["details"].items()))
     return "\n".join(lines)

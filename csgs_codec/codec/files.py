@@ -1,4 +1,4 @@
-"""File-level helpers: PLY -> .csgs and .csgs -> PLY in one call each."""
+"""File-level helpers: scene file -> .csgs and .csgs -> scene file in one call each."""
 
 from __future__ import annotations
 
@@ -7,16 +7,19 @@ import os
 from csgs_codec.atomic_write import check_output, write_atomically
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder, EncodeResult
-from csgs_codec.scene.ply_io import read_ply, write_ply
+from csgs_codec.interchange import read_interchange, warn_if_lossy, write_scene
 
 
 def encode_file(ply_path: str | os.PathLike, csgs_path: str | os.PathLike, *,
                 quality: int = 5, semantic: str = "auto", prune_opacity: float | None = None,
                 sanitize: bool = False) -> EncodeResult:
-    """Encode the 3DGS PLY at ``ply_path`` into ``csgs_path`` (written atomically; an
-    output that is the input, not a regular file or not writable is refused up front)."""
+    """Encode the scene at ``ply_path`` (a 3DGS PLY or any format
+    :func:`csgs_codec.interchange.read_interchange` reads; a lossy one warns) into ``csgs_path``
+    (written atomically; an output that is the input, not a regular file or not writable is
+    refused up front)."""
     check_output(csgs_path, [ply_path])
-    scene = read_ply(ply_path, sanitize=sanitize)
+    scene, source = read_interchange(ply_path, sanitize=sanitize)
+    warn_if_lossy(source, ply_path)
     result = Encoder(quality=quality, semantic=semantic,
                      prune_opacity=prune_opacity).encode_with_report(scene)
     write_atomically(csgs_path, result.data, [ply_path])
@@ -25,8 +28,12 @@ def encode_file(ply_path: str | os.PathLike, csgs_path: str | os.PathLike, *,
 
 def decode_file(csgs_path: str | os.PathLike, ply_path: str | os.PathLike, *,
                 layers: str = "color") -> int:
-    """Decode ``csgs_path`` (only ``layers``) into the PLY ``ply_path``; returns N."""
+    """Decode ``csgs_path`` (only ``layers``) into ``ply_path``, written in the format its
+    suffix names (.ply, .splat, .spz, .glb); returns N."""
+    from csgs_codec.interchange.writers import writer_for
+
     check_output(ply_path, [csgs_path])
+    writer_for(ply_path)
     scene = Decoder().decode(csgs_path, layers=layers)
-    write_ply(scene, ply_path, [csgs_path])
+    write_scene(scene, ply_path, [csgs_path])
     return len(scene)

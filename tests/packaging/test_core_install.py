@@ -19,7 +19,8 @@ import pytest
 REPO = Path(__file__).resolve().parents[2]
 VECTORS = REPO / "spec" / "vectors"
 #: What the core install lacks: every optional dependency of pyproject.toml's extras.
-OPTIONAL = ("torch", "PIL", "pyvista", "vtk", "numba", "plyfile", "trimesh", "scipy")
+OPTIONAL = ("torch", "PIL", "pyvista", "vtk", "numba", "plyfile", "trimesh", "scipy",
+            "zstandard")
 
 _BLOCKER = textwrap.dedent(f"""
     import importlib.abc, sys
