@@ -17,6 +17,7 @@ import importlib
 from typing import TYPE_CHECKING
 
 from csgs_codec.errors import (
+    CompoundedLossWarning,
     CsgsError,
     CsgsWarning,
     DataLossWarning,
@@ -32,10 +33,12 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for IDEs and type che
     from csgs_codec.codec.decoder import Decoder
     from csgs_codec.codec.encoder import Encoder, EncodeResult
     from csgs_codec.codec.files import decode_file, encode_file
+    from csgs_codec.interchange import write_scene
     from csgs_codec.scene.anchor_scene import AnchorScene
     from csgs_codec.scene.gaussian_scene import GaussianScene
     from csgs_codec.scene.ply_io import read_ply, write_ply
     from csgs_codec.scene.scaffold_io import read_scaffold, write_scaffold
+    from csgs_codec.scene_files import open_scene, read_scene
     from csgs_codec.semantic.selection import select_at_click
 
 __version__ = "0.1.0"
@@ -64,9 +67,9 @@ __all__ = [
     "Encoder", "EncodeResult", "Decoder", "encode_file", "decode_file",
     "GaussianScene", "read_ply", "write_ply",
     "AnchorScene", "AnchorEncoder", "AnchorDecoder", "read_scaffold", "write_scaffold",
-    "select_at_click",
+    "select_at_click", "open_scene", "read_scene", "write_scene",
     "CsgsError", "InputError", "FormatError", "UnsupportedError", "ModelError",
-    "CsgsWarning", "DataLossWarning",
+    "CsgsWarning", "DataLossWarning", "CompoundedLossWarning",
 ]
 
 
