@@ -1,8 +1,10 @@
 """The browser viewer in a real browser (headless Chromium from Debian, software WebGL): the
 page decodes a .csgs in its worker and draws it like the project rasterizer, a click selects
 an object as `csgs select` does, a file cut inside the semantic layer shows the colour layer
-and says what is missing, ``--layers color`` reads only the colour layer's bytes, and the file
-picker opens a file.
+and says what is missing, ``--layers color`` reads only the colour layer's bytes, the file
+picker opens a file, the default view is render/orbit.py's view 0 and the orbit, fly and zoom
+controls move it, anchor scenes are reported as not supported, and invalid files are refused
+at the chunk and byte offset the Python decoder names.
 
 Render agreement: on samples/donut.ply (quality 5, 45,624 Gaussians, 4 orbit views at
 400x300) the page's canvas measured 29.9-30.2 dB PSNR against the numba rasterizer's render
@@ -26,7 +28,7 @@ import pytest
 from csgs_codec import Decoder, Encoder, read_ply
 from csgs_codec.format.source import open_source
 from csgs_codec.format.toc import read_toc
-from csgs_codec.render.orbit import orbit_cameras
+from csgs_codec.render.orbit import orbit_cameras, robust_bounds
 from csgs_codec.render.rasterizer import render
 from csgs_codec.semantic.evaluation import mask_iou, object_click_points
 from csgs_codec.semantic.selection import select_at_click
@@ -186,3 +188,69 @@ def test_file_picker_opens_a_file(browser, objects):
         assert server.scene_bytes_sent == 0
     assert state["error"] is None and state["count"] == len(scene)
     assert state["name"] == path.name
+
+
+def test_default_view_is_the_orbit_view_and_the_controls_move_it(browser, donut):
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
+    path, scene = donut
+    expected = orbit_cameras(scene, 16, width=SIZE[0], height=SIZE[1])[0]
+    centre = np.mean(robust_bounds(scene), axis=0)
+    with ViewerServer(path) as server:
+        _open(browser, server)
+        wait_for_state(browser, lambda s: s["colourShown"] or s["error"])
+        camera = browser.execute_script("return window.csgsViewer.camera()")
+        w2c = np.array(camera["world_to_camera"]).reshape(4, 4)
+        assert np.allclose(w2c, expected.world_to_camera, atol=1e-5)
+        assert camera["fy"] == pytest.approx(expected.fy) and camera["cx"] == SIZE[0] / 2
+        canvas = browser.find_element(By.ID, "canvas")
+
+        def position():
+            m = np.array(browser.execute_script(
+                "return window.csgsViewer.camera().world_to_camera")).reshape(4, 4)
+            return np.linalg.inv(m)[:3, 3]
+
+        start = position()
+        distance = np.linalg.norm(start - centre)
+        ActionChains(browser).move_to_element(canvas).click_and_hold().move_by_offset(
+            60, 20).release().perform()  # orbit: turns around the target at the same distance
+        turned = position()
+        assert np.linalg.norm(turned - start) > 0.1 * distance
+        assert np.linalg.norm(turned - centre) == pytest.approx(distance, rel=1e-6)
+        assert viewer_state(browser)["selection"] is None  # a drag is not a click
+        ActionChains(browser).send_keys("w").perform()  # fly forward 5% of the distance
+        flown = position()
+        assert np.linalg.norm(flown - turned) == pytest.approx(0.05 * distance, rel=1e-6)
+        browser.execute_script(
+            "document.getElementById('canvas').dispatchEvent(new WheelEvent('wheel', "
+            "{deltaY: 100, bubbles: true, cancelable: true}))")  # zoom out: 1.1x the distance
+        assert np.linalg.norm(position() - flown) == pytest.approx(0.1 * distance, rel=1e-6)
+
+
+def test_anchor_scenes_are_reported_as_not_supported(browser):
+    from selenium.webdriver.common.by import By
+
+    vector = sorted((REPO / "spec" / "vectors" / "anchors").glob("*.csgs"))[0]
+    with ViewerServer(vector) as server:
+        _open(browser, server)
+        state = wait_for_state(browser, lambda s: s["phase"] == "error")
+    assert not state["colourShown"]
+    message = browser.find_element(By.ID, "message").text
+    assert "Cannot show this file" in message and "not implemented" in message
+
+
+@pytest.mark.parametrize("name", ["fuzz_payload_bit_flip.csgs", "fuzz_crc_lie.csgs",
+                                  "fuzz_truncate.csgs", "fuzz_toc_size_lie.csgs",
+                                  "fuzz_chunk_drop.csgs"])
+def test_invalid_files_are_refused_at_the_python_decoders_chunk_and_offset(browser, name):
+    from csgs_codec.errors import FormatError
+
+    vector = REPO / "spec" / "vectors" / "invalid" / name
+    with pytest.raises(FormatError) as expected:
+        Decoder().decode(vector.read_bytes(), layers="color,semantic")
+    with ViewerServer(vector) as server:
+        _open(browser, server)
+        state = wait_for_state(browser, lambda s: s["phase"] == "error")
+    assert (state["error"]["chunk"], state["error"]["offset"]) == (
+        expected.value.chunk, expected.value.offset)
