@@ -110,6 +110,23 @@ export class SplatView {
     cam.fov = 2 * Math.atan(camera.height / (2 * camera.fy)) * 180 / Math.PI;
     cam.nearClip = camera.near_plane;
     cam.farClip = Math.max(1000, 1e4 * camera.near_plane);
+    const centred = Math.abs(camera.cx - camera.width / 2) < 1e-9 && Math.abs(camera.cy - camera.height / 2) < 1e-9
+      && Math.abs(camera.fx - camera.fy) <= 1e-12 * camera.fy;
+    // A pinhole with its own focal lengths and principal point needs its own projection
+    // (pixel u = fx x / z + cx maps to NDC 2u / W - 1; image rows run down, NDC y up).
+    cam.calculateProjection = centred ? null : (matrix) => {
+      const { width: W, height: H, fx, fy, cx, cy } = camera;
+      const n = cam.nearClip;
+      const f = cam.farClip;
+      matrix.data.fill(0);
+      matrix.data[0] = 2 * fx / W;
+      matrix.data[5] = 2 * fy / H;
+      matrix.data[8] = 1 - 2 * cx / W;
+      matrix.data[9] = 2 * cy / H - 1;
+      matrix.data[10] = -(f + n) / (f - n);
+      matrix.data[11] = -1;
+      matrix.data[14] = -2 * f * n / (f - n);
+    };
   }
 
   /** Dim everything outside ``mask`` (Uint8Array, 1 = selected); null restores the colours. */

@@ -111,3 +111,15 @@ def test_view_web_refuses_bad_input_with_exit_code_2(tmp_path, capsys):
         assert main(["view", *argv]) == 2, argv
         err = capsys.readouterr().err
         assert words in err and "Traceback" not in err, argv
+
+
+def test_every_page_file_is_package_data():
+    """`pip install` must bring every file the page loads (pyproject's package-data globs)."""
+    tomllib = pytest.importorskip("tomllib", reason="tomllib needs Python 3.11")
+    config = tomllib.loads((PACKAGE_ROOT.parent / "pyproject.toml").read_text())
+    patterns = config["tool"]["setuptools"]["package-data"]["csgs_codec"]
+    shipped = {path for pattern in patterns for path in PACKAGE_ROOT.glob(pattern)}
+    page_files = [path for path in (PACKAGE_ROOT / "web").rglob("*") if path.is_file()
+                  and path.suffix not in (".py", ".pyc") and "__pycache__" not in path.parts]
+    assert len(page_files) >= 10
+    assert [path for path in page_files if path not in shipped] == []

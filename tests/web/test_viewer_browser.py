@@ -18,6 +18,7 @@ Skipped, with the reason, where chromium, chromium-driver or selenium are missin
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import os
 from pathlib import Path
@@ -84,7 +85,11 @@ def test_page_draws_the_sample_like_the_project_rasterizer(browser, donut):
         assert state["error"] is None
         assert state["count"] == len(scene)
         assert state["firstFrameMs"] > 0
-        for camera in orbit_cameras(scene, 4, width=SIZE[0], height=SIZE[1])[::2]:
+        views = orbit_cameras(scene, 4, width=SIZE[0], height=SIZE[1])[::2]
+        # A camera of its own: principal point off the centre, fx != fy.
+        views.append(dataclasses.replace(views[0], cx=SIZE[0] / 2 + 37.5, cy=SIZE[1] / 2 - 21,
+                                         fx=views[0].fx * 1.1, name="off_centre"))
+        for camera in views:
             page = show_camera(browser, camera)
             reference = render(scene, camera, backend="numba").image
             reference = np.round(np.clip(reference, 0, 1) * 255) / 255
