@@ -85,6 +85,10 @@ def test_page_draws_the_sample_like_the_project_rasterizer(browser, donut):
         assert state["error"] is None
         assert state["count"] == len(scene)
         assert state["firstFrameMs"] > 0
+        loaded = browser.execute_script(
+            "return performance.getEntriesByType('resource').map((e) => e.name)")
+        assert any(name.endswith("playcanvas.min.mjs") for name in loaded)
+        assert [name for name in loaded if not name.startswith(server.url)] == []
         views = orbit_cameras(scene, 4, width=SIZE[0], height=SIZE[1])[::2]
         # A camera of its own: principal point off the centre, fx != fy.
         views.append(dataclasses.replace(views[0], cx=SIZE[0] / 2 + 37.5, cy=SIZE[1] / 2 - 21,
