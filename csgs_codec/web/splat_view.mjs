@@ -68,10 +68,30 @@ export class SplatView {
     this.splat = null;
     this.data = null;
     this.frames = 0;
-    this.readyFrames = 0;
-    this.app.systems.gsplat.on('frame:ready', (camera, layer, ready) => { if (ready && this.splat) this.readyFrames++; });
+    this.sorts = 0; // sort results received since the scene was shown
+    this.app.scene.on('gsplat:sorted', () => { this.sorts++; });
     this.app.on('frameend', () => { this.frames++; });
     this.app.start();
+  }
+
+  /**
+   * True when no splat sort is running or waiting to be applied and the splat data is wholly
+   * in the engine's work buffer, so the next frame shows the current view completely. The
+   * engine's own 'frame:ready' flag does not wait for a sort started by a camera move, so this
+   * reads the sorter's state (internal fields of the pinned engine version; tests/web catch a
+   * change).
+   */
+  get settled() {
+    const director = this.app.renderer.gsplatDirector;
+    if (!director) return true;
+    for (const cameraData of director.camerasMap.values()) {
+      for (const layerData of cameraData.layersMap.values()) {
+        const sorter = layerData.gsplatManager && layerData.gsplatManager.cpuSorter;
+        if (sorter && (sorter.jobsInFlight > 0 || sorter.pendingSorted)) return false;
+      }
+    }
+    const copied = this.app.renderer._gsplatBufferCopy;
+    return !(copied > 0 && copied < 100);
   }
 
   /** Drawing-buffer size in pixels. */
@@ -89,7 +109,7 @@ export class SplatView {
     this.splat = new pc.Entity('scene');
     this.splat.addComponent('gsplat', { resource: this.resource });
     this.app.root.addChild(this.splat);
-    this.readyFrames = 0;
+    this.sorts = 0;
   }
 
   /** Point the engine's camera as the project-convention ``camera`` (camera_rig.mjs). */

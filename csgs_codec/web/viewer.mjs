@@ -35,24 +35,38 @@ const worker = new Worker(new URL('./decode_worker.mjs', import.meta.url), { typ
 let requestId = 0;
 let scene = null;
 let semantic = null;
-let sortedSince = -1; // frames counted by SplatView when the current view was asked for
+let framesSinceChange = 0;
+let settledFrames = 0; // consecutive frames that ended with no sort in flight
 const frameWaiters = [];
 
-/** Keep drawing while the splats still need sorting for the latest view or a waiter waits. */
+/**
+ * Draw on demand: after a change, keep drawing until two frames in a row end with the splats
+ * sorted for the current view (and, for a new scene, its first sort received); a frame drawn
+ * then is complete, and frameDrawn() waiters are answered.
+ */
 view.app.autoRender = false;
 view.app.on('frameend', () => {
-  const settled = view.readyFrames > sortedSince + 1;
+  framesSinceChange++;
+  settledFrames = view.settled && (!view.splat || view.sorts > 0) ? settledFrames + 1 : 0;
+  const settled = settledFrames >= 2 && framesSinceChange >= 2;
   if (settled) {
     while (frameWaiters.length) frameWaiters.shift()();
+  } else {
+    view.app.renderNextFrame = true;
   }
-  if (!settled || frameWaiters.length) view.app.renderNextFrame = true;
 });
+
+/** Draw again until settled (after any change to the view or the splats). */
+function drawAgain() {
+  framesSinceChange = 0;
+  settledFrames = 0;
+  view.app.renderNextFrame = true;
+}
 
 function redraw() {
   const { width, height } = view.size;
   view.setCamera(rig.camera(width, height));
-  sortedSince = view.readyFrames;
-  view.app.renderNextFrame = true;
+  drawAgain();
 }
 rig.onChange(redraw);
 view.app.graphicsDevice.on('resizecanvas', redraw);
@@ -166,7 +180,7 @@ function selectAt(column, row) {
   const result = selectAtPixel(scene, semantic.features, semantic.channels, rig.camera(width, height), column, row, threshold);
   state.selection = { count: result.count, column, row, alpha: result.alpha, threshold, mask: result.mask };
   view.highlight(result.mask);
-  view.app.renderNextFrame = true;
+  drawAgain();
   $('selection').textContent = `selected ${result.count.toLocaleString()} of ${scene.count.toLocaleString()} Gaussians (pixel ${column},${row}, threshold ${threshold})`;
   return result;
 }
@@ -174,7 +188,7 @@ function selectAt(column, row) {
 function clearSelection() {
   state.selection = null;
   view.highlight(null);
-  view.app.renderNextFrame = true;
+  drawAgain();
   $('selection').textContent = '';
 }
 

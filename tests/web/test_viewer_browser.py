@@ -178,7 +178,8 @@ def test_colour_only_reads_only_the_colour_layer(browser, objects):
     assert colour_end < path.stat().st_size
     with ViewerServer(path, layers=("color",)) as server:
         _open(browser, server, CLICK_SIZE)
-        state = wait_for_state(browser, lambda s: s["phase"] in ("done", "error"))
+        state = wait_for_state(browser, lambda s: (s["phase"] == "done" and s["colourShown"])
+                               or s["error"])
         sent = server.scene_bytes_sent
     assert state["error"] is None and state["colourShown"] and not state["semanticReady"]
     assert state["count"] == len(scene)
