@@ -109,6 +109,7 @@ export class CameraRig {
 
   /** Frame the scene as orbit.py's view 0 for an image of width x height. */
   frame(positions, opacity, width, height) {
+    if (!opacity.length) return; // an empty scene: keep the current view
     const bounds = robustBounds(positions, opacity);
     this.up = guessUp(bounds);
     this.target = [0, 1, 2].map((a) => (bounds.low[a] + bounds.high[a]) / 2);

@@ -100,6 +100,9 @@ export class SplatView {
   /** Replace the drawn scene with ``scene`` (decoded arrays). */
   show(scene) {
     if (this.splat) this.splat.destroy();
+    this.splat = null;
+    this.data = null;
+    if (!scene.count) return; // nothing to draw (an empty scene is valid)
     this.data = splatData(scene);
     this.original = {
       dc: [0, 1, 2].map((k) => Float32Array.from(this.data.getProp(`f_dc_${k}`))),

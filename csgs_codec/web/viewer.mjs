@@ -209,6 +209,12 @@ $('file').addEventListener('change', () => {
   const file = $('file').files[0];
   if (file) open({ file }, file.name, ['color', 'semantic']);
 });
+window.addEventListener('dragover', (e) => e.preventDefault());
+window.addEventListener('drop', (e) => { // a file dropped on the page opens like a picked one
+  e.preventDefault();
+  const file = e.dataTransfer && e.dataTransfer.files[0];
+  if (file) open({ file }, file.name, ['color', 'semantic']);
+});
 
 window.csgsViewer = {
   state,

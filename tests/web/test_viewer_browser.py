@@ -264,3 +264,19 @@ def test_invalid_files_are_refused_at_the_python_decoders_chunk_and_offset(brows
         state = wait_for_state(browser, lambda s: s["phase"] == "error")
     assert (state["error"]["chunk"], state["error"]["offset"]) == (
         expected.value.chunk, expected.value.offset)
+
+
+def test_an_empty_scene_opens_with_nothing_to_draw(browser, tmp_path):
+    from selenium.webdriver.common.by import By
+
+    empty = labelled_blob_scene(1, 10).subset(np.zeros(10, bool))
+    path = tmp_path / "empty.csgs"
+    path.write_bytes(Encoder(quality=5).encode(empty))
+    with ViewerServer(path) as server:
+        _open(browser, server)
+        state = wait_for_state(browser, lambda s: (s["phase"] == "done" and s["colourShown"])
+                               or s["error"])
+        assert state["error"] is None and state["count"] == 0
+        camera = orbit_cameras(labelled_blob_scene(1, 10), 1, width=SIZE[0], height=SIZE[1])[0]
+        assert show_camera(browser, camera).max() == 0  # a black frame, and frameDrawn answers
+    assert browser.find_element(By.ID, "message").text.startswith("0 Gaussians")
