@@ -123,3 +123,31 @@ def test_every_page_file_is_package_data():
                   and path.suffix not in (".py", ".pyc") and "__pycache__" not in path.parts]
     assert len(page_files) >= 10
     assert [path for path in page_files if path not in shipped] == []
+
+
+def test_view_web_serves_until_interrupted(tmp_path):
+    """The command as a user runs it: prints the address, serves the scene, stops on Ctrl-C."""
+    import os
+    import re
+    import signal
+    import subprocess
+    import sys
+
+    from tests.conftest import REPO
+
+    scene = tmp_path / "scene.csgs"
+    scene.write_bytes(b"\x89CSG\r\n\x1a\n" + bytes(8))
+    process = subprocess.Popen(
+        [sys.executable, "-m", "cli.main", "view", "--web", str(scene), "--no-browser",
+         "--layers", "color"], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, env={**os.environ, "PYTHONPATH": str(REPO)})
+    try:
+        line = process.stdout.readline()
+        url = re.search(r"at (http://127\.0\.0\.1:\d+/)", line)[1]
+        status, _, body = _get(url + "config.json")
+        assert status == 200 and json.loads(body)["layers"] == ["color"]
+        assert _get(url + "scene.csgs", {"Range": "bytes=0-7"})[2] == b"\x89CSG\r\n\x1a\n"
+    finally:
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=30)
+    assert process.returncode == 0 and "Traceback" not in err
