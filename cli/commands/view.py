@@ -20,7 +20,9 @@ def add_arguments(parser) -> None:
     """Arguments of ``csgs view``."""
     from csgs_codec.semantic.selection import DEFAULT_THRESHOLD
 
-    parser.add_argument("scene", help="a 3DGS .ply scene")
+    parser.add_argument("scene", nargs="?",
+                        help="a 3DGS .ply or .csgs scene (with --web: a .csgs, or none to "
+                             "open files from the page)")
     parser.add_argument("--screenshot", metavar="PNG",
                         help="render offscreen to this PNG file instead of opening a window")
     parser.add_argument("--points", action="store_true",
@@ -64,6 +66,9 @@ def run(args) -> int:
         return run_web(args)
     if args.layers or args.no_browser or args.port:
         raise InputError("--layers, --port and --no-browser go with --web", property="--web")
+    if args.scene is None:
+        raise InputError("give the scene to view (only --web opens without one)",
+                         property="scene")
     from csgs_cli.scene_input import load_scene
     from csgs_cli.view_options import parse_size
     from csgs_codec.render.preview import save_screenshot, show_window
@@ -101,7 +106,8 @@ def run_web(args) -> int:
     if given:
         raise InputError(f"{', '.join(given)}: for the pyvista preview, not --web (the page "
                          "selects by click)", property="--web")
-    check_csgs_file(args.scene)
+    if args.scene is not None:
+        check_csgs_file(args.scene)
     layers = parse_layers(args.layers)
     if not 0 <= args.port <= 65535:
         raise InputError(f"--port must be 0..65535, got {args.port}", property="--port")
@@ -111,7 +117,8 @@ def run_web(args) -> int:
         raise InputError(f"cannot listen on {args.host}:{args.port}: {exc.strerror or exc}",
                          property="--port") from None
     with server:
-        print(f"serving {args.scene} at {server.url} (Ctrl-C to stop)", flush=True)
+        what = args.scene if args.scene is not None else "the viewer (open a file there)"
+        print(f"serving {what} at {server.url} (Ctrl-C to stop)", flush=True)
         if not args.no_browser:
             webbrowser.open(server.url)
         with contextlib.suppress(KeyboardInterrupt):  # Ctrl-C or SIGTERM: the way to stop

@@ -106,6 +106,7 @@ def test_view_web_refuses_bad_input_with_exit_code_2(tmp_path, capsys):
         ([str(csgs), "--web", "--screenshot", str(tmp_path / "x.png")], "--screenshot"),
         ([str(csgs), "--web", "--port", "70000"], "--port"),
         ([str(csgs), "--layers", "color"], "go with --web"),
+        ([], "give the scene"),
     ]
     for argv, words in cases:
         assert main(["view", *argv]) == 2, argv
