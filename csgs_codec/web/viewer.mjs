@@ -24,7 +24,7 @@ if (fixedSize) document.body.classList.add('fixed-size');
 
 const state = {
   phase: 'starting', name: null, layers: ['color', 'semantic'], count: 0, fileEnd: null,
-  colourEnd: null, colourShown: false, semanticReady: false, firstFrameMs: null,
+  colourEnd: null, hasSemantic: null, colourShown: false, semanticReady: false, firstFrameMs: null,
   colourMs: null, semanticMs: null, colourDecodeMs: null, semanticDecodeMs: null,
   colourBytesRead: null, semanticBytesRead: null, error: null, selection: null,
 };
@@ -118,7 +118,8 @@ function describeError(error) {
 function open(source, name, layers) {
   requestId += 1;
   Object.assign(state, {
-    phase: 'loading', name, layers, count: 0, colourShown: false, semanticReady: false,
+    phase: 'loading', name, layers, count: 0, fileEnd: null, colourEnd: null, hasSemantic: null,
+    colourShown: false, semanticReady: false,
     firstFrameMs: null, colourMs: null, semanticMs: null, error: null, selection: null,
   });
   scene = null;
