@@ -1,0 +1,250 @@
+"""A local HTTP server for the browser viewer: the page, the JavaScript receiver, the frozen
+tables and one scene file, nothing else (no internet at run time: every script is in the
+package).
+
+Routes:
+
+* ``/`` redirects to ``/web/index.html``;
+* ``/web/...``, ``/js/...``, ``/entropy/data/...``: files of the installed ``csgs_codec``
+  package under those folders (the page, the receiver's modules, the frozen tables);
+* ``/config.json``: the scene's URL, file name and the layers the page should read;
+* ``/scene.csgs``: the scene file, answering single-range HTTP Range requests (206 with
+  Content-Range, 416 past the end), so a page showing the colour layer fetches only the
+  header, TOC and base and colour chunks.
+
+The server counts the scene bytes it sends (:attr:`ViewerServer.scene_bytes_sent`), which is
+how ``benchmarks/web_viewer.py`` measures what the page fetches.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import threading
+from http import HTTPStatus
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from pathlib import Path
+from urllib.parse import unquote, urlsplit
+
+from csgs_codec.errors import InputError
+
+#: Layers the page may be asked to read, in the order it reads them.
+PAGE_LAYERS = ("color", "semantic")
+#: Folders of the package the server exposes, and the file types it serves from them.
+PACKAGE_ROOT = Path(__file__).resolve().parent.parent
+SERVED_FOLDERS = ("web/", "js/", "entropy/data/")
+CONTENT_TYPES = {
+    ".html": "text/html; charset=utf-8", ".mjs": "text/javascript; charset=utf-8",
+    ".js": "text/javascript; charset=utf-8", ".css": "text/css; charset=utf-8",
+    ".bin": "application/octet-stream", ".png": "image/png", ".svg": "image/svg+xml",
+}
+SCENE_PATH = "/scene.csgs"
+_BLOCK = 1 << 16
+_RANGE = re.compile(r"bytes=(\d*)-(\d*)")
+
+
+def parse_layers(text: str | None) -> tuple[str, ...]:
+    """The page layers of a ``--layers`` value: "color" or "color,semantic" (the default).
+
+    Raises:
+        InputError: an unknown layer name, or a list without "color".
+    """
+    if text is None:
+        return PAGE_LAYERS
+    names = tuple(dict.fromkeys(part.strip() for part in text.split(",") if part.strip()))
+    unknown = [name for name in names if name not in PAGE_LAYERS]
+    if unknown or "color" not in names:
+        raise InputError(f"--layers must be 'color' or 'color,semantic', got {text!r}",
+                         property="--layers")
+    return tuple(name for name in PAGE_LAYERS if name in names)
+
+
+def byte_range(header: str | None, size: int) -> tuple[int, int] | None | bool:
+    """The inclusive (first, last) byte of a single-range Range header for a file of ``size``
+    bytes; None when the header is absent, malformed or asks for several ranges (the whole
+    file is sent); False when the range cannot be satisfied (416)."""
+    if not header:
+        return None
+    match = _RANGE.fullmatch(header.strip())
+    if not match or (not match[1] and not match[2]):
+        return None
+    if not match[1]:  # the last N bytes
+        count = int(match[2])
+        return (max(size - count, 0), size - 1) if count and size else False
+    first = int(match[1])
+    last = int(match[2]) if match[2] else size - 1
+    if first >= size or last < first:
+        return False
+    return first, min(last, size - 1)
+
+
+class ViewerServer(ThreadingHTTPServer):
+    """The viewer's HTTP server for one scene (or none: the page then offers its file picker).
+
+    Args:
+        scene: path of the .csgs file to serve, or None.
+        layers: page layers to read (see :func:`parse_layers`).
+        host, port: where to listen; port 0 picks a free one.
+    """
+
+    daemon_threads = True
+
+    def __init__(self, scene: str | Path | None, *, layers: tuple[str, ...] = PAGE_LAYERS,
+                 host: str = "127.0.0.1", port: int = 0):
+        self.scene = None if scene is None else Path(scene)
+        self.layers = tuple(layers)
+        self._lock = threading.Lock()
+        self._sent = 0
+        self._thread: threading.Thread | None = None
+        super().__init__((host, port), _Handler)
+
+    @property
+    def url(self) -> str:
+        """The page's address, e.g. ``http://127.0.0.1:8000/``."""
+        host, port = self.server_address[:2]
+        return f"http://{host}:{port}/"
+
+    @property
+    def scene_bytes_sent(self) -> int:
+        """Bytes of the scene file sent so far (bodies of 200 and 206 answers)."""
+        with self._lock:
+            return self._sent
+
+    def reset_counter(self) -> None:
+        """Set :attr:`scene_bytes_sent` back to 0."""
+        with self._lock:
+            self._sent = 0
+
+    def count_sent(self, count: int) -> None:
+        """Add ``count`` bytes to :attr:`scene_bytes_sent`."""
+        with self._lock:
+            self._sent += count
+
+    def config(self) -> dict:
+        """What ``/config.json`` answers: scene URL (or None), file name, layers."""
+        return {"scene": None if self.scene is None else SCENE_PATH,
+                "name": None if self.scene is None else self.scene.name,
+                "layers": list(self.layers)}
+
+    def start(self) -> ViewerServer:
+        """Serve on a background daemon thread; returns self."""
+        self._thread = threading.Thread(target=self.serve_forever, name="csgs-web",
+                                        daemon=True)
+        self._thread.start()
+        return self
+
+    def close(self) -> None:
+        """Stop serving and release the socket."""
+        if self._thread is not None:
+            self.shutdown()
+            self._thread.join()
+            self._thread = None
+        self.server_close()
+
+    def __enter__(self) -> ViewerServer:
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def package_file(url_path: str) -> Path | None:
+    """The package file a URL path names under :data:`SERVED_FOLDERS`, or None (anything
+    else, ``..`` tricks and unknown file types included)."""
+    relative = unquote(url_path).lstrip("/")
+    if not relative.startswith(SERVED_FOLDERS) or Path(relative).suffix not in CONTENT_TYPES:
+        return None
+    path = (PACKAGE_ROOT / relative).resolve()
+    if not path.is_relative_to(PACKAGE_ROOT) or not path.is_file():
+        return None
+    return path
+
+
+class _Handler(BaseHTTPRequestHandler):
+    server: ViewerServer
+    protocol_version = "HTTP/1.1"
+
+    def log_message(self, format, *args):  # noqa: A002 - the base class's name
+        pass  # quiet: the command prints the address once
+
+    def do_HEAD(self):  # noqa: N802 - http.server's naming
+        self._answer(send_body=False)
+
+    def do_GET(self):  # noqa: N802
+        self._answer(send_body=True)
+
+    def _answer(self, send_body: bool) -> None:
+        url = urlsplit(self.path)
+        path = url.path
+        try:
+            if path == "/":
+                self._redirect("/web/index.html" + (f"?{url.query}" if url.query else ""))
+            elif path == "/config.json":
+                body = json.dumps(self.server.config()).encode()
+                self._send_bytes(body, "application/json", send_body)
+            elif path == SCENE_PATH and self.server.scene is not None:
+                self._send_scene(send_body)
+            else:
+                found = package_file(path)
+                if found is None:
+                    self._send_bytes(b"not found\n", "text/plain", send_body,
+                                     status=HTTPStatus.NOT_FOUND)
+                else:
+                    self._send_bytes(found.read_bytes(), CONTENT_TYPES[found.suffix],
+                                     send_body)
+        except (BrokenPipeError, ConnectionResetError):
+            pass  # the page went away mid-answer
+
+    def _redirect(self, target: str) -> None:
+        self.send_response(HTTPStatus.FOUND)
+        self.send_header("Location", target)
+        self.send_header("Content-Length", "0")
+        self.end_headers()
+
+    def _send_bytes(self, body: bytes, content_type: str, send_body: bool,
+                    status: HTTPStatus = HTTPStatus.OK) -> None:
+        self.send_response(status)
+        self.send_header("Content-Type", content_type)
+        self.send_header("Content-Length", str(len(body)))
+        self.send_header("Cache-Control", "no-store")
+        self.end_headers()
+        if send_body:
+            self.wfile.write(body)
+
+    def _send_scene(self, send_body: bool) -> None:
+        try:
+            fh = open(self.server.scene, "rb")  # noqa: SIM115 - closed below
+        except OSError:
+            self._send_bytes(b"scene file unreadable\n", "text/plain", send_body,
+                             status=HTTPStatus.NOT_FOUND)
+            return
+        with fh:
+            size = fh.seek(0, 2)
+            wanted = byte_range(self.headers.get("Range"), size)
+            if wanted is False:
+                self.send_response(HTTPStatus.REQUESTED_RANGE_NOT_SATISFIABLE)
+                self.send_header("Content-Range", f"bytes */{size}")
+                self.send_header("Content-Length", "0")
+                self.end_headers()
+                return
+            first, last = (0, size - 1) if wanted is None else wanted
+            count = max(last - first + 1, 0)
+            self.send_response(HTTPStatus.OK if wanted is None else HTTPStatus.PARTIAL_CONTENT)
+            self.send_header("Content-Type", "application/octet-stream")
+            self.send_header("Accept-Ranges", "bytes")
+            self.send_header("Content-Length", str(count))
+            self.send_header("Cache-Control", "no-store")
+            if wanted is not None:
+                self.send_header("Content-Range", f"bytes {first}-{last}/{size}")
+            self.end_headers()
+            if not send_body:
+                return
+            fh.seek(first)
+            left = count
+            while left > 0:
+                block = fh.read(min(_BLOCK, left))
+                if not block:
+                    break
+                self.wfile.write(block)
+                self.server.count_sent(len(block))
+                left -= len(block)

@@ -1,0 +1,251 @@
+/**
+ * The viewer page: starts the decode worker, draws the colour layer as soon as it arrives,
+ * reads the semantic layer after it, and selects the object under a click.
+ *
+ * URL parameters: ``size=WxH`` a fixed drawing-buffer size (tests and screenshots; otherwise
+ * the canvas fills the window), ``scene=URL`` and ``layers=color|color,semantic`` override
+ * the server's /config.json.
+ *
+ * ``window.csgsViewer`` is the page's state for scripts (the browser tests read it):
+ * ``state`` (phase, timings, counts, error, selection), ``setCamera(camera)``,
+ * ``camera()``, ``frameDrawn()`` (a promise of the next frame with the splats sorted),
+ * ``capture()`` (PNG data URL of the canvas) and ``selectAt(column, row)``.
+ */
+
+import { CameraRig } from './camera_rig.mjs';
+import { DEFAULT_THRESHOLD, selectAtPixel } from './pick.mjs';
+import { SplatView } from './splat_view.mjs';
+
+const $ = (id) => document.getElementById(id);
+const params = new URLSearchParams(location.search);
+const sizeMatch = /^(\d{1,5})x(\d{1,5})$/.exec(params.get('size') || '');
+const fixedSize = sizeMatch ? { width: Number(sizeMatch[1]), height: Number(sizeMatch[2]) } : null;
+if (fixedSize) document.body.classList.add('fixed-size');
+
+const state = {
+  phase: 'starting', name: null, layers: ['color', 'semantic'], count: 0, fileEnd: null,
+  colourEnd: null, hasSemantic: null, colourShown: false, semanticReady: false, firstFrameMs: null,
+  colourMs: null, semanticMs: null, colourDecodeMs: null, semanticDecodeMs: null,
+  colourBytesRead: null, semanticBytesRead: null, error: null, selection: null,
+};
+const view = new SplatView($('canvas'), fixedSize);
+const rig = new CameraRig();
+rig.attach($('canvas'));
+const worker = new Worker(new URL('./decode_worker.mjs', import.meta.url), { type: 'module' });
+let requestId = 0;
+let scene = null;
+let semantic = null;
+let framesSinceChange = 0;
+let settledFrames = 0; // consecutive frames that ended with no sort in flight
+const frameWaiters = [];
+
+/**
+ * Draw on demand: after a change, keep drawing until two frames in a row end with the splats
+ * sorted for the current view (and, for a new scene, its first sort received); a frame drawn
+ * then is complete, and frameDrawn() waiters are answered.
+ */
+view.app.autoRender = false;
+view.app.on('frameend', () => {
+  framesSinceChange++;
+  settledFrames = view.settled && (!view.splat || view.sorts > 0) ? settledFrames + 1 : 0;
+  const settled = settledFrames >= 2 && framesSinceChange >= 2;
+  if (settled) {
+    while (frameWaiters.length) frameWaiters.shift()();
+  } else {
+    view.app.renderNextFrame = true;
+  }
+});
+
+/** Draw again until settled (after any change to the view or the splats). */
+function drawAgain() {
+  framesSinceChange = 0;
+  settledFrames = 0;
+  view.app.renderNextFrame = true;
+}
+
+function redraw() {
+  const { width, height } = view.size;
+  view.setCamera(rig.camera(width, height));
+  drawAgain();
+}
+rig.onChange(redraw);
+view.app.graphicsDevice.on('resizecanvas', redraw);
+
+/** A promise of the next frame drawn after the splats were sorted for the current view. */
+function frameDrawn() {
+  return new Promise((resolve) => { frameWaiters.push(resolve); view.app.renderNextFrame = true; });
+}
+
+function setProgress(fraction, text) {
+  $('progress').value = Math.max(0, Math.min(1, fraction));
+  $('progress-text').textContent = text;
+}
+
+function setMessage(text, kind = 'info') {
+  const box = $('message');
+  box.textContent = text;
+  box.className = kind;
+}
+
+/** The status line for the state reached (events can arrive while a frame is awaited). */
+function showStatus() {
+  if (state.error) {
+    const { text, place } = describeError(state.error);
+    setMessage(state.error.stage === 'semantic' && state.colourShown
+      ? `The colour layer is shown, but the semantic layer could not be read: ${text}${place}`
+      : `Cannot show this file: ${text}${place}`, 'error');
+    return;
+  }
+  if (!state.colourShown) return;
+  const count = `${state.count.toLocaleString()} Gaussians`;
+  if (state.semanticReady) {
+    setMessage(`${count}, ${semantic.channels} semantic channels: click an object to select it`);
+  } else if (!state.layers.includes('semantic')) {
+    setMessage(`${count} (colour layer only, as asked: no selection)`);
+  } else if (state.phase === 'done') {
+    setMessage(`${count}; the file has no semantic features to select by`);
+  } else {
+    setMessage(`${count} (colour layer); reading the semantic layer`);
+  }
+}
+
+function describeError(error) {
+  const place = error.chunk ? ` — chunk ${error.chunk}${error.offset !== null ? `, byte offset ${error.offset}` : ''}`
+    : (error.offset !== null ? ` — byte offset ${error.offset}` : '');
+  return { text: `${error.message}`, place };
+}
+
+function open(source, name, layers) {
+  requestId += 1;
+  Object.assign(state, {
+    phase: 'loading', name, layers, count: 0, fileEnd: null, colourEnd: null, hasSemantic: null,
+    colourShown: false, semanticReady: false,
+    firstFrameMs: null, colourMs: null, semanticMs: null, error: null, selection: null,
+  });
+  scene = null;
+  semantic = null;
+  $('selection').textContent = '';
+  setMessage('');
+  $('title').textContent = name || 'csgs viewer';
+  setProgress(0, 'starting');
+  worker.postMessage({ kind: 'open', id: requestId, layers, ...source });
+}
+
+worker.onmessage = async (event) => {
+  const message = event.data;
+  if (message.id !== requestId) return; // from a file opened before this one
+  if (message.kind === 'progress') {
+    const base = message.stage === 'semantic' ? 0.8 : 0;
+    const span = message.stage === 'semantic' ? 0.2 : 0.8;
+    setProgress(base + span * message.fraction, message.text);
+  } else if (message.kind === 'toc') {
+    Object.assign(state, { fileEnd: message.fileEnd, colourEnd: message.colourEnd, hasSemantic: message.hasSemantic });
+  } else if (message.kind === 'colour') {
+    scene = message.scene;
+    Object.assign(state, {
+      phase: 'colour', count: scene.count, colourMs: performance.now(),
+      colourDecodeMs: message.decodeMs, colourBytesRead: message.bytesRead,
+    });
+    const { width, height } = view.size;
+    view.show(scene);
+    rig.frame(scene.positions, scene.opacity, width, height);
+    await frameDrawn();
+    state.firstFrameMs = performance.now();
+    state.colourShown = true;
+    showStatus();
+  } else if (message.kind === 'semantic') {
+    semantic = message.semantic ? { features: message.semantic, channels: message.channels, names: message.names } : null;
+    Object.assign(state, {
+      semanticReady: Boolean(semantic), semanticMs: performance.now(),
+      semanticDecodeMs: message.decodeMs, semanticBytesRead: message.bytesRead,
+    });
+    showStatus();
+  } else if (message.kind === 'done') {
+    state.phase = 'done';
+    setProgress(1, 'done');
+    showStatus();
+  } else if (message.kind === 'error') {
+    state.phase = 'error';
+    state.error = { stage: message.stage, message: message.message, chunk: message.chunk, offset: message.offset };
+    showStatus();
+    setProgress($('progress').value, 'stopped');
+  }
+};
+
+/** Select by the feature under drawing-buffer pixel (column, row); updates the page. */
+function selectAt(column, row) {
+  if (!scene) throw new Error('no scene is open');
+  if (!semantic) throw new Error('the semantic layer is not loaded, so there is nothing to select by');
+  const { width, height } = view.size;
+  const threshold = Number($('threshold').value) || DEFAULT_THRESHOLD;
+  const result = selectAtPixel(scene, semantic.features, semantic.channels, rig.camera(width, height), column, row, threshold);
+  state.selection = { count: result.count, column, row, alpha: result.alpha, threshold, mask: result.mask };
+  view.highlight(result.mask);
+  drawAgain();
+  $('selection').textContent = `selected ${result.count.toLocaleString()} of ${scene.count.toLocaleString()} Gaussians (pixel ${column},${row}, threshold ${threshold})`;
+  return result;
+}
+
+function clearSelection() {
+  state.selection = null;
+  view.highlight(null);
+  drawAgain();
+  $('selection').textContent = '';
+}
+
+$('canvas').addEventListener('click', (e) => {
+  if ((rig.lastDragPixels || 0) > 3 || !scene) return;
+  const canvas = $('canvas');
+  const column = Math.floor(e.offsetX * canvas.width / canvas.clientWidth);
+  const row = Math.floor(e.offsetY * canvas.height / canvas.clientHeight);
+  try {
+    selectAt(column, row);
+  } catch (error) {
+    clearSelection();
+    $('selection').textContent = error.message;
+  }
+});
+window.addEventListener('keydown', (e) => { if (e.key === 'Escape') clearSelection(); });
+$('file').addEventListener('change', () => {
+  const file = $('file').files[0];
+  if (file) open({ file }, file.name, ['color', 'semantic']);
+});
+window.addEventListener('dragover', (e) => e.preventDefault());
+window.addEventListener('drop', (e) => { // a file dropped on the page opens like a picked one
+  e.preventDefault();
+  const file = e.dataTransfer && e.dataTransfer.files[0];
+  if (file) open({ file }, file.name, ['color', 'semantic']);
+});
+
+window.csgsViewer = {
+  state,
+  setCamera(camera) { rig.setCamera(camera); },
+  camera() { const { width, height } = view.size; return rig.camera(width, height); },
+  frameDrawn,
+  capture() { return view.capture(); },
+  selectAt,
+  selectionIndices() {
+    const mask = state.selection && state.selection.mask;
+    if (!mask) return [];
+    const out = [];
+    for (let i = 0; i < mask.length; i++) if (mask[i]) out.push(i);
+    return out;
+  },
+};
+
+async function start() {
+  let config = { scene: null, name: null, layers: ['color', 'semantic'] };
+  try {
+    const response = await fetch('/config.json', { cache: 'no-store' });
+    if (response.ok) config = { ...config, ...(await response.json()) };
+  } catch { /* opened without the server's config: the file picker still works */ }
+  const url = params.get('scene') || config.scene;
+  const layers = (params.get('layers') || config.layers.join(',')).split(',');
+  if (url) {
+    open({ url: new URL(url, location.href).href }, config.name || url, layers);
+  } else {
+    state.phase = 'idle';
+    setMessage('Choose a .csgs file to open.');
+  }
+}
+start();

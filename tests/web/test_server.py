@@ -1,0 +1,154 @@
+"""The viewer's HTTP server without a browser: Range answers, what it serves and refuses, the
+page configuration, and `csgs view --web`'s argument checks."""
+
+from __future__ import annotations
+
+import json
+import urllib.error
+import urllib.request
+
+import pytest
+
+from cli.main import main
+from csgs_codec.errors import InputError
+from csgs_codec.web.server import PACKAGE_ROOT, ViewerServer, byte_range, parse_layers
+
+CONTENT = bytes(range(256)) * 40  # 10,240 bytes
+
+
+@pytest.fixture()
+def server(tmp_path):
+    path = tmp_path / "scene.csgs"
+    path.write_bytes(CONTENT)
+    with ViewerServer(path, layers=("color",)) as running:
+        yield running
+
+
+def _get(url: str, headers: dict | None = None):
+    request = urllib.request.Request(url, headers=headers or {})
+    try:
+        with urllib.request.urlopen(request, timeout=30) as response:
+            return response.status, dict(response.headers), response.read()
+    except urllib.error.HTTPError as err:
+        return err.code, dict(err.headers), err.read()
+
+
+@pytest.mark.parametrize(("header", "expected"), [
+    (None, None), ("bytes=0-15", (0, 15)), ("bytes=100-", (100, 10239)),
+    ("bytes=-10", (10230, 10239)), ("bytes=10000-99999", (10000, 10239)),
+    ("bytes=10240-", False), ("bytes=20-10", False), ("bytes=-0", False),
+    ("bytes=0-1,5-6", None), ("items=0-1", None), ("bytes=-", None),
+])
+def test_byte_range(header, expected):
+    assert byte_range(header, len(CONTENT)) == expected
+
+
+def test_range_requests_get_206_with_the_asked_bytes(server):
+    status, headers, body = _get(server.url + "scene.csgs", {"Range": "bytes=16-1039"})
+    assert status == 206 and body == CONTENT[16:1040]
+    assert headers["Content-Range"] == f"bytes 16-1039/{len(CONTENT)}"
+    assert server.scene_bytes_sent == 1024
+    status, headers, body = _get(server.url + "scene.csgs", {"Range": "bytes=20000-"})
+    assert status == 416 and body == b"" and headers["Content-Range"] == f"bytes */{len(CONTENT)}"
+    status, headers, body = _get(server.url + "scene.csgs")
+    assert status == 200 and body == CONTENT and headers["Accept-Ranges"] == "bytes"
+    assert server.scene_bytes_sent == 1024 + len(CONTENT)
+
+
+def test_serves_the_page_receiver_and_tables_from_the_package(server):
+    status, headers, body = _get(server.url)  # redirected to the page
+    assert status == 200 and b'src="viewer.mjs"' in body
+    for path, kind in [("web/viewer.mjs", "text/javascript"), ("js/scene.mjs", "text/javascript"),
+                       ("web/vendor/playcanvas/playcanvas.min.mjs", "text/javascript"),
+                       ("entropy/data/sine_v1.bin", "application/octet-stream")]:
+        status, headers, body = _get(server.url + path)
+        assert status == 200 and headers["Content-Type"].startswith(kind), path
+        assert body == (PACKAGE_ROOT / path).read_bytes()
+    status, _, body = _get(server.url + "config.json")
+    assert status == 200
+    assert json.loads(body) == {"scene": "/scene.csgs", "name": "scene.csgs", "layers": ["color"]}
+
+
+@pytest.mark.parametrize("path", [
+    "web/../web/server.py", "web/%2e%2e/codec/decoder.py", "codec/decoder.py", "web/server.py",
+    "web/missing.mjs", "js/../../setup.py", "entropy/data/../__init__.py",
+])
+def test_refuses_everything_else(server, path):
+    status, _, _ = _get(server.url + path)
+    assert status == 404
+
+
+def test_without_a_scene_the_page_offers_the_file_picker(tmp_path):
+    with ViewerServer(None) as running:
+        status, _, body = _get(running.url + "config.json")
+        assert json.loads(body)["scene"] is None
+        assert _get(running.url + "scene.csgs")[0] == 404
+
+
+def test_parse_layers():
+    assert parse_layers(None) == ("color", "semantic")
+    assert parse_layers("color") == ("color",)
+    assert parse_layers("semantic, color") == ("color", "semantic")
+    for bad in ("semantic", "colour", "color,base", ""):
+        with pytest.raises(InputError):
+            parse_layers(bad)
+
+
+def test_view_web_refuses_bad_input_with_exit_code_2(tmp_path, capsys):
+    ply = tmp_path / "scene.ply"
+    ply.write_bytes(b"ply\nformat ascii 1.0\nend_header\n")
+    csgs = tmp_path / "scene.csgs"
+    csgs.write_bytes(b"\x89CSG\r\n\x1a\n" + bytes(8))
+    cases = [
+        ([str(ply), "--web"], ".csgs files"),
+        ([str(tmp_path / "missing.csgs"), "--web"], "no such file"),
+        ([str(csgs), "--web", "--layers", "semantic"], "--layers"),
+        ([str(csgs), "--web", "--screenshot", str(tmp_path / "x.png")], "--screenshot"),
+        ([str(csgs), "--web", "--port", "70000"], "--port"),
+        ([str(csgs), "--layers", "color"], "go with --web"),
+        ([], "give the scene"),
+    ]
+    for argv, words in cases:
+        assert main(["view", *argv]) == 2, argv
+        err = capsys.readouterr().err
+        assert words in err and "Traceback" not in err, argv
+
+
+def test_every_page_file_is_package_data():
+    """`pip install` must bring every file the page loads (pyproject's package-data globs)."""
+    tomllib = pytest.importorskip("tomllib", reason="tomllib needs Python 3.11")
+    config = tomllib.loads((PACKAGE_ROOT.parent / "pyproject.toml").read_text())
+    patterns = config["tool"]["setuptools"]["package-data"]["csgs_codec"]
+    shipped = {path for pattern in patterns for path in PACKAGE_ROOT.glob(pattern)}
+    page_files = [path for path in (PACKAGE_ROOT / "web").rglob("*") if path.is_file()
+                  and path.suffix not in (".py", ".pyc") and "__pycache__" not in path.parts]
+    assert len(page_files) >= 10
+    assert [path for path in page_files if path not in shipped] == []
+
+
+def test_view_web_serves_until_interrupted(tmp_path):
+    """The command as a user runs it: prints the address, serves the scene, stops on Ctrl-C."""
+    import os
+    import re
+    import signal
+    import subprocess
+    import sys
+
+    from tests.conftest import REPO
+
+    scene = tmp_path / "scene.csgs"
+    scene.write_bytes(b"\x89CSG\r\n\x1a\n" + bytes(8))
+    process = subprocess.Popen(
+        [sys.executable, "-m", "cli.main", "view", "--web", str(scene), "--no-browser",
+         "--layers", "color"], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, env={**os.environ, "PYTHONPATH": str(REPO)})
+    try:
+        line = process.stdout.readline()
+        url = re.search(r"at (http://127\.0\.0\.1:\d+/)", line)[1]
+        status, _, body = _get(url + "config.json")
+        assert status == 200 and json.loads(body)["layers"] == ["color"]
+        assert _get(url + "scene.csgs", {"Range": "bytes=0-7"})[2] == b"\x89CSG\r\n\x1a\n"
+    finally:
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=30)
+    assert process.returncode == 0 and "Traceback" not in err
