@@ -130,7 +130,7 @@ def check_csgs_file(path: str) -> None:
     """Raise InputError unless ``path`` is a readable file starting with the .csgs magic."""
     from pathlib import Path
 
-    from csgs_cli.scene_input import CSGS_MAGIC
+    from csgs_codec.format import MAGIC as CSGS_MAGIC
 
     file = Path(path)
     if not file.is_file():

@@ -9,7 +9,7 @@ import urllib.request
 
 import pytest
 
-from cli.main import main
+from csgs_cli.main import main
 from csgs_codec.errors import InputError
 from csgs_codec.web.server import PACKAGE_ROOT, ViewerServer, byte_range, parse_layers
 
