@@ -103,8 +103,10 @@ def run(args) -> int:
                       hyperprior=args.hyperprior,
                       view_pruning=view_pruning, cameras=cameras, tile_size=args.tile_size,
                       workers=args.workers, ray=args.ray)
-    scene = read_ply(scene_path, sanitize=args.sanitize)
     searching = args.target_psnr is not None or args.lambda_ is not None
+    streamed = (not searching and not view_pruning and args.prune_opacity is None
+                and not args.sanitize and _tiled_binary_ply(scene_path, args.tile_size))
+    scene = None if streamed else read_ply(scene_path, sanitize=args.sanitize)
     bar = tqdm(total=None if searching or view_pruning else len(STAGES), desc="encode",
                unit="stage",
                disable=args.quiet, leave=False)
@@ -148,7 +150,12 @@ def run(args) -> int:
     encoder.view_progress = view_progress
     encoder.tile_progress = tile_progress
     try:
-        result = encoder.encode_with_report(scene)
+        if scene is None:  # a tiled scene streamed from its memory-mapped body
+            from csgs_codec.codec.tile_encoder import encode_ply_tiled
+
+            result = encode_ply_tiled(encoder, scene_path)
+        else:
+            result = encoder.encode_with_report(scene)
     except InputError as err:  # the scene's errors (row, property) belong to the input file
         if err.file is None:
             err.file = scene_path
@@ -158,7 +165,7 @@ def run(args) -> int:
             open_bar.close()
         bar.close()
     write_atomically(args.output, result.data, [args.scene, scene_path])
-    n = len(result.reconstruction)
+    n = len(result.order)
     in_bytes = os.path.getsize(scene_path)
     bits = 8 * len(result.data) / max(n, 1)
     print(f"{args.output}: {len(result.data):,} bytes, {n:,} Gaussians, {bits:.2f} bits/Gaussian"
@@ -199,6 +206,20 @@ def _encode_anchors(args, write_atomically) -> int:
           f"{8 * len(result.data) / max(m, 1):.1f} bits/anchor, {result.seconds:.2f} s "
           f"(fit {result.fit_seconds:.2f} s)")
     return 0
+
+
+def _tiled_binary_ply(path: str, tile_size: int | None) -> bool:
+    """True when ``path`` is a binary PLY the encoder will tile (more Gaussians than the tile
+    size): it is then encoded tile by tile from its memory-mapped body, never loaded whole
+    (the same bytes as a whole read)."""
+    from csgs_codec.codec.tiling import effective_tile_size
+    from csgs_codec.scene.ply_mmap import MappedPly
+
+    try:
+        count = MappedPly(path).count
+    except InputError:
+        return False  # ASCII or unusual: read whole, which reports any real error
+    return count > effective_tile_size(count, tile_size)
 
 
 def _check_exclusive(args) -> None:

@@ -16,8 +16,9 @@ import numpy as np
 
 from csgs_codec.codec.parallel import run_jobs
 from csgs_codec.codec.presets import Preset
-from csgs_codec.codec.tile_index import TileIndex, tile_info
-from csgs_codec.codec.tiling import split_tiles, tile_grid
+from csgs_codec.codec.tile_index import TileIndex, TileInfo, tile_info
+from csgs_codec.codec.tiling import effective_tile_size, split_tiles, tile_grid
+from csgs_codec.errors import InputError
 from csgs_codec.format import Chunk
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.scene.position_grid import PositionGrid
@@ -34,7 +35,9 @@ class TileJob:
         grid: the tile's position grid; cells: (M, 3) int64 cells of its points on it;
             inside: (M,) bool, False for far points (their cells are 0).
         settings: the preset's steps; hyperprior: fit the colour hyperprior;
-        semantic: the encoder's semantic mode ("auto" or "none").
+        semantic: the encoder's semantic mode ("auto" or "none");
+        keep_reconstruction: send the tile's reconstruction back (not when streaming a
+            scene larger than memory).
     """
 
     scene: GaussianScene | None
@@ -46,15 +49,18 @@ class TileJob:
     settings: Preset
     hyperprior: bool
     semantic: str
+    keep_reconstruction: bool = True
 
 
 @dataclass
 class TileOutput:
-    """One coded tile: chunks (tile 0), reconstruction and order (indices into the tile)."""
+    """One coded tile: chunks (tile 0), its tile index entry, order (indices into the
+    tile) and reconstruction (None unless the job keeps it)."""
 
     chunks: list[Chunk]
-    reconstruction: GaussianScene
+    info: TileInfo
     order: np.ndarray
+    reconstruction: GaussianScene | None
 
 
 def encode_tile(job: TileJob) -> TileOutput:
@@ -63,17 +69,28 @@ def encode_tile(job: TileJob) -> TileOutput:
 
     scene = job.scene
     if scene is None:
+        from csgs_codec.codec.encoder_checks import check_encodable
         from csgs_codec.scene.ply_mmap import read_ply_rows
 
         scene = read_ply_rows(job.source, job.rows)
+        try:
+            check_encodable(scene, semantic=job.semantic != "none")
+        except InputError as err:
+            if err.index is not None:
+                err.index = int(job.rows[err.index])
+            err.file = err.file or job.source
+            err.args = (str(err),)
+            raise
     encoder = Encoder(semantic=job.semantic, hyperprior=job.hyperprior)
     coded = encoder.code_scene(scene, job.settings, job.grid, job.cells, job.inside)
-    return TileOutput(coded.chunks, coded.reconstruction, coded.order)
+    return TileOutput(coded.chunks, tile_info(coded.reconstruction.positions), coded.order,
+                      coded.reconstruction if job.keep_reconstruction else None)
 
 
 def plan_jobs(positions: np.ndarray, grid: PositionGrid, settings: Preset, tile_size: int, *,
               hyperprior: bool, semantic: str, scene: GaussianScene | None = None,
-              source: str | None = None) -> list[TileJob]:
+              source: str | None = None, keep_reconstruction: bool = True
+              ) -> list[TileJob]:
     """One job per tile of the scene whose positions are ``positions`` (N, 3), on the
     whole scene's ``grid``; tiles carry their Gaussians from ``scene`` or name ``source``."""
     jobs = []
@@ -83,7 +100,8 @@ def plan_jobs(positions: np.ndarray, grid: PositionGrid, settings: Preset, tile_
         tile_cells = np.zeros_like(cells)
         tile_cells[inside] = local
         jobs.append(TileJob(None if scene is None else scene.subset(rows), source, rows,
-                            local_grid, tile_cells, inside, settings, hyperprior, semantic))
+                            local_grid, tile_cells, inside, settings, hyperprior, semantic,
+                            keep_reconstruction))
     return jobs
 
 
@@ -103,14 +121,14 @@ def encode_tiled(encoder, scene: GaussianScene, grid: PositionGrid, settings: Pr
 
 
 def assemble(encoder, jobs: list[TileJob], outputs: list[TileOutput], count: int,
-             record: Chunk | None = None, keep_reconstruction: bool = True):
+             record: Chunk | None = None):
     """The EncodeResult of coded tiles: the container (TIDX first), the reconstruction
-    (tiles in order; None unless ``keep_reconstruction``) and the order into the input."""
+    (tiles in order; None when the tiles did not keep theirs) and the order into the input."""
     from csgs_codec.codec.encoder import EncodeResult
     from csgs_codec.codec.encoder_checks import decodable_container
 
     encoder.progress("container")
-    index = TileIndex(tuple(tile_info(out.reconstruction.positions) for out in outputs))
+    index = TileIndex(tuple(out.info for out in outputs))
     chunks = [Chunk("TIDX", "base", index.to_bytes())]
     for number, out in enumerate(outputs):
         chunks += [replace(c, tile=number) for c in out.chunks]
@@ -121,8 +139,8 @@ def assemble(encoder, jobs: list[TileJob], outputs: list[TileOutput], count: int
         stream_bytes[c.type] = stream_bytes.get(c.type, 0) + len(c.payload)
     data = decodable_container(chunks, count)
     order = np.concatenate([job.rows[out.order] for job, out in zip(jobs, outputs)])
-    reconstruction = (concat_scenes([out.reconstruction for out in outputs])
-                      if keep_reconstruction else None)
+    kept = [out.reconstruction for out in outputs]
+    reconstruction = None if any(r is None for r in kept) else concat_scenes(kept)
     return EncodeResult(data=data, reconstruction=reconstruction, order=order,
                         stream_bytes=stream_bytes, tiles=len(outputs))
 
@@ -137,3 +155,34 @@ def concat_scenes(scenes: list[GaussianScene]) -> GaussianScene:
         semantic=None if first.semantic is None else join("semantic"),
         semantic_names=first.semantic_names,
         labels=None if first.labels is None else join("labels"))
+
+
+def encode_ply_tiled(encoder, path: str) -> object:
+    """Encode the binary PLY at ``path`` tile by tile without loading it whole: positions
+    are read from the memory-mapped body, each worker reads its tile's rows itself, and no
+    reconstruction is kept (``reconstruction`` is None). The bytes are those of
+    ``encoder.encode(read_ply(path))``. Only for a plain preset encode (no rate control,
+    pruning or view pruning) of a scene the encoder tiles (more than its tile size).
+
+    Raises:
+        InputError: the file cannot be mapped or holds something the format cannot carry.
+    """
+    from csgs_codec.codec.encoder_checks import check_count
+    from csgs_codec.scene.ply_mmap import MappedPly
+    from csgs_codec.scene.position_grid import PositionGrid
+
+    ply = MappedPly(path)
+    settings = encoder.preset
+    encoder.progress("geometry")
+    positions = ply.positions()
+    tile_size = effective_tile_size(len(positions), encoder.tile_size)
+    if len(positions) <= tile_size:
+        check_count(len(positions))
+    grid = PositionGrid.fit(positions, settings.position_bits)
+    jobs = plan_jobs(positions, grid, settings, tile_size, hyperprior=encoder.hyperprior,
+                     semantic=encoder.semantic, source=ply.path, keep_reconstruction=False)
+    del positions
+    encoder.progress(f"{len(jobs)} tiles")
+    outputs = run_jobs(encode_tile, jobs, workers=encoder.workers, ray=encoder.ray,
+                       progress=encoder.tile_progress)
+    return assemble(encoder, jobs, outputs, ply.count)
