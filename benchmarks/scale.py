@@ -52,8 +52,10 @@ def _run(args: list[str]) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def measure(size: int, work: Path, source: Path) -> dict:
-    """Every case for one scene size."""
+def measure(size: int, work: Path, source: Path, untiled: bool = True,
+            engines: tuple = ENGINES) -> dict:
+    """The cases for one scene size: the untiled encode (unless ``untiled`` is False: its
+    whole-scene read needs about 4 GB per million SH-3 Gaussians) and the tiled ``engines``."""
     ply = work / f"scene_{size}.ply"
     if not ply.exists():
         write_ply(upsampled_to(read_ply(source), size, seed=0), ply)
@@ -62,11 +64,12 @@ def measure(size: int, work: Path, source: Path) -> dict:
            "gaussians": size, "sh_degree": 3, "quality": 5, "tile_size": tile,
            "ply_mb": ply.stat().st_size / 2**20, "encodes": []}
     untiled_out = str(work / f"untiled_{size}.csgs")
-    untiled = _run(["encode", str(ply), untiled_out, "--tile-size", str(size), "--whole"])
-    row["encodes"].append({"case": "untiled (read whole)", **untiled})
-    print(f"{size}: untiled {untiled}", file=sys.stderr, flush=True)
+    if untiled:
+        whole = _run(["encode", str(ply), untiled_out, "--tile-size", str(size), "--whole"])
+        row["encodes"].append({"case": "untiled (read whole)", **whole})
+        print(f"{size}: untiled {whole}", file=sys.stderr, flush=True)
     files = []
-    for label, extra in ENGINES:
+    for label, extra in engines:
         out = str(work / f"tiled_{size}_{len(files)}.csgs")
         got = _run(["encode", str(ply), out, "--tile-size", str(tile), *extra])
         row["encodes"].append({"case": f"tiled, {label}", **got})
@@ -74,17 +77,20 @@ def measure(size: int, work: Path, source: Path) -> dict:
         print(f"{size}: {label} {got}", file=sys.stderr, flush=True)
     row["identical_across_engines"] = all(f == files[0] for f in files)
     tiled_bytes = len(files[0])
-    row["bits_per_gaussian_untiled"] = 8 * untiled["bytes"] / size
     row["bits_per_gaussian_tiled"] = 8 * tiled_bytes / size
-    row["tiled_size_ratio"] = tiled_bytes / untiled["bytes"]
     enc = {e["case"]: e["encode_s"] for e in row["encodes"]}
-    row["speedup_2_workers_local"] = enc["tiled, local, 1 worker"] / enc["tiled, local, 2 workers"]
-    row["speedup_2_workers_ray"] = enc["tiled, ray local, 1 CPU"] / enc["tiled, ray local, 2 CPUs"]
+    for key, one, two in (("speedup_2_workers_local", "local, 1 worker", "local, 2 workers"),
+                          ("speedup_2_workers_ray", "ray local, 1 CPU", "ray local, 2 CPUs")):
+        if f"tiled, {one}" in enc and f"tiled, {two}" in enc:
+            row[key] = enc[f"tiled, {one}"] / enc[f"tiled, {two}"]
     tiled_decode = _run(["decode", str(work / f"tiled_{size}_0.csgs"), str(ply)])
-    untiled_decode = _run(["decode", untiled_out, str(ply)])
     row["tiled_decode"] = tiled_decode
-    row["untiled_decode"] = {k: v for k, v in untiled_decode.items() if k.endswith("_rmse")
-                             or k == "full_decode_s"}
+    if untiled:
+        row["bits_per_gaussian_untiled"] = 8 * whole["bytes"] / size
+        row["tiled_size_ratio"] = tiled_bytes / whole["bytes"]
+        untiled_decode = _run(["decode", untiled_out, str(ply)])
+        row["untiled_decode"] = {k: v for k, v in untiled_decode.items()
+                                 if k.endswith("_rmse") or k == "full_decode_s"}
     row["region_bytes_fraction"] = tiled_decode["region_bytes_read"] / tiled_decode["file_bytes"]
     row["region_time_fraction"] = (tiled_decode["region_decode_s"]
                                    / tiled_decode["full_decode_s"])
@@ -96,28 +102,30 @@ def plot(rows: list[dict], path: str) -> None:
     """Encode time and peak memory against size per case; the tiling cost."""
     from benchmarks._png_plot import MARKERS, PALETTE, Chart, Series, save_charts
 
-    cases = [e["case"] for e in rows[0]["encodes"]]
+    cases = list(dict.fromkeys(e["case"] for r in rows for e in r["encodes"]))
     time_chart = Chart("encode wall time (shared 2-core machine)", "Gaussians", "seconds",
                        log_x=True, log_y=True)
     memory_chart = Chart("peak memory (process tree, summed RSS)", "Gaussians", "MB",
                          log_x=True, log_y=True)
     for i, case in enumerate(cases):
-        xs = [r["gaussians"] for r in rows]
 
-        def pick(key: str, case: str = case) -> list[float]:
-            return [next(e[key] for e in r["encodes"] if e["case"] == case) for r in rows]
+        def pick(key: str, case: str = case) -> tuple[list[int], list[float]]:
+            found = [(r["gaussians"], e[key]) for r in rows for e in r["encodes"]
+                     if e["case"] == case]
+            return [x for x, _ in found], [y for _, y in found]
 
         style = {"color": PALETTE[i % len(PALETTE)], "marker": MARKERS[i % len(MARKERS)],
                  "line": True}
-        time_chart.add(Series(case, xs, pick("encode_s"), **style))
-        memory_chart.add(Series(case, xs, pick("peak_tree_mb"), **style))
+        time_chart.add(Series(case, *pick("encode_s"), **style))
+        memory_chart.add(Series(case, *pick("peak_tree_mb"), **style))
     cost = Chart("tiled / untiled file size; region decode fractions", "Gaussians", "ratio",
                  log_x=True)
-    xs = [r["gaussians"] for r in rows]
     for i, (key, label) in enumerate((("tiled_size_ratio", "tiled / untiled bytes"),
                                       ("region_bytes_fraction", "region bytes read / file"),
                                       ("region_time_fraction", "region / full decode time"))):
-        cost.add(Series(label, xs, [r[key] for r in rows], PALETTE[i], MARKERS[i], line=True))
+        have = [r for r in rows if key in r]
+        cost.add(Series(label, [r["gaussians"] for r in have], [r[key] for r in have],
+                        PALETTE[i], MARKERS[i], line=True))
     save_charts([time_chart, memory_chart, cost], path, columns=3)
 
 
@@ -128,12 +136,22 @@ def main() -> None:
     parser.add_argument("--plot", default=None)
     parser.add_argument("--work", default="/tmp/csgs_scale")
     parser.add_argument("--source", default=str(SOURCE))
+    parser.add_argument("--no-untiled-above", type=int, default=None, metavar="N",
+                        help="skip the untiled encode for sizes above N")
+    parser.add_argument("--engines", default=None, metavar="I,J",
+                        help="only these tiled cases (indices into 0 local 1 worker, 1 local "
+                             "2 workers, 2 ray 1 CPU, 3 ray 2 CPUs)")
+    parser.add_argument("--append", default=None, metavar="JSON",
+                        help="rows of an earlier run to keep before this run's")
     args = parser.parse_args()
     work = Path(args.work)
     work.mkdir(parents=True, exist_ok=True)
-    rows = []
+    rows = json.loads(Path(args.append).read_text())["results"] if args.append else []
+    engines = (ENGINES if args.engines is None
+               else tuple(ENGINES[int(i)] for i in args.engines.split(",")))
     for size in (int(s) for s in args.sizes.split(",")):
-        rows.append(measure(size, work, Path(args.source)))
+        untiled = args.no_untiled_above is None or size <= args.no_untiled_above
+        rows.append(measure(size, work, Path(args.source), untiled, engines))
         emit(document("scale", rows, note="shared 2-core machine under load from other "
                       "jobs: times are noisy"), args.out)  # after every size: partial results
     if args.plot:
