@@ -210,3 +210,18 @@ def test_bad_tile_size_is_refused():
     for bad in (0, -3, 1.5, True, 1 << 25):
         with pytest.raises(InputError):
             Encoder(tile_size=bad)
+
+
+@pytest.mark.slow
+def test_view_pruning_and_lambda_search_work_on_tiles():
+    from csgs_codec import read_ply
+    from tests.conftest import SAMPLE
+
+    scene = read_ply(SAMPLE).subset(np.arange(0, 45624, 12))
+    pruned = Encoder(quality=5, hyperprior=False, view_pruning=True,
+                     tile_size=1500).encode_with_report(scene)
+    assert pruned.tiles > 1 and pruned.view_pruned > 0
+    assert Decoder().decode(pruned.data).equals(pruned.reconstruction)
+    searched = Encoder(lambda_=0.25, fast=True, tile_size=1500).encode_with_report(scene)
+    assert searched.tiles > 1
+    assert Decoder().decode(searched.data).equals(searched.reconstruction)
