@@ -6,9 +6,10 @@
 
 Prints one JSON line. Peak memory is sampled from /proc (Linux) every 0.1 s over this
 process and all its descendants (worker processes, a local Ray cluster) by a forked helper
-process: ``peak_tree_mb``
-sums their resident sets (shared pages such as the mapped PLY counted once per process, so
-an upper bound), ``peak_self_mb`` is this process's own high-water mark.
+process: ``peak_tree_mb`` sums their resident sets (shared pages such as the mapped PLY
+counted once per process, so an upper bound), ``peak_self_mb`` is this process's own
+high-water mark. ``cpu_s`` is the CPU time of this process and its finished children (local
+workers; a Ray cluster's workers are not counted).
 """
 
 from __future__ import annotations
@@ -93,10 +94,12 @@ def encode(args) -> dict:
     else:
         result = encode_ply_tiled(encoder, args.ply)
     seconds = time.perf_counter() - start
+    used = [resource.getrusage(who) for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]
+    cpu = sum(u.ru_utime + u.ru_stime for u in used)  # before the sampler ends: not its share
     peak = sampler.stop()
     Path(args.out).write_bytes(result.data)
     np.save(args.out + ".order.npy", result.order)
-    return {"encode_s": seconds, "peak_tree_mb": peak,
+    return {"encode_s": seconds, "cpu_s": cpu, "peak_tree_mb": peak,
             "peak_self_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
             "bytes": len(result.data), "tiles": result.tiles, "gaussians": len(result.order)}
 
