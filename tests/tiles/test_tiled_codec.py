@@ -225,3 +225,11 @@ def test_view_pruning_and_lambda_search_work_on_tiles():
     searched = Encoder(lambda_=0.25, fast=True, tile_size=1500).encode_with_report(scene)
     assert searched.tiles > 1
     assert Decoder().decode(searched.data).equals(searched.reconstruction)
+
+
+def test_info_counts_every_tile(tiled):
+    from csgs_codec.codec.describe import describe_bitstream
+
+    facts = describe_bitstream(tiled.data)
+    assert facts["gaussians"] == 3000 and facts["tiles"] == 4
+    assert facts["bits_per_gaussian"] == pytest.approx(8 * len(tiled.data) / 3000)
