@@ -80,6 +80,16 @@ def _sample(root: int, pipe) -> None:
     pipe.send(peak)
 
 
+def _high_water_mb() -> float:
+    """This process's peak RSS (VmHWM, MB). Not ru_maxrss: that survives exec, so it would
+    report the peak of the process that started this one when that was larger."""
+    with open("/proc/self/status") as fh:
+        for line in fh:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024
+    return float("nan")
+
+
 def encode(args) -> dict:
     """Encode the PLY as csgs encode would (streamed when tiled) and time it."""
     from csgs_codec import Encoder, read_ply
@@ -100,7 +110,7 @@ def encode(args) -> dict:
     Path(args.out).write_bytes(result.data)
     np.save(args.out + ".order.npy", result.order)
     return {"encode_s": seconds, "cpu_s": cpu, "peak_tree_mb": peak,
-            "peak_self_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+            "peak_self_mb": _high_water_mb(),
             "bytes": len(result.data), "tiles": result.tiles, "gaussians": len(result.order)}
 
 
