@@ -1,4 +1,5 @@
-"""``csgs decode SCENE.csgs -o OUT.ply|.splat|.spz|.glb [--layers color|color,semantic]``."""
+"""``csgs decode SCENE.csgs -o OUT.ply|.splat|.spz|.glb [--layers color|color,semantic]
+[--region BOX | --tiles LIST]``."""
 
 from __future__ import annotations
 
@@ -20,6 +21,39 @@ def add_arguments(parser) -> None:
                         metavar="color|color,semantic",
                         help="layers to decode, comma-separated in any order (default color; "
                              "'color' never reads the semantic bytes)")
+    parser.add_argument("--region", type=region_option, default=None,
+                        metavar="XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX",
+                        help="decode only the spatial tiles whose box meets this box (whole "
+                             "tiles; reads only their chunks). Write --region=-1,... when the "
+                             "first number is negative")
+    parser.add_argument("--tiles", type=tiles_option, default=None, metavar="LIST",
+                        help="decode only these tiles, e.g. 0,3,5")
+
+
+def region_option(text: str) -> tuple[float, ...]:
+    """The ``--region`` value as 6 floats (argparse type: a bad value exits 2)."""
+    import argparse
+
+    from csgs_codec.codec.decoder import check_region
+    from csgs_codec.errors import InputError
+
+    try:
+        return check_region([float(v) for v in text.split(",")])
+    except (ValueError, InputError) as err:
+        message = getattr(err, "message", None) or (
+            f"{text!r} is not 6 comma-separated numbers xmin,ymin,zmin,xmax,ymax,zmax")
+        raise argparse.ArgumentTypeError(message) from None
+
+
+def tiles_option(text: str) -> list[int]:
+    """The ``--tiles`` value as tile numbers (argparse type: a bad value exits 2)."""
+    import argparse
+
+    parts = [p.strip() for p in text.split(",")]
+    if not all(p.isdigit() for p in parts):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list of tile "
+                                         "numbers >= 0, e.g. 0,3,5")
+    return [int(p) for p in parts]
 
 
 def layers_option(text: str) -> str:
@@ -37,20 +71,44 @@ def layers_option(text: str) -> str:
 
 
 def run(args) -> int:
-    """Decode the layers asked for and write the output atomically, in the format its
-    extension names."""
+    """Decode the layers (and tiles) asked for and write the output atomically, in the format
+    its extension names."""
+    from tqdm import tqdm
+
     from csgs_codec.atomic_write import check_output
     from csgs_codec.codec.anchor_decoder import is_anchor_file
     from csgs_codec.codec.decoder import Decoder
+    from csgs_codec.errors import InputError
     from csgs_codec.interchange.writers import write_scene, writer_for
 
     if is_anchor_file(args.bitstream):
+        if args.region is not None or args.tiles is not None:
+            raise InputError("--region and --tiles apply to 3DGS scenes, not anchor scenes",
+                             file=args.bitstream)
         return _decode_anchors(args)
     check_output(args.output, [args.bitstream])
     writer_for(args.output)  # an unknown extension fails before the decode
     start = time.perf_counter()
-    scene = Decoder().decode(args.bitstream, layers=args.layers)
+    bar = []
+
+    def progress(done: int, total: int) -> None:
+        if not bar:
+            bar.append(tqdm(total=total, desc="decode tiles", unit="tile", disable=args.quiet,
+                            leave=False))
+        bar[0].update(done - bar[0].n)
+
+    try:
+        report = Decoder().decode_with_report(args.bitstream, layers=args.layers,
+                                              tiles=args.tiles, region=args.region,
+                                              progress=progress)
+    finally:
+        if bar:
+            bar[0].close()
     seconds = time.perf_counter() - start
+    scene = report.scene
+    if scene is None:
+        raise InputError("no tile meets the region (nothing to decode)", property="region",
+                         file=args.bitstream)
     write_scene(scene, args.output, [args.bitstream])
     extra = ""
     if scene.semantic is not None:
@@ -59,7 +117,21 @@ def run(args) -> int:
         extra += ", labels"
     print(f"{args.output}: {len(scene):,} Gaussians, SH degree {scene.sh_degree_stored}"
           f"{extra} (decoded in {seconds:.2f} s)")
+    share = 100.0 * report.bytes_read / max(report.file_bytes, 1)
+    print(f"tiles {_tile_list(report.tiles)} of {report.tile_count}; read "
+          f"{report.bytes_read:,} of {report.file_bytes:,} bytes ({share:.1f}%)")
     return 0
+
+
+def _tile_list(numbers: list[int]) -> str:
+    """``0-3,5`` for [0, 1, 2, 3, 5]."""
+    parts, start = [], None
+    for i, n in enumerate(numbers):
+        start = n if start is None else start
+        if i + 1 == len(numbers) or numbers[i + 1] != n + 1:
+            parts.append(str(n) if n == start else f"{start}-{n}")
+            start = None
+    return ",".join(parts) or "none"
 
 
 def _decode_anchors(args) -> int:

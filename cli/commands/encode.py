@@ -62,6 +62,19 @@ def add_arguments(parser) -> None:
                              "for a scene walked through from inside")
     parser.add_argument("--sanitize", action="store_true",
                         help="drop Gaussians with NaN/Inf values instead of failing")
+    parser.add_argument("--tile-size", type=int, default=None, metavar="N",
+                        help="3DGS scenes: split into spatial tiles of at most N Gaussians, "
+                             "each coded on its own (region decode reads only the tiles it "
+                             "needs). Default: tiles of 1,000,000 for scenes of more than "
+                             "2,000,000 Gaussians, else one tile (the file is then as without "
+                             "tiles)")
+    parser.add_argument("--workers", type=int, default=1, metavar="N",
+                        help="local processes coding tiles side by side (default 1); the "
+                             "file is the same for any N")
+    parser.add_argument("--ray", default=None, metavar="ADDRESS",
+                        help="code the tiles on the Ray cluster at ADDRESS ('local' starts "
+                             "one on this machine with --workers CPUs; needs pip install "
+                             "ray); the file is the same as without it")
 
 
 def run(args) -> int:
@@ -92,10 +105,15 @@ def run(args) -> int:
     encoder = Encoder(quality=args.quality, target_psnr=args.target_psnr, lambda_=args.lambda_,
                       fast=args.fast, semantic=args.semantic, prune_opacity=args.prune_opacity,
                       hyperprior=args.hyperprior,
-                      view_pruning=view_pruning, cameras=cameras)
-    scene, source = read_scene(scene_path, sanitize=args.sanitize)
-    warn_if_lossy(source, scene_path)
+                      view_pruning=view_pruning, cameras=cameras, tile_size=args.tile_size,
+                      workers=args.workers, ray=args.ray)
     searching = args.target_psnr is not None or args.lambda_ is not None
+    streamed = (not searching and not view_pruning and args.prune_opacity is None
+                and not args.sanitize and _tiled_binary_ply(scene_path, args.tile_size))
+    scene = None
+    if not streamed:
+        scene, source = read_scene(scene_path, sanitize=args.sanitize)
+        warn_if_lossy(source, scene_path)
     bar = tqdm(total=None if searching or view_pruning else len(STAGES), desc="encode",
                unit="stage",
                disable=args.quiet, leave=False)
@@ -124,26 +142,44 @@ def run(args) -> int:
         if done == total:
             view_bar.pop().close()
 
+    tile_bar = []
+
+    def tile_progress(done: int, total: int) -> None:
+        if not tile_bar:
+            tile_bar.append(tqdm(total=total, desc="tiles", unit="tile", disable=args.quiet,
+                                 leave=False))
+        tile_bar[0].update(done - tile_bar[0].n)
+        if done == total:
+            tile_bar.pop().close()
+
     encoder.progress = progress
     encoder.fit_progress = fit_progress
     encoder.view_progress = view_progress
+    encoder.tile_progress = tile_progress
     try:
-        result = encoder.encode_with_report(scene)
+        if scene is None:  # a tiled scene streamed from its memory-mapped body
+            from csgs_codec.codec.tile_encoder import encode_ply_tiled
+
+            result = encode_ply_tiled(encoder, scene_path)
+        else:
+            result = encoder.encode_with_report(scene)
     except InputError as err:  # the scene's errors (row, property) belong to the input file
         if err.file is None:
             err.file = scene_path
         raise
     finally:
-        for open_bar in fit_bar + view_bar:
+        for open_bar in fit_bar + view_bar + tile_bar:
             open_bar.close()
         bar.close()
     write_atomically(args.output, result.data, [args.scene, scene_path])
-    n = len(result.reconstruction)
+    n = len(result.order)
     in_bytes = _input_bytes(scene_path)
     bits = 8 * len(result.data) / max(n, 1)
     print(f"{args.output}: {len(result.data):,} bytes, {n:,} Gaussians, {bits:.2f} bits/Gaussian"
           f", {in_bytes / max(len(result.data), 1):.1f}x smaller than the input, "
           f"{result.seconds:.2f} s")
+    if result.tiles > 1:
+        print(f"{result.tiles} spatial tiles")
     if result.rate_control is not None:
         print(f"rate control: {result.rate_control.summary()}")
     if result.pruned:
@@ -160,9 +196,11 @@ def _encode_anchors(args, write_atomically) -> int:
     from csgs_codec.codec.anchor_encoder import AnchorEncoder
 
     if (args.prune_opacity is not None or args.sanitize or args.target_psnr is not None
-            or args.cameras is not None or args.view_pruning):
-        raise InputError("--prune-opacity, --sanitize, --target-psnr, --cameras and "
-                         "--view-prune apply to 3DGS PLY input, not to anchor scenes",
+            or args.cameras is not None or args.view_pruning or args.tile_size is not None
+            or args.workers != 1 or args.ray is not None):
+        raise InputError("--prune-opacity, --sanitize, --target-psnr, --cameras, "
+                         "--view-prune, --tile-size, --workers and --ray apply to 3DGS PLY "
+                         "input, not to anchor scenes",
                          file=args.scene)
     encoder = AnchorEncoder(quality=args.quality, lambda_=args.lambda_, fast=args.fast,
                             semantic=args.semantic)
@@ -182,6 +220,23 @@ def _input_bytes(path: str) -> int:
     if os.path.isdir(path):
         return sum(f.stat().st_size for f in os.scandir(path) if f.is_file())
     return os.path.getsize(path)
+
+
+def _tiled_binary_ply(path: str, tile_size: int | None) -> bool:
+    """True when ``path`` is a binary PLY the encoder will tile (more Gaussians than the tile
+    size): it is then encoded tile by tile from its memory-mapped body, never loaded whole
+    (the same bytes as a whole read)."""
+    from csgs_codec.codec.tiling import effective_tile_size
+    from csgs_codec.scene.ply_mmap import MappedPly
+
+    try:
+        mapped = MappedPly(path)
+    except InputError:
+        return False  # not a binary PLY (or unusual): read whole, which reports any real error
+    if not {"x", "y", "z"} <= set(mapped.properties):
+        return False  # e.g. a PlayCanvas compressed PLY: its own reader decodes it
+    count = mapped.count
+    return count > effective_tile_size(count, tile_size)
 
 
 def _check_exclusive(args) -> None:

@@ -7,7 +7,8 @@ torch is not installed.
 from __future__ import annotations
 
 import os
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor, as_completed
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -31,12 +32,17 @@ from csgs_codec.codec.payloads import (
     names_from_bytes,
 )
 from csgs_codec.codec.streams import SceneStreams, join_streams
+from csgs_codec.codec.tile_index import TileIndex, TileInfo
 from csgs_codec.entropy.categorical import decode_categorical
 from csgs_codec.entropy.geometry import decode_positions
 from csgs_codec.entropy.residual import decode_symbols
 from csgs_codec.errors import FormatError, InputError
-from csgs_codec.format import read_layers
+from csgs_codec.format import Container
+from csgs_codec.format.chunk import to_layer_set
 from csgs_codec.format.primitives import ByteReader
+from csgs_codec.format.reader import name_source, needed_entries, read_frame
+from csgs_codec.format.source import CountingSource, open_source
+from csgs_codec.format.toc import read_toc
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.scene.position_grid import PositionGrid
 
@@ -46,6 +52,67 @@ from csgs_codec.scene.position_grid import PositionGrid
 #: that codes smaller (e.g. many identical Gaussians) with a `fill` chunk.
 MAX_GAUSSIANS = 1 << 24
 MAX_GAUSSIANS_PER_BYTE = 64
+
+
+@dataclass
+class DecodeReport:
+    """What :meth:`Decoder.decode_with_report` returns.
+
+    Attributes:
+        scene: the decoded Gaussians (None when no tile was chosen).
+        tiles: the tile numbers decoded, increasing.
+        tile_count: tiles in the file (1 for a file without a tile index).
+        bytes_read: bytes read from the source (header, TOC, tile index and the chunks of
+            the tiles and layers decoded).
+        file_bytes: bytes of the whole file (from its TOC).
+    """
+
+    scene: GaussianScene | None
+    tiles: list[int]
+    tile_count: int
+    bytes_read: int
+    file_bytes: int
+
+
+def check_region(region) -> tuple[float, ...] | None:
+    """``region`` as 6 floats (xmin, ymin, zmin, xmax, ymax, zmax), or None.
+
+    Raises:
+        InputError: not 6 finite numbers, or a minimum above its maximum.
+    """
+    if region is None:
+        return None
+    try:
+        values = tuple(float(v) for v in region)
+    except (TypeError, ValueError):
+        raise InputError(f"region must be 6 numbers xmin,ymin,zmin,xmax,ymax,zmax, got "
+                         f"{region!r}", property="region") from None
+    if len(values) != 6 or not all(np.isfinite(values)):
+        raise InputError(f"region must be 6 finite numbers xmin,ymin,zmin,xmax,ymax,zmax, "
+                         f"got {region!r}", property="region")
+    if any(values[a] > values[a + 3] for a in range(3)):
+        raise InputError(f"region {values}: a minimum is above its maximum",
+                         property="region")
+    return values
+
+
+def check_tiles(tiles) -> frozenset[int] | None:
+    """``tiles`` (an iterable of tile numbers) as a set, or None.
+
+    Raises:
+        InputError: something that is not a non-negative integer.
+    """
+    if tiles is None:
+        return None
+    try:
+        numbers = list(tiles)
+    except TypeError:
+        raise InputError(f"tiles must be a list of tile numbers, got {tiles!r}",
+                         property="tiles") from None
+    for n in numbers:
+        if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 0:
+            raise InputError(f"tile number {n!r} is not an integer >= 0", property="tiles")
+    return frozenset(int(n) for n in numbers)
 
 
 class Decoder:
@@ -68,46 +135,160 @@ class Decoder:
         if self.threads < 1:
             raise InputError(f"threads must be at least 1, got {threads}", property="threads")
 
-    def decode(self, source, layers="color") -> GaussianScene:
-        """Decode ``source`` (bytes, a path or a seekable binary file).
+    def decode(self, source, layers="color", *, tiles=None, region=None) -> GaussianScene:
+        """Decode ``source`` (bytes, a path, a seekable binary file or a range reader:
+        :mod:`csgs_codec.format.source`).
 
         Args:
             layers: "color" (geometry + colour; never reads semantic bytes) or
                 "color,semantic".
+            tiles, region: decode only some spatial tiles (see :meth:`decode_with_report`).
 
         Returns:
-            The decoded scene in canonical (geometry) order.
+            The decoded scene: in canonical (geometry) order, tile after tile in a tiled file.
 
         Raises:
             FormatError: any malformed, missing or inconsistent chunk, naming it and the
                 byte offset.
+            InputError: a tile number the file does not have, or a malformed region.
+        """
+        return self.decode_with_report(source, layers, tiles=tiles, region=region).scene
+
+    def decode_with_report(self, source, layers="color", *, tiles=None, region=None,
+                           progress=None) -> DecodeReport:
+        """Decode ``source`` as :meth:`decode` does, reading only the chunks of the tiles
+        asked for, and report which tiles and how many bytes were read.
+
+        Args:
+            tiles: tile numbers to decode (any order; decoded in increasing order), or None.
+            region: (xmin, ymin, zmin, xmax, ymax, zmax) world units: decode the tiles whose
+                bounding box (from the tile index) meets this closed box, or None. With
+                both None, every tile is decoded. A file without tiles is one tile (0),
+                whose box is not known before decoding: a region always selects it. The
+                tiles are decoded whole (their Gaussians outside the region included).
+            progress: called as ``progress(done, total)`` as tiles finish, or None.
+
+        Returns:
+            A :class:`DecodeReport`: the scene (the chosen tiles' Gaussians, tile after tile),
+            the tile numbers, ``bytes_read`` (bytes fetched from the source) and the file size.
         """
         wanted = parse_layers(layers)
+        box = check_region(region)
+        chosen = check_tiles(tiles)
+        src = CountingSource(open_source(source))
         try:
-            container = read_layers(source, layers=wanted)
-            header = SceneHeader.from_bytes(*single_payload(container, "SCNE"))
-            self._check_count(header, container.source_size)
-            prior = (self._colour_prior(container, header)
-                     if any(e.type == "CHYP" for e in container.toc) else None)
-            pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
-            try:
-                # Geometry and each attribute stream are independent, except that streams
-                # with hyperprior channels need the decoded cells: decode side by side
-                # (numpy releases the GIL). Results are taken in a fixed order, so the
-                # output and the first error raised do not depend on scheduling.
-                positions_job = _submit(pool, self._positions, container, header)
-                streams = self._colour_streams(container, header, pool, prior, positions_job)
-                positions, _ = positions_job.result()
-            finally:
-                if pool is not None:
-                    pool.shutdown()
-            scene = join_streams(streams, positions)
-            if "semantic" in wanted:
-                self._semantic(container, header, scene)
+            toc = read_toc(src)
+            if any(e.type == "TIDX" for e in toc.entries):
+                scene, numbers, count = self._decode_tiled(src, toc, wanted, chosen, box,
+                                                           progress)
+            else:
+                if chosen is not None and chosen - {0}:
+                    raise InputError(f"tile {max(chosen)} is not in the file (it has one "
+                                     "tile: 0)", property="tiles")
+                numbers, count = [0], 1
+                if chosen == frozenset():
+                    numbers, scene = [], None
+                else:
+                    container = _read_container(src, toc, toc.entries, wanted)
+                    scene = self._decode_container(container, wanted, self.threads)
+                    if progress is not None:
+                        progress(1, 1)
         except FormatError as err:
+            name_source(err, src.inner)
             if err.file is None and isinstance(source, (str, os.PathLike)):
                 err.file = str(source)
             raise
+        finally:
+            src.close()
+        return DecodeReport(scene, numbers, count, src.bytes_read, toc.file_size)
+
+    def _decode_tiled(self, src, toc, wanted: set[str], chosen, box, progress):
+        """(scene, tile numbers decoded, tiles in the file) of a file with a tile index."""
+        index = _tile_index(src, toc)
+        count = len(index.tiles)
+        limit = self.max_gaussians_per_byte * src.size
+        if index.count > limit:
+            raise FormatError(f"the tile index declares {index.count} Gaussians in a "
+                              f"{src.size}-byte file, above this decoder's limit of {limit} "
+                              f"(max_gaussians_per_byte={self.max_gaussians_per_byte})",
+                              chunk="TIDX", offset=toc.entries[0].offset + 8)
+        if chosen is not None and max(chosen, default=-1) >= count:
+            raise InputError(f"tile {max(chosen)} is not in the file (it has {count} tiles: "
+                             f"0..{count - 1})", property="tiles")
+        numbers = set(range(count)) if chosen is None else set(chosen)
+        if box is not None:
+            numbers &= set(index.select(box[:3], box[3:]))
+        numbers = sorted(numbers)
+        entries = toc.entries[1:]
+        container = _read_container(src, toc, [e for e in entries if e.tile in numbers],
+                                    wanted)
+        containers = [replace(container, toc=tuple(e for e in entries if e.tile == t))
+                      for t in numbers]
+        jobs = [(c, number, index.tiles[number]) for c, number in zip(containers, numbers)]
+        scenes = self._decode_tiles(jobs, wanted, progress)
+        for (container, number, _), scene in zip(jobs, scenes):
+            _check_same_kind(scene, number, scenes[0], numbers[0], container)
+        if not scenes:
+            return None, numbers, count
+        from csgs_codec.codec.tile_encoder import concat_scenes
+
+        return concat_scenes(scenes), numbers, count
+
+    def _decode_tiles(self, jobs, wanted, progress) -> list[GaussianScene]:
+        """The scenes of the tiles ``jobs`` ((container, number, TileInfo) each), tiles side
+        by side on the decoder's threads (one thread each; a lone tile gets them all).
+        Results and the first error raised are in tile order."""
+        total = len(jobs)
+        if total <= 1 or self.threads <= 1:
+            out = []
+            for job in jobs:
+                out.append(self._decode_tile(*job, wanted, self.threads))
+                if progress is not None:
+                    progress(len(out), total)
+            return out
+        with ThreadPoolExecutor(min(self.threads, total)) as pool:
+            futures = [pool.submit(self._decode_tile, *job, wanted, 1) for job in jobs]
+            for done, _ in enumerate(as_completed(futures), 1):
+                if progress is not None:
+                    progress(done, total)
+            return [future.result() for future in futures]
+
+    def _decode_tile(self, container, number: int, info: TileInfo, wanted: set[str],
+                     threads: int) -> GaussianScene:
+        """One tile's scene, checked against its tile index entry (count, box)."""
+        scene = self._decode_container(container, wanted, threads)
+        if len(scene) != info.count:
+            raise FormatError(f"tile {number} holds {len(scene)} Gaussians, the tile index "
+                              f"says {info.count}", chunk="SCNE",
+                              offset=single_payload(container, "SCNE")[1])
+        p = scene.positions
+        if len(p) and (np.any(p.min(axis=0) < np.float32(info.lower))
+                       or np.any(p.max(axis=0) > np.float32(info.upper))):
+            raise FormatError(f"tile {number} has a Gaussian outside its box in the tile "
+                              "index", chunk="GEOM", offset=single_payload(container, "GEOM")[1])
+        return scene
+
+    def _decode_container(self, container, wanted: set[str], threads: int) -> GaussianScene:
+        """The scene of one tile's chunks (``container`` holds only that tile's entries)."""
+        header = SceneHeader.from_bytes(*single_payload(container, "SCNE"))
+        self._check_count(header, container.source_size)
+        prior = (self._colour_prior(container, header)
+                 if any(e.type == "CHYP" for e in container.toc) else None)
+        pool = ThreadPoolExecutor(threads) if threads > 1 else None
+        try:
+            # Geometry and each attribute stream are independent, except that streams
+            # with hyperprior channels need the decoded cells: decode side by side
+            # (numpy releases the GIL). Results are taken in a fixed order, so the
+            # output and the first error raised do not depend on scheduling.
+            positions_job = _submit(pool, self._positions, container, header)
+            streams = self._colour_streams(container, header, pool, prior, positions_job)
+            positions, _ = positions_job.result()
+        finally:
+            if pool is not None:
+                pool.shutdown()
+        scene = join_streams(streams, positions)
+        if "semantic" in wanted:
+            self._semantic(container, header, scene)
         return scene
 
     def _check_count(self, header: SceneHeader, source_size: int) -> None:
@@ -210,6 +391,48 @@ class Decoder:
             if labels.size and (labels.min() < -(1 << 31) or labels.max() >= 1 << 31):
                 raise r.error("label outside the int32 range")
             scene.labels = labels.astype(np.int32)
+
+
+def _read_container(src, toc, entries, wanted: set[str]) -> Container:
+    """The container of ``entries`` (a tile's or all of them) with the payloads of the
+    base and ``wanted`` layers read from ``src``."""
+    layers = to_layer_set(wanted)
+    payloads = {e.index: read_frame(src, e) for e in needed_entries(entries, layers)}
+    return Container(toc.major_version, toc.minor_version, toc.flags, tuple(entries),
+                     payloads, layers, toc.source_size, toc.header_and_toc_size)
+
+
+def _tile_index(src, toc) -> TileIndex:
+    """The TIDX of a tiled file, after checking it is the first chunk, in tile 0, alone,
+    and that every other chunk's tile is in it."""
+    found = [e for e in toc.entries if e.type == "TIDX"]
+    if len(found) > 1:
+        raise FormatError(f"chunk TIDX appears {len(found)} times", chunk="TIDX",
+                          offset=found[1].toc_offset)
+    entry = found[0]
+    if entry.index != 0 or entry.tile != 0:
+        raise FormatError("the tile index must be the first chunk, in tile 0",
+                          chunk="TIDX", offset=entry.toc_offset)
+    index = TileIndex.from_bytes(read_frame(src, entry), entry.offset + 8)
+    for e in toc.entries[1:]:
+        if e.tile >= len(index.tiles):
+            raise FormatError(f"tile {e.tile} is not in the tile index ({len(index.tiles)} "
+                              "tiles)", chunk=e.type, offset=e.toc_offset)
+    return index
+
+
+def _check_same_kind(scene: GaussianScene, number: int, first: GaussianScene,
+                     first_number: int, container) -> None:
+    """FormatError when a decoded tile differs from the first tile decoded in SH degree,
+    semantic channel names or whether it has semantic features or labels."""
+    same = (scene.sh_degree_stored == first.sh_degree_stored
+            and scene.semantic_names == first.semantic_names
+            and (scene.semantic is None) == (first.semantic is None)
+            and (scene.labels is None) == (first.labels is None))
+    if not same:
+        raise FormatError(f"tile {number} differs from tile {first_number} in SH degree or "
+                          "semantic layer", chunk="SCNE",
+                          offset=single_payload(container, "SCNE")[1])
 
 
 def _submit(pool: ThreadPoolExecutor | None, fn, *args) -> Future:

@@ -12,6 +12,7 @@ from csgs_codec.format.primitives import ByteReader
 def describe_bitstream(source, *, verify: bool = True) -> dict:
     """:func:`csgs_codec.format.describe` facts, plus, when the file holds a scene header:
     ``gaussians``, ``sh_degree_stored`` / ``sh_degree_coded``, ``quality``, ``grid_bits``,
+    ``tiles`` (spatial tiles: one scene header each; counts are summed over them),
     ``far_outliers`` (positions coded apart from the grid: ``far_relative`` of them with
     relative precision in OUTQ, ``far_exact`` as float32 in OUTL), ``views`` (the viewing
     distribution view pruning followed, when the file records one) and
@@ -28,14 +29,19 @@ def describe_bitstream(source, *, verify: bool = True) -> dict:
     if not any(c["type"] == "SCNE" for c in facts["chunks"]):
         return facts
     container = read_layers(source, layers=set())
-    entry = next(e for e in container.toc if e.type == "SCNE")
-    header = SceneHeader.from_bytes(bytes(container.payloads[entry.index]), entry.offset + 8)
-    n = header.count
+    # A tiled file (FORMAT §12.22) has one SCNE per tile: counts add up, degrees and grid
+    # bits are the largest.
+    headers = [SceneHeader.from_bytes(bytes(container.payloads[e.index]), e.offset + 8)
+               for e in container.toc if e.type == "SCNE"]
+    header = headers[0]
+    n = sum(h.count for h in headers)
+    far = sum(h.far_count for h in headers)
     facts.update(gaussians=n, sh_degree_stored=header.sh_degree_stored,
-                 sh_degree_coded=header.sh_degree_coded, quality=header.quality,
-                 grid_bits=header.grid_bits, far_outliers=header.far_count)
+                 sh_degree_coded=max(h.sh_degree_coded for h in headers),
+                 quality=header.quality, grid_bits=max(h.grid_bits for h in headers),
+                 far_outliers=far, tiles=len(headers))
     relative = _outq_count(container)
-    facts.update(far_relative=relative, far_exact=header.far_count - relative)
+    facts.update(far_relative=relative, far_exact=far - relative)
     try:
         record = _view_record(container)
     except FormatError as err:  # informative only: the file stays valid (§12.21)
@@ -62,9 +68,11 @@ def _view_record(container) -> ViewRecord | None:
 
 
 def _outq_count(container) -> int:
-    """The point count of the OUTQ chunk (0 without one)."""
-    entry = next((e for e in container.toc if e.type == "OUTQ"), None)
-    if entry is None or entry.index not in container.payloads:
-        return 0
-    reader = ByteReader(bytes(container.payloads[entry.index]), entry.offset + 8, chunk="OUTQ")
-    return reader.varint("count")
+    """The point count of the OUTQ chunks of all tiles (0 without one)."""
+    total = 0
+    for entry in container.toc:
+        if entry.type == "OUTQ" and entry.index in container.payloads:
+            reader = ByteReader(bytes(container.payloads[entry.index]), entry.offset + 8,
+                                chunk="OUTQ")
+            total += reader.varint("count")
+    return total

@@ -30,6 +30,7 @@ from csgs_codec.codec.payloads import (
 )
 from csgs_codec.codec.presets import DEFAULT_QUALITY, Preset, preset, scaled_preset
 from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
+from csgs_codec.codec.tiling import check_tile_size, effective_tile_size
 from csgs_codec.codec.view_pruning import DEFAULT_BUDGET, decide
 from csgs_codec.codec.view_record import ViewRecord
 from csgs_codec.entropy.categorical import encode_categorical
@@ -46,6 +47,17 @@ SEMANTIC_MODES = ("auto", "none")
 #: Scenes with fewer Gaussians are not view-pruned: the sensitivity pass is not worth it and
 #: tiny test scenes stay whole.
 MIN_PRUNED_SCENE = 1024
+
+
+@dataclass
+class CodedScene:
+    """One scene or tile coded: its ``chunks`` (tile 0, in layer order), the
+    ``reconstruction`` the decoder will output and ``order`` (N,) int64, the index of each
+    decoded Gaussian in the coded scene."""
+
+    chunks: list[Chunk]
+    reconstruction: GaussianScene
+    order: np.ndarray
 
 
 @dataclass
@@ -77,6 +89,7 @@ class EncodeResult:
     view_pruned: int = 0
     views: str | None = None
     rate_control: object | None = None
+    tiles: int = 1
 
 
 class Encoder:
@@ -110,6 +123,16 @@ class Encoder:
             (:func:`csgs_codec.render.view_distribution.default_distribution`).
         view_budget: the pruning budget, a fraction of the quantization's squared error on
             the views (default 0.1: at most about 0.4 dB).
+        tile_size: split the scene into spatial tiles of at most this many Gaussians
+            (k-d cells, :mod:`csgs_codec.codec.tiling`), each coded on its own; None
+            (default) tiles only scenes of more than 2,000,000 Gaussians, into tiles of at
+            most 1,000,000. A scene that fits one tile is written exactly as without tiles.
+        workers: local processes coding tiles side by side (default 1: in this process).
+            The file is the same for any count.
+        ray: the address of a Ray cluster whose workers code the tiles instead
+            (``"local"`` starts one on this machine; needs ``pip install ray``); the file is
+            the same as with local workers.
+        tile_progress: a callable ``tile_progress(done, total)`` told of tiles coded, or None.
         progress: a callable ``progress(step_name)`` told of each stage, or None.
         fit_progress: a callable ``fit_progress(done, total)`` told of the colour hyperprior
             fit's training steps (it takes seconds), or None.
@@ -119,7 +142,8 @@ class Encoder:
                  lambda_: float | None = None, fast: bool = False, semantic: str = "auto",
                  prune_opacity: float | None = None, hyperprior: bool = True,
                  view_pruning: bool = False, cameras=None,
-                 view_budget: float = DEFAULT_BUDGET,
+                 view_budget: float = DEFAULT_BUDGET, tile_size: int | None = None,
+                 workers: int = 1, ray: str | None = None, tile_progress=None,
                  progress=None, fit_progress=None, view_progress=None) -> None:
         if lambda_ is not None and (quality is not None or target_psnr is not None):
             raise InputError("lambda excludes quality and target PSNR: give one of them",
@@ -154,6 +178,17 @@ class Encoder:
         self.progress = progress or (lambda step: None)
         self.fit_progress = fit_progress
         self.view_progress = view_progress
+        check_tile_size(tile_size)
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+            raise InputError(f"workers must be an integer >= 1, got {workers!r}",
+                             property="workers")
+        if ray is not None and (not isinstance(ray, str) or not ray.strip()):
+            raise InputError(f"ray must be a cluster address or 'local', got {ray!r}",
+                             property="ray")
+        self.tile_size = tile_size
+        self.workers = workers
+        self.ray = ray
+        self.tile_progress = tile_progress
 
     def encode(self, scene: GaussianScene) -> bytes:
         """The .csgs bytes of ``scene``."""
@@ -174,7 +209,8 @@ class Encoder:
             original, scene = scene, scene.subset(keep)
         else:
             original = scene
-        check_count(len(scene))
+        if len(scene) <= effective_tile_size(len(scene), self.tile_size):
+            check_count(len(scene))  # a tiled scene's limit is per tile
         self._sensitivity = self._render_sensitivity(scene)
         if (self.target_psnr is None and self.lambda_ is None) or not len(original):
             result = self._encode(scene, self.preset)
@@ -260,11 +296,35 @@ class Encoder:
                     ) -> EncodeResult:
         """Encode every Gaussian of a validated (and pruned) scene with ``settings`` (and
         the colour hyperprior when ``hyperprior``, default: the encoder's setting);
-        ``record`` (a ``vdis`` chunk) ends the base layer when given."""
+        ``record`` (a ``vdis`` chunk) ends the base layer when given. A scene of more than
+        the tile size is split into spatial tiles (:mod:`csgs_codec.codec.tile_encoder`)."""
         start = time.perf_counter()
         self.progress("geometry")
         grid = PositionGrid.fit(scene.positions, settings.position_bits)
-        cells, inside = grid.quantize(scene.positions)
+        tile_size = effective_tile_size(len(scene), self.tile_size)
+        if len(scene) > tile_size:
+            from csgs_codec.codec.tile_encoder import encode_tiled
+
+            result = encode_tiled(self, scene, grid, settings, tile_size,
+                                  hyperprior=hyperprior, record=record)
+        else:
+            cells, inside = grid.quantize(scene.positions)
+            coded = self.code_scene(scene, settings, grid, cells, inside,
+                                    hyperprior=hyperprior, record=record)
+            self.progress("container")
+            data = decodable_container(coded.chunks, len(scene))
+            result = EncodeResult(data=data, reconstruction=coded.reconstruction,
+                                  order=coded.order,
+                                  stream_bytes={c.type: len(c.payload) for c in coded.chunks})
+        result.seconds = time.perf_counter() - start
+        return result
+
+    def code_scene(self, scene: GaussianScene, settings: Preset, grid: PositionGrid,
+                   cells: np.ndarray, inside: np.ndarray, *, hyperprior: bool | None = None,
+                   record: Chunk | None = None) -> CodedScene:
+        """The chunks (tile 0) of one scene or tile whose points sit at ``cells`` (N, 3)
+        int64 on ``grid``, ``inside`` (N,) bool marking those inside it (the others are far
+        points), with its reconstruction and order."""
         inside_idx = np.flatnonzero(inside)
         far = plan_far_points(scene.positions, np.flatnonzero(~inside), grid,
                               settings.position_bits)
@@ -297,13 +357,7 @@ class Encoder:
                                         ordered.labels is not None):
             self.progress("semantic")
             self._semantic_chunks(ordered, reconstruction, chunks, settings)
-
-        self.progress("container")
-        data = decodable_container(chunks, len(ordered))
-        return EncodeResult(
-            data=data, reconstruction=reconstruction, order=order,
-            stream_bytes={c.type: len(c.payload) for c in chunks},
-            seconds=time.perf_counter() - start)
+        return CodedScene(chunks, reconstruction, order)
 
     # ------------------------------------------------------------------ layers
     def _colour_chunks(self, streams: SceneStreams, chunks: list[Chunk], p: Preset,

@@ -126,6 +126,7 @@ def generate(out_dir: Path) -> None:
     _colour_prior_vectors(out_dir, donut)
     _far_point_vectors(out_dir, donut)
     _view_pruned_vectors(out_dir, donut)
+    _tiled_vectors(out_dir, donut)
 
 
 def _colour_prior_vectors(out_dir: Path, donut: GaussianScene) -> None:
@@ -196,3 +197,39 @@ def _view_pruned_vectors(out_dir: Path, donut: GaussianScene) -> None:
     _write(out_dir, "view_pruned_vdis_version_9", bad,
            "view_pruned_q5 with the vdis version byte set to 9 (frame and CRC rewritten): "
            "decoders skip the optional chunk, so the scene still decodes", _reads(bad))
+
+
+def _tiled_vectors(out_dir: Path, donut: GaussianScene) -> None:
+    """Tiled scenes (TIDX, §12.22): every 6th Gaussian of samples/donut.ply in 4 tiles, the
+    semantic 40-Gaussian scene in 4 tiles (with arrays), and two damaged copies of the
+    first: a tile count one short in the index, and a tile box that misses a Gaussian."""
+    from dataclasses import replace
+
+    from csgs_codec.codec.tile_index import TileIndex
+
+    head = donut.subset(np.arange(0, len(donut), 6))
+    data = Encoder(quality=5, hyperprior=False, tile_size=2000).encode(head)
+    _write(out_dir, "tiled_q5", data,
+           "every 6th Gaussian of samples/donut.ply (7,604) at quality 5 in 4 spatial tiles "
+           "of at most 2,000 (TIDX first, each tile its own SCNE/GEOM/streams)", _reads(data))
+    small = Encoder(quality=6, tile_size=12).encode(small_semantic_scene())
+    _write(out_dir, "tiled_semantic_small", small,
+           "semantic_small's scene (40 Gaussians, SH 1, 3 semantic channels, labels) at "
+           "quality 6 in 4 tiles of 10", _reads(small),
+           arrays=Decoder().decode(small, layers="color,semantic"))
+
+    def with_index(change) -> bytes:
+        container = read_layers(data, layers={"color", "semantic"})
+        chunks = [Chunk(e.type, e.layer, bytes(container.payloads[e.index]), e.tile)
+                  for e in container.toc]
+        tiles = list(TileIndex.from_bytes(chunks[0].payload).tiles)
+        chunks[0] = Chunk("TIDX", "base", TileIndex(tuple(change(tiles))).to_bytes())
+        return write_container(chunks)
+
+    bad = with_index(lambda t: [replace(t[0], count=t[0].count - 1)] + t[1:])
+    _write(out_dir, "tiled_count_mismatch", bad,
+           "tiled_q5 with tile 0's gaussian_count one less in TIDX than its SCNE declares",
+           _reads(bad))
+    bad = with_index(lambda t: t[:1] + [replace(t[1], upper=t[1].lower)] + t[2:])
+    _write(out_dir, "tiled_box_misses_a_gaussian", bad,
+           "tiled_q5 with tile 1's box in TIDX shrunk to its lower corner", _reads(bad))

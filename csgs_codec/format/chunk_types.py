@@ -57,6 +57,8 @@ def check_type_code(code: str) -> bytes:
 _TABLE = (
     ChunkType("fill", None,
               "Padding or test bytes; any layer, any content; decoders ignore the payload."),
+    ChunkType("TIDX", Layer.BASE,
+              "Tile index: each spatial tile's Gaussian count and bounding box."),
     ChunkType("SCNE", Layer.BASE,
               "Scene header: Gaussian count, SH degrees, position grid, far-point count."),
     ChunkType("GEOM", Layer.BASE, "Quantized positions: the octree geometry stream."),

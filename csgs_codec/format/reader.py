@@ -16,7 +16,7 @@ from csgs_codec.format.source import ByteSource, SourceLike, open_source
 from csgs_codec.format.toc import read_fields, read_toc
 
 
-def _needed(entries: Iterable[TocEntry], layers: frozenset[Layer]) -> list[TocEntry]:
+def needed_entries(entries: Iterable[TocEntry], layers: frozenset[Layer]) -> list[TocEntry]:
     """Entries to read: those of the requested layers, minus unknown optional chunks.
 
     Raises FormatError for an unknown critical chunk in a requested layer.
@@ -90,7 +90,8 @@ def read_layers(source: SourceLike,
     src = open_source(source)
     try:
         toc = read_toc(src)
-        payloads = {entry.index: read_frame(src, entry) for entry in _needed(toc.entries, wanted)}
+        payloads = {entry.index: read_frame(src, entry)
+                    for entry in needed_entries(toc.entries, wanted)}
     except FormatError as err:
         name_source(err, src)
         raise

@@ -11,7 +11,9 @@
 import { Worker } from 'node:worker_threads';
 
 import { FormatError } from './errors.mjs';
-import { decodePrepared, decodeTask, finishScene, makeTargets, prepareScene } from './scene.mjs';
+import {
+  checkedTile, decodePrepared, decodeTask, finishScene, joinTiledScenes, makeTargets, prepareScene, tiledScene,
+} from './scene.mjs';
 
 /** One worker thread that runs decode jobs one at a time. */
 export class WorkerLane {
@@ -63,7 +65,17 @@ export function claimTasks(queue, counter, run) {
  * @returns {Promise<object>} the scene, as decodeScene returns it
  */
 export async function decodeSceneParallel(data, options, lane) {
-  const prep = prepareScene(data, options);
+  const tiled = tiledScene(data, options);
+  if (!tiled) return decodePreparedParallel(data, prepareScene(data, options), lane);
+  const scenes = [];
+  for (let i = 0; i < tiled.tiles.length; i++) {
+    scenes.push(checkedTile(tiled, i, await decodePreparedParallel(data, tiled.prepare(i), lane)));
+  }
+  return joinTiledScenes(tiled, scenes);
+}
+
+/** The rest of decodeSceneParallel after a scene's (or one tile's) preparation. */
+async function decodePreparedParallel(data, prep, lane) {
   if (!lane || prep.modelled.size) return decodePrepared(prep);
   const shared = new Uint8Array(new SharedArrayBuffer(data.length));
   shared.set(data);

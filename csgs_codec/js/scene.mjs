@@ -1,6 +1,6 @@
 /**
  * Decoding a standard (Gaussian) scene: the colour codec's chunks of spec/FORMAT.md §12.4 -
- * §12.19 on top of the container. Anchor scenes (§17) are not implemented here: a file with
+ * §12.19 on top of the container; a tiled file (§12.22) decodes tile by tile. Anchor scenes (§17) are not implemented here: a file with
  * an ANCH chunk raises UnsupportedError.
  */
 
@@ -11,6 +11,7 @@ import { channelPriors, modelledStreams, parseColourPrior } from './colour_prior
 import { readLayers } from './container.mjs';
 import { FormatError, UnsupportedError } from './errors.mjs';
 import { decodeSemantic } from './semantic_layer.mjs';
+import { checkSameKind, checkTile, isTiled, joinTiles, readTileIndex, tileContainer } from './tile_index.mjs';
 import { readViews } from './view_record.mjs';
 
 const MAX_GAUSSIANS = 2 ** 24;
@@ -22,13 +23,18 @@ const MAX_GAUSSIANS_PER_BYTE = 64;
  */
 export function prepareScene(data, options) {
   const layers = new Set(['color', ...(options.layers || [])]);
-  const { family, sine } = options.tables;
   const container = readLayers(data, layers);
   if (container.toc.entries.some((e) => e.type === 'ANCH')) {
     throw new UnsupportedError('anchor scenes (spec/FORMAT.md §17) are not implemented in the JavaScript receiver');
   }
+  return prepareContainer(container, data.length, layers, options);
+}
+
+/** prepareScene's checks on one scene's (or one tile's) container of a ``size``-byte file. */
+export function prepareContainer(container, size, layers, options) {
+  const { family, sine } = options.tables;
   const header = readHeader(container);
-  const limit = Math.min(options.maxGaussians ?? MAX_GAUSSIANS, (options.maxGaussiansPerByte ?? MAX_GAUSSIANS_PER_BYTE) * data.length);
+  const limit = Math.min(options.maxGaussians ?? MAX_GAUSSIANS, (options.maxGaussiansPerByte ?? MAX_GAUSSIANS_PER_BYTE) * size);
   if (header.count > limit) throw new FormatError(`declares ${header.count} Gaussians, above this decoder's limit of ${limit}`, { chunk: 'SCNE' });
   const codes = ['SHDC', ...BAND_CODES.slice(0, header.coded), 'OPAC', 'SCAL', 'ROTN'];
   let prior = null;
@@ -102,7 +108,36 @@ export function finishScene(prep, out, axis) {
  *   metadata {views, skipped}: the informative vdis record (§12.21; view_record.mjs)
  */
 export function decodeScene(data, options) {
-  return decodePrepared(prepareScene(data, options));
+  const tiled = tiledScene(data, options);
+  if (!tiled) return decodePrepared(prepareScene(data, options));
+  return joinTiledScenes(tiled, tiled.tiles.map((_, i) => checkedTile(tiled, i, decodePrepared(tiled.prepare(i)))));
+}
+
+/**
+ * A tiled file (§12.22) read and checked up to its tiles' decoding: {tiles (index entries),
+ * containers (one per tile), layers, prepare(i) (tile i's prepareScene)}; null for a file
+ * without a tile index. Tiles are prepared when decoded, so errors come in tile order.
+ */
+export function tiledScene(data, options) {
+  const layers = new Set(['color', ...(options.layers || [])]);
+  const container = readLayers(data, layers);
+  if (!isTiled(container)) return null;
+  const tiles = readTileIndex(container, data.length, options.maxGaussiansPerByte ?? MAX_GAUSSIANS_PER_BYTE);
+  const containers = tiles.map((_, number) => tileContainer(container, number));
+  const prepare = (i) => prepareContainer(containers[i], data.length, layers, options);
+  return { tiles, containers, layers, prepare };
+}
+
+/** Tile ``i``'s decoded scene after checking it against its index entry (count, box). */
+export function checkedTile(tiled, i, scene) {
+  checkTile(scene, i, tiled.tiles[i], tiled.containers[i]);
+  return scene;
+}
+
+/** The scene of a tiled file from its tiles' checked scenes, in tile order. */
+export function joinTiledScenes(tiled, scenes) {
+  checkSameKind(scenes, tiled.containers);
+  return joinTiles(scenes);
 }
 
 /** The rest of decodeScene after prepareScene, on this thread. Errors come in the order the

@@ -73,7 +73,8 @@ class Outcome:
 _CONTAINER_MESSAGES = ("frame ", "truncated: the chunk", "TOC entry", "unknown critical chunk",
                        "truncated: the TOC", "toc_size", "not a .csgs file", "major version",
                        "reserved flag", "bytes follow the last chunk", "chunk_count",
-                       "truncated: the 16-byte header")
+                       "truncated: the 16-byte header", "the tile index must be",
+                       "is not in the tile index", "chunk TIDX appears")
 
 
 def error_stage(error: CsgsError) -> str:

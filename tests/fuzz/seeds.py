@@ -3,7 +3,9 @@
 Seeds: a 300-Gaussian subset of samples/donut.ply (SH 0), the same with four Gaussians moved
 1e4 to 1e6 units away (so the file has far outliers, chunk OUTL), a 300-Gaussian subset of the
 SH-3 fixture ../shared/data/fixtures/sh3_iter7000.ply, and a 200-Gaussian random scene with
-four semantic channels and labels, each at qualities 2 and 8; plus every .csgs under
+four semantic channels and labels, each at qualities 2 and 8; multi-tile files (TIDX,
+FORMAT §12.22) of the semantic scene in 4 tiles and of the outlier scene in 4 tiles (far
+points in a tile of their own grid), at quality 5; plus every .csgs under
 spec/vectors/scenes and (anchor scenes, where present) spec/vectors/anchors. The large donut
 vectors (45,624 Gaussians) get a small weight so they
 are fuzzed without dominating the run time.
@@ -29,6 +31,8 @@ SUBSET = 300
 #: Seeds above this many bytes are drawn this much less often than the small ones.
 LARGE_BYTES = 100_000
 LARGE_WEIGHT = 0.02
+#: Seed scenes also encoded in spatial tiles of this many Gaussians (quality 5).
+TILED = {"semantic200": 50, "outliers300": 75}
 #: Vector folders whose .csgs files are seeds (a missing folder adds none).
 SEED_VECTOR_FAMILIES = ("scenes", "anchors")
 
@@ -74,6 +78,9 @@ def build_seeds(vectors_dir: Path = VECTORS_DIR) -> list[Seed]:
     for name, scene in seed_scenes().items():
         for quality in QUALITIES:
             seeds.append(_seed(f"{name}_q{quality}", Encoder(quality=quality).encode(scene)))
+        if name in TILED:
+            data = Encoder(quality=5, tile_size=TILED[name]).encode(scene)
+            seeds.append(_seed(f"{name}_tiled", data))
     for family in SEED_VECTOR_FAMILIES:
         for path in sorted((vectors_dir / family).glob("*.csgs")):
             seeds.append(_seed(f"vector:{path.stem}", path.read_bytes()))

@@ -76,6 +76,13 @@ def test_seeds_cover_semantics_outliers_two_qualities_and_the_scene_vectors(seed
         assert "vector:anchors_semantic_q5" in names
 
 
+def test_seeds_include_multi_tile_files(seeds):
+    for name in ("semantic200_tiled", "outliers300_tiled", "vector:tiled_q5"):
+        seed = next(s for s in seeds if s.name == name)
+        assert seed.chunks[0].type == b"TIDX", name
+        assert sum(c.type == b"SCNE" for c in seed.chunks) == 4, name
+
+
 def test_split_and_build_reproduce_a_seed_byte_for_byte(seeds):
     for seed in seeds:
         assert build(split_chunks(seed.data)) == seed.data

@@ -1,0 +1,188 @@
+"""Coding a scene as spatial tiles (FORMAT §6.3, §12.22), tiles side by side.
+
+The scene is cut into k-d cells (:mod:`csgs_codec.codec.tiling`); every tile is coded on
+its own, as a scene of its own (geometry frame, far points, colour hyperprior, streams), by
+:func:`encode_tile`, in this process, local processes or on Ray
+(:mod:`csgs_codec.codec.parallel`). The file holds a ``TIDX`` chunk, then every tile's base
+chunks in tile order, then their colour chunks, then their semantic chunks. Decoding all
+tiles gives tile 0's Gaussians, then tile 1's, and so on, each tile in its own decoded order.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from csgs_codec.codec.parallel import run_jobs
+from csgs_codec.codec.presets import Preset
+from csgs_codec.codec.tile_index import TileIndex, TileInfo, tile_info
+from csgs_codec.codec.tiling import effective_tile_size, split_tiles, tile_grid
+from csgs_codec.errors import InputError
+from csgs_codec.format import Chunk
+from csgs_codec.scene.gaussian_scene import GaussianScene
+from csgs_codec.scene.position_grid import PositionGrid
+
+
+@dataclass
+class TileJob:
+    """What one worker needs to code one tile.
+
+    Attributes:
+        scene: the tile's Gaussians, or None when they are read from ``source``.
+        source: a binary PLY the tile's rows are read from (memory-mapped), or None.
+        rows: (M,) int64 rows of the tile in the input, increasing.
+        grid: the tile's position grid; cells: (M, 3) int64 cells of its points on it;
+            inside: (M,) bool, False for far points (their cells are 0).
+        settings: the preset's steps; hyperprior: fit the colour hyperprior;
+        semantic: the encoder's semantic mode ("auto" or "none");
+        keep_reconstruction: send the tile's reconstruction back (not when streaming a
+            scene larger than memory).
+    """
+
+    scene: GaussianScene | None
+    source: str | None
+    rows: np.ndarray
+    grid: PositionGrid
+    cells: np.ndarray
+    inside: np.ndarray
+    settings: Preset
+    hyperprior: bool
+    semantic: str
+    keep_reconstruction: bool = True
+
+
+@dataclass
+class TileOutput:
+    """One coded tile: chunks (tile 0), its tile index entry, order (indices into the
+    tile) and reconstruction (None unless the job keeps it)."""
+
+    chunks: list[Chunk]
+    info: TileInfo
+    order: np.ndarray
+    reconstruction: GaussianScene | None
+
+
+def encode_tile(job: TileJob) -> TileOutput:
+    """Code one tile (runs in a worker; module level so that it pickles by name)."""
+    from csgs_codec.codec.encoder import Encoder
+
+    scene = job.scene
+    if scene is None:
+        from csgs_codec.codec.encoder_checks import check_encodable
+        from csgs_codec.scene.ply_mmap import read_ply_rows
+
+        scene = read_ply_rows(job.source, job.rows)
+        try:
+            check_encodable(scene, semantic=job.semantic != "none")
+        except InputError as err:
+            if err.index is not None:
+                err.index = int(job.rows[err.index])
+            err.file = err.file or job.source
+            err.args = (str(err),)
+            raise
+    encoder = Encoder(semantic=job.semantic, hyperprior=job.hyperprior)
+    coded = encoder.code_scene(scene, job.settings, job.grid, job.cells, job.inside)
+    return TileOutput(coded.chunks, tile_info(coded.reconstruction.positions), coded.order,
+                      coded.reconstruction if job.keep_reconstruction else None)
+
+
+def plan_jobs(positions: np.ndarray, grid: PositionGrid, settings: Preset, tile_size: int, *,
+              hyperprior: bool, semantic: str, scene: GaussianScene | None = None,
+              source: str | None = None, keep_reconstruction: bool = True
+              ) -> list[TileJob]:
+    """One job per tile of the scene whose positions are ``positions`` (N, 3), on the
+    whole scene's ``grid``; tiles carry their Gaussians from ``scene`` or name ``source``."""
+    jobs = []
+    for rows in split_tiles(positions, tile_size):
+        cells, inside = grid.quantize(positions[rows])
+        local_grid, local = tile_grid(cells[inside], grid)
+        tile_cells = np.zeros_like(cells)
+        tile_cells[inside] = local
+        jobs.append(TileJob(None if scene is None else scene.subset(rows), source, rows,
+                            local_grid, tile_cells, inside, settings, hyperprior, semantic,
+                            keep_reconstruction))
+    return jobs
+
+
+def encode_tiled(encoder, scene: GaussianScene, grid: PositionGrid, settings: Preset,
+                 tile_size: int, *, hyperprior: bool | None = None,
+                 record: Chunk | None = None):
+    """Encode ``scene`` (validated, more than ``tile_size`` Gaussians) as tiles with the
+    ``encoder``'s settings; returns its :class:`~csgs_codec.codec.encoder.EncodeResult`.
+    ``record`` (a ``vdis`` chunk) goes into tile 0, after its base chunks."""
+    use_prior = encoder.hyperprior if hyperprior is None else hyperprior
+    jobs = plan_jobs(scene.positions, grid, settings, tile_size, hyperprior=use_prior,
+                     semantic=encoder.semantic, scene=scene)
+    encoder.progress(f"{len(jobs)} tiles")
+    outputs = run_jobs(encode_tile, jobs, workers=encoder.workers, ray=encoder.ray,
+                       progress=encoder.tile_progress)
+    return assemble(encoder, jobs, outputs, len(scene), record)
+
+
+def assemble(encoder, jobs: list[TileJob], outputs: list[TileOutput], count: int,
+             record: Chunk | None = None):
+    """The EncodeResult of coded tiles: the container (TIDX first), the reconstruction
+    (tiles in order; None when the tiles did not keep theirs) and the order into the input."""
+    from csgs_codec.codec.encoder import EncodeResult
+    from csgs_codec.codec.encoder_checks import decodable_container
+
+    encoder.progress("container")
+    index = TileIndex(tuple(out.info for out in outputs))
+    chunks = [Chunk("TIDX", "base", index.to_bytes())]
+    for number, out in enumerate(outputs):
+        chunks += [replace(c, tile=number) for c in out.chunks]
+        if number == 0 and record is not None:
+            chunks.append(record)
+    stream_bytes: dict[str, int] = {}
+    for c in chunks:
+        stream_bytes[c.type] = stream_bytes.get(c.type, 0) + len(c.payload)
+    data = decodable_container(chunks, count)
+    order = np.concatenate([job.rows[out.order] for job, out in zip(jobs, outputs)])
+    kept = [out.reconstruction for out in outputs]
+    reconstruction = None if any(r is None for r in kept) else concat_scenes(kept)
+    return EncodeResult(data=data, reconstruction=reconstruction, order=order,
+                        stream_bytes=stream_bytes, tiles=len(outputs))
+
+
+def concat_scenes(scenes: list[GaussianScene]) -> GaussianScene:
+    """One scene holding ``scenes``' Gaussians in order (same SH degree and layers)."""
+    first = scenes[0]
+    join = lambda name: np.concatenate([getattr(s, name) for s in scenes])  # noqa: E731
+    return GaussianScene(
+        positions=join("positions"), sh_dc=join("sh_dc"), sh_rest=join("sh_rest"),
+        opacity=join("opacity"), scales=join("scales"), rotations=join("rotations"),
+        semantic=None if first.semantic is None else join("semantic"),
+        semantic_names=first.semantic_names,
+        labels=None if first.labels is None else join("labels"))
+
+
+def encode_ply_tiled(encoder, path: str) -> object:
+    """Encode the binary PLY at ``path`` tile by tile without loading it whole: positions
+    are read from the memory-mapped body, each worker reads its tile's rows itself, and no
+    reconstruction is kept (``reconstruction`` is None). The bytes are those of
+    ``encoder.encode(read_ply(path))``. Only for a plain preset encode (no rate control,
+    pruning or view pruning) of a scene the encoder tiles (more than its tile size).
+
+    Raises:
+        InputError: the file cannot be mapped or holds something the format cannot carry.
+    """
+    from csgs_codec.codec.encoder_checks import check_count
+    from csgs_codec.scene.ply_mmap import MappedPly
+    from csgs_codec.scene.position_grid import PositionGrid
+
+    ply = MappedPly(path)
+    settings = encoder.preset
+    encoder.progress("geometry")
+    positions = ply.positions()
+    tile_size = effective_tile_size(len(positions), encoder.tile_size)
+    if len(positions) <= tile_size:
+        check_count(len(positions))
+    grid = PositionGrid.fit(positions, settings.position_bits)
+    jobs = plan_jobs(positions, grid, settings, tile_size, hyperprior=encoder.hyperprior,
+                     semantic=encoder.semantic, source=ply.path, keep_reconstruction=False)
+    del positions
+    encoder.progress(f"{len(jobs)} tiles")
+    outputs = run_jobs(encode_tile, jobs, workers=encoder.workers, ray=encoder.ray,
+                       progress=encoder.tile_progress)
+    return assemble(encoder, jobs, outputs, ply.count)

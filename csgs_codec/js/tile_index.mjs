@@ -1,0 +1,113 @@
+/**
+ * Tiled scenes (spec/FORMAT.md §6.3, §12.22): the TIDX tile index, each tile's own container
+ * view, the checks of a decoded tile against its entry, and joining tiles into one scene.
+ */
+
+import { ByteReader } from './bytes.mjs';
+import { FormatError } from './errors.mjs';
+
+const MAX_TILES = 65535;
+const MAX_TILE_GAUSSIANS = 2 ** 24;
+const MIN_ENTRY_BYTES = 25;
+
+/** True when the container's TOC lists a TIDX chunk (a tiled scene). */
+export function isTiled(container) {
+  return container.toc.entries.some((e) => e.type === 'TIDX');
+}
+
+/**
+ * The tile index of a tiled container, after the checks of §12.22: one TIDX, TOC entry 0 in
+ * tile 0, every other chunk in a listed tile, the counts within ``maxPerByte`` x the file.
+ * @returns {{count: number, lower: number[], upper: number[]}[]} one entry per tile
+ */
+export function readTileIndex(container, size, maxPerByte) {
+  const found = container.toc.entries.filter((e) => e.type === 'TIDX');
+  if (found.length > 1) throw new FormatError(`chunk TIDX appears ${found.length} times`, { chunk: 'TIDX', offset: found[1].tocOffset });
+  const entry = found[0];
+  if (entry.index !== 0 || entry.tile !== 0) throw new FormatError('the tile index must be the first chunk, in tile 0', { chunk: 'TIDX', offset: entry.tocOffset });
+  const r = new ByteReader(container.payloads.get(0), entry.offset + 8, 'TIDX');
+  const version = r.u8('version');
+  if (version !== 1) throw r.error(`unknown tile index version ${version}`, r.offset - 1);
+  let at = r.offset;
+  const count = r.varint('tile_count', MAX_TILES);
+  if (count < 1 || count > Math.floor(r.remaining / MIN_ENTRY_BYTES)) throw r.error(`tile_count ${count} is 0 or more than the bytes after it hold`, at);
+  const tiles = [];
+  let total = 0;
+  for (let i = 0; i < count; i++) {
+    at = r.offset;
+    const n = r.varint('gaussian_count', MAX_TILE_GAUSSIANS);
+    if (n < 1) throw r.error(`tile ${i} holds no Gaussian`, at);
+    const boxAt = r.offset;
+    const box = [0, 1, 2, 3, 4, 5].map(() => r.f32('bounds'));
+    if (!box.every(Number.isFinite) || [0, 1, 2].some((a) => box[a] > box[a + 3])) throw r.error(`tile ${i}: bounds are not finite or lower > upper`, boxAt);
+    tiles.push({ count: n, lower: box.slice(0, 3), upper: box.slice(3) });
+    total += n;
+  }
+  r.expectEnd('the tile index');
+  for (const e of container.toc.entries.slice(1)) {
+    if (e.tile >= count) throw new FormatError(`tile ${e.tile} is not in the tile index (${count} tiles)`, { chunk: e.type, offset: e.tocOffset });
+  }
+  const limit = maxPerByte * size;
+  if (total > limit) throw new FormatError(`the tile index declares ${total} Gaussians, above this decoder's limit of ${limit}`, { chunk: 'TIDX', offset: entry.offset + 8 });
+  return tiles;
+}
+
+/** The container of tile ``number`` alone: its TOC entries (TIDX left out), shared payloads. */
+export function tileContainer(container, number) {
+  const entries = container.toc.entries.filter((e) => e.tile === number && e.type !== 'TIDX');
+  return { ...container, toc: { ...container.toc, entries } };
+}
+
+function payloadOffset(container, code) {
+  const entry = container.toc.entries.find((e) => e.type === code);
+  return entry ? entry.offset + 8 : null;
+}
+
+/** FormatError when a decoded tile disagrees with its index entry (count, box). */
+export function checkTile(scene, number, info, container) {
+  if (scene.count !== info.count) throw new FormatError(`tile ${number} holds ${scene.count} Gaussians, the tile index says ${info.count}`, { chunk: 'SCNE', offset: payloadOffset(container, 'SCNE') });
+  const p = scene.positions;
+  for (let i = 0; i < p.length; i++) {
+    const a = i % 3;
+    if (p[i] < info.lower[a] || p[i] > info.upper[a]) throw new FormatError(`tile ${number} has a Gaussian outside its box in the tile index`, { chunk: 'GEOM', offset: payloadOffset(container, 'GEOM') });
+  }
+}
+
+/** FormatError when a tile differs from the first in SH degree or semantic layer. */
+export function checkSameKind(scenes, containers) {
+  const first = scenes[0];
+  const rest = (s) => s.sh_rest.length / Math.max(s.count, 1);
+  scenes.forEach((s, i) => {
+    const same = rest(s) === rest(first) && (s.semantic === null) === (first.semantic === null)
+      && (s.labels === null) === (first.labels === null)
+      && s.semanticNames.join('\u0000') === first.semanticNames.join('\u0000')
+      && s.semanticNames.length === first.semanticNames.length;
+    if (!same) throw new FormatError(`tile ${i} differs from the first tile in SH degree or semantic layer`, { chunk: 'SCNE', offset: payloadOffset(containers[i], 'SCNE') });
+  });
+}
+
+function join(arrays) {
+  const out = new arrays[0].constructor(arrays.reduce((n, a) => n + a.length, 0));
+  let at = 0;
+  for (const a of arrays) { out.set(a, at); at += a.length; }
+  return out;
+}
+
+/** One scene holding the tiles' Gaussians in tile order (metadata: the first tile's). */
+export function joinTiles(scenes) {
+  const first = scenes[0];
+  const field = (name) => join(scenes.map((s) => s[name]));
+  return {
+    count: scenes.reduce((n, s) => n + s.count, 0),
+    positions: field('positions'),
+    sh_dc: field('sh_dc'),
+    sh_rest: field('sh_rest'),
+    opacity: field('opacity'),
+    scales: field('scales'),
+    rotations: field('rotations'),
+    semantic: first.semantic === null ? null : field('semantic'),
+    semanticNames: first.semanticNames,
+    labels: first.labels === null ? null : field('labels'),
+    metadata: first.metadata,
+  };
+}
