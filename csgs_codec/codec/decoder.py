@@ -230,9 +230,8 @@ class Decoder:
             _check_same_kind(scene, number, scenes[0], numbers[0], container)
         if not scenes:
             return None, numbers, count
-        from csgs_codec.codec.tile_encoder import concat_scenes
 
-        return concat_scenes(scenes), numbers, count
+        return GaussianScene.concatenate(scenes), numbers, count
 
     def _decode_tiles(self, jobs, wanted, progress) -> list[GaussianScene]:
         """The scenes of the tiles ``jobs`` ((container, number, TileInfo) each), tiles side

@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from csgs_codec.codec.encode_result import EncodeResult
 from csgs_codec.codec.parallel import run_jobs
 from csgs_codec.codec.presets import Preset
 from csgs_codec.codec.tile_index import TileIndex, TileInfo, tile_info
@@ -38,6 +39,8 @@ class TileJob:
         semantic: the encoder's semantic mode ("auto" or "none");
         keep_reconstruction: send the tile's reconstruction back (not when streaming a
             scene larger than memory).
+        coder: the encoder class that codes the tile (``Encoder``; passed in, so that this
+            module does not import the encoder that calls it).
     """
 
     scene: GaussianScene | None
@@ -50,6 +53,7 @@ class TileJob:
     hyperprior: bool
     semantic: str
     keep_reconstruction: bool = True
+    coder: type | None = None
 
 
 @dataclass
@@ -65,8 +69,6 @@ class TileOutput:
 
 def encode_tile(job: TileJob) -> TileOutput:
     """Code one tile (runs in a worker; module level so that it pickles by name)."""
-    from csgs_codec.codec.encoder import Encoder
-
     scene = job.scene
     if scene is None:
         from csgs_codec.codec.encoder_checks import check_encodable
@@ -81,7 +83,7 @@ def encode_tile(job: TileJob) -> TileOutput:
             err.file = err.file or job.source
             err.args = (str(err),)
             raise
-    encoder = Encoder(semantic=job.semantic, hyperprior=job.hyperprior)
+    encoder = job.coder(semantic=job.semantic, hyperprior=job.hyperprior)
     coded = encoder.code_scene(scene, job.settings, job.grid, job.cells, job.inside)
     return TileOutput(coded.chunks, tile_info(coded.reconstruction.positions), coded.order,
                       coded.reconstruction if job.keep_reconstruction else None)
@@ -89,8 +91,8 @@ def encode_tile(job: TileJob) -> TileOutput:
 
 def plan_jobs(positions: np.ndarray, grid: PositionGrid, settings: Preset, tile_size: int, *,
               hyperprior: bool, semantic: str, scene: GaussianScene | None = None,
-              source: str | None = None, keep_reconstruction: bool = True
-              ) -> list[TileJob]:
+              source: str | None = None, keep_reconstruction: bool = True,
+              coder: type | None = None) -> list[TileJob]:
     """One job per tile of the scene whose positions are ``positions`` (N, 3), on the
     whole scene's ``grid``; tiles carry their Gaussians from ``scene`` or name ``source``."""
     jobs = []
@@ -101,7 +103,7 @@ def plan_jobs(positions: np.ndarray, grid: PositionGrid, settings: Preset, tile_
         tile_cells[inside] = local
         jobs.append(TileJob(None if scene is None else scene.subset(rows), source, rows,
                             local_grid, tile_cells, inside, settings, hyperprior, semantic,
-                            keep_reconstruction))
+                            keep_reconstruction, coder))
     return jobs
 
 
@@ -113,7 +115,7 @@ def encode_tiled(encoder, scene: GaussianScene, grid: PositionGrid, settings: Pr
     ``record`` (a ``vdis`` chunk) goes into tile 0, after its base chunks."""
     use_prior = encoder.hyperprior if hyperprior is None else hyperprior
     jobs = plan_jobs(scene.positions, grid, settings, tile_size, hyperprior=use_prior,
-                     semantic=encoder.semantic, scene=scene)
+                     semantic=encoder.semantic, scene=scene, coder=type(encoder))
     encoder.progress(f"{len(jobs)} tiles")
     outputs = run_jobs(encode_tile, jobs, workers=encoder.workers, ray=encoder.ray,
                        progress=encoder.tile_progress)
@@ -124,7 +126,6 @@ def assemble(encoder, jobs: list[TileJob], outputs: list[TileOutput], count: int
              record: Chunk | None = None):
     """The EncodeResult of coded tiles: the container (TIDX first), the reconstruction
     (tiles in order; None when the tiles did not keep theirs) and the order into the input."""
-    from csgs_codec.codec.encoder import EncodeResult
     from csgs_codec.codec.encoder_checks import decodable_container
 
     encoder.progress("container")
@@ -140,21 +141,9 @@ def assemble(encoder, jobs: list[TileJob], outputs: list[TileOutput], count: int
     data = decodable_container(chunks, count)
     order = np.concatenate([job.rows[out.order] for job, out in zip(jobs, outputs)])
     kept = [out.reconstruction for out in outputs]
-    reconstruction = None if any(r is None for r in kept) else concat_scenes(kept)
+    reconstruction = None if any(r is None for r in kept) else GaussianScene.concatenate(kept)
     return EncodeResult(data=data, reconstruction=reconstruction, order=order,
                         stream_bytes=stream_bytes, tiles=len(outputs))
-
-
-def concat_scenes(scenes: list[GaussianScene]) -> GaussianScene:
-    """One scene holding ``scenes``' Gaussians in order (same SH degree and layers)."""
-    first = scenes[0]
-    join = lambda name: np.concatenate([getattr(s, name) for s in scenes])  # noqa: E731
-    return GaussianScene(
-        positions=join("positions"), sh_dc=join("sh_dc"), sh_rest=join("sh_rest"),
-        opacity=join("opacity"), scales=join("scales"), rotations=join("rotations"),
-        semantic=None if first.semantic is None else join("semantic"),
-        semantic_names=first.semantic_names,
-        labels=None if first.labels is None else join("labels"))
 
 
 def encode_ply_tiled(encoder, path: str) -> object:
@@ -180,7 +169,8 @@ def encode_ply_tiled(encoder, path: str) -> object:
         check_count(len(positions))
     grid = PositionGrid.fit(positions, settings.position_bits)
     jobs = plan_jobs(positions, grid, settings, tile_size, hyperprior=encoder.hyperprior,
-                     semantic=encoder.semantic, source=ply.path, keep_reconstruction=False)
+                     semantic=encoder.semantic, source=ply.path, keep_reconstruction=False,
+                     coder=type(encoder))
     del positions
     encoder.progress(f"{len(jobs)} tiles")
     outputs = run_jobs(encode_tile, jobs, workers=encoder.workers, ray=encoder.ray,

@@ -58,6 +58,20 @@ class GaussianScene:
             rotations=np.zeros((0, 4), np.float32),
         )
 
+    @classmethod
+    def concatenate(cls, scenes: list[GaussianScene]) -> GaussianScene:
+        """One scene holding ``scenes``' Gaussians in order (same SH degree and layers)."""
+        first = scenes[0]
+
+        def join(name: str) -> np.ndarray:
+            return np.concatenate([getattr(s, name) for s in scenes])
+
+        return cls(positions=join("positions"), sh_dc=join("sh_dc"), sh_rest=join("sh_rest"),
+                   opacity=join("opacity"), scales=join("scales"), rotations=join("rotations"),
+                   semantic=None if first.semantic is None else join("semantic"),
+                   semantic_names=first.semantic_names,
+                   labels=None if first.labels is None else join("labels"))
+
     # ----------------------------------------------------------------- basic facts
     def __repr__(self) -> str:
         """A one-line summary (counts, SH degree, layers), not the arrays."""

@@ -1,0 +1,41 @@
+"""What an encode returns besides the bytes (shared by the whole-scene and tiled encoders)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from csgs_codec.scene.gaussian_scene import GaussianScene
+
+
+@dataclass
+class EncodeResult:
+    """What :meth:`Encoder.encode_with_report` returns.
+
+    Attributes:
+        data: the .csgs bytes.
+        reconstruction: the scene the decoder will output (all layers written), in the
+            decoder's order.
+        order: (N,) int64 index of each decoded Gaussian in the (pruned) input scene.
+        pruned: Gaussians removed by ``prune_opacity``.
+        stream_bytes: chunk type -> payload bytes.
+        seconds: encode wall time.
+        view_pruned: Gaussians removed for contributing too little to the views (see
+            :mod:`csgs_codec.codec.view_pruning`); ``order`` skips them.
+        views: the viewing distribution the pruning followed, or None when none ran.
+        rate_control: the :class:`~csgs_codec.codec.rate_control.RateControlReport` of a
+            target-PSNR encode, the :class:`~csgs_codec.codec.rate_control.LambdaReport`
+            (chosen multiplier and cost J) of a lambda encode, else None.
+    """
+
+    data: bytes
+    reconstruction: GaussianScene
+    order: np.ndarray
+    pruned: int = 0
+    stream_bytes: dict[str, int] = field(default_factory=dict)
+    seconds: float = 0.0
+    view_pruned: int = 0
+    views: str | None = None
+    rate_control: object | None = None
+    tiles: int = 1
