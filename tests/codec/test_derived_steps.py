@@ -157,3 +157,19 @@ def test_steps_of_each_class_are_the_tables():
     for c in range(derived.count):
         member = steps[derived.classes == c]
         assert member.size == 0 or np.all(member == step_size(np.array([70 + derived.offsets[c]])))
+
+
+def test_damaged_derived_step_payloads_only_raise_format_error():
+    payload = _chunks(RESULT.data)[-1].payload
+    fields = _rotn_fields(payload)
+    rng = np.random.default_rng(7)
+    # Mostly the mode-6 record's header (table, offsets, scale indices), some anywhere.
+    for trial in range(150):
+        damaged = bytearray(payload)
+        at = (int(rng.integers(fields["step_at"], fields["thresholds_at"] + 60))
+              if trial % 3 else int(rng.integers(0, len(payload))))
+        damaged[at] = int(rng.integers(0, 256))
+        try:
+            Decoder(threads=1).decode(_with_rotn(bytes(damaged)))
+        except FormatError as err:
+            assert err.chunk == "ROTN"
