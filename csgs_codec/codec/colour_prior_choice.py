@@ -18,7 +18,13 @@ from csgs_codec.codec.colour_prior import (
     prior_to_bytes,
     stream_layout,
 )
-from csgs_codec.codec.float_stream import MODE_CONSTANT, ChannelPrior, StreamPlan, prior_stream
+from csgs_codec.codec.float_stream import (
+    MODE_CONSTANT,
+    MODE_DERIVED,
+    ChannelPrior,
+    StreamPlan,
+    prior_stream,
+)
 from csgs_codec.errors import CsgsWarning, ModelError
 
 #: Scenes with fewer Gaussians skip the fit: its network (about 3 KB) would cost more than
@@ -85,7 +91,9 @@ def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int,
     """
     names = list(plans)
     layout = stream_layout(names)
-    coded = np.array([plans[s].channels[c].mode != MODE_CONSTANT for s, c in layout], bool)
+    # Channels with derived steps (mode 6) keep their own per-class tables.
+    coded = np.array([plans[s].channels[c].mode not in (MODE_CONSTANT, MODE_DERIVED)
+                      for s, c in layout], bool)
     if len(cells) < _OVERRIDES.min_gaussians or not coded.any():
         return PriorChoice()
     from csgs_codec.model.colour_hyperprior import ColourPriorFit

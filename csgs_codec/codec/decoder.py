@@ -350,16 +350,32 @@ class Decoder:
             raise FormatError(f"unexpected colour chunk(s) {sorted(extra)} for SH degree "
                               f"{header.sh_degree_coded}", chunk=sorted(extra)[0])
         modelled = modelled_streams(prior, names) if prior is not None else set()
-        jobs = {name: _submit(pool, _colour_stream, container, header, name)
-                for name in names if name not in modelled}
-        if modelled:
-            _, cells = positions_job.result()
-            if len(cells) and int(cells.max()) >= 1 << prior.net.pos_bits:
-                raise FormatError(f"the colour hyperprior needs cells below "
-                                  f"2^{prior.net.pos_bits}", chunk="CHYP")
-            priors = channel_priors(prior, prior_cells(cells, header.far_count), names)
-            jobs.update({name: _submit(pool, _colour_stream, container, header, name,
-                                       priors[name]) for name in modelled})
+        # Rotations may derive their steps from the decoded scales (mode 6): they are
+        # submitted after the scales, and wait for them only when a channel asks.
+        later = modelled | ({"rot"} if "scale" in modelled else set())
+        jobs: dict[str, Future] = {}
+
+        def scales() -> np.ndarray:
+            return jobs["scale"].result()[0]
+
+        def submit(name: str, priors=None) -> None:
+            jobs[name] = _submit(pool, _colour_stream, container, header, name, priors,
+                                 scales if name == "rot" else None)
+
+        for name in names:
+            if name not in later:
+                submit(name)
+        if later:
+            priors = {}
+            if modelled:
+                _, cells = positions_job.result()
+                if len(cells) and int(cells.max()) >= 1 << prior.net.pos_bits:
+                    raise FormatError(f"the colour hyperprior needs cells below "
+                                      f"2^{prior.net.pos_bits}", chunk="CHYP")
+                priors = channel_priors(prior, prior_cells(cells, header.far_count), names)
+            for name in names:
+                if name in later:
+                    submit(name, priors.get(name))
         results = [jobs[name].result() for name in names]  # in order: the first error wins
         decoded = {name: values for name, (values, _) in zip(names, results)}
         rot_axis = results[-1][1]
@@ -483,10 +499,11 @@ def _stream_names(header: SceneHeader) -> list[str]:
 
 
 def _colour_stream(container, header: SceneHeader, name: str,
-                   priors: dict[int, ChannelPrior] | None = None
+                   priors: dict[int, ChannelPrior] | None = None, log_scales=None
                    ) -> tuple[np.ndarray, np.ndarray | None]:
     """(values (N, C) float32, dropped-component index per Gaussian for "rot" else None) of
-    one colour stream; ``priors`` are the hyperprior's for its modelled channels."""
+    one colour stream; ``priors`` are the hyperprior's for its modelled channels, and
+    ``log_scales`` (rotations only) returns the decoded scales mode 6 derives steps from."""
     code = STREAM_CHUNKS[name]
     data, offset = single_payload(container, code)
     r = ByteReader(data, base_offset=offset, chunk=code)
@@ -497,7 +514,8 @@ def _colour_stream(container, header: SceneHeader, name: str,
                                       base_offset=r.offset - len(axis_stream))
         if rot_axis.size and rot_axis.max() > 3:
             raise r.error("dropped-component index above 3")
-    values = read_float_stream(r, header.count, STREAM_CHANNELS[name], priors)
+    values = read_float_stream(r, header.count, STREAM_CHANNELS[name], priors,
+                               log_scales)
     r.expect_end(f"the {name} stream")
     check_finite(values, code)
     return values, rot_axis

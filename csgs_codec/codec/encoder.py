@@ -16,6 +16,7 @@ import numpy as np
 
 from csgs_codec.codec.colour_prior import prior_cells
 from csgs_codec.codec.colour_prior_choice import PriorChoice, choose_prior
+from csgs_codec.codec.derived_steps import rotation_steps
 from csgs_codec.codec.encode_result import EncodeResult
 from csgs_codec.codec.encoder_checks import check_count, check_encodable, decodable_container
 from csgs_codec.codec.far_points import plan_far_points
@@ -92,6 +93,10 @@ class Encoder:
             (:func:`csgs_codec.render.view_distribution.default_distribution`).
         view_budget: the pruning budget, a fraction of the quantization's squared error on
             the views (default 0.1: at most about 0.4 dB).
+        derived_steps: code rotations with steps derived from each Gaussian's decoded
+            anisotropy (coarser for near-isotropic Gaussians, whose rotation barely shows;
+            FORMAT §12.8 mode 6, no per-Gaussian side information). False (default) keeps
+            one rotation step, as files before it.
         tile_size: split the scene into spatial tiles of at most this many Gaussians
             (k-d cells, :mod:`csgs_codec.codec.tiling`), each coded on its own; None
             (default) tiles only scenes of more than 2,000,000 Gaussians, into tiles of at
@@ -111,8 +116,9 @@ class Encoder:
                  lambda_: float | None = None, fast: bool = False, semantic: str = "auto",
                  prune_opacity: float | None = None, hyperprior: bool = True,
                  view_pruning: bool = False, cameras=None,
-                 view_budget: float = DEFAULT_BUDGET, tile_size: int | None = None,
-                 workers: int = 1, ray: str | None = None, tile_progress=None,
+                 view_budget: float = DEFAULT_BUDGET, derived_steps: bool = False,
+                 tile_size: int | None = None, workers: int = 1, ray: str | None = None,
+                 tile_progress=None,
                  progress=None, fit_progress=None, view_progress=None) -> None:
         if lambda_ is not None and (quality is not None or target_psnr is not None):
             raise InputError("lambda excludes quality and target PSNR: give one of them",
@@ -143,6 +149,7 @@ class Encoder:
         self.view_pruning = bool(view_pruning)
         self.cameras = None if cameras is None else list(cameras)
         self.view_budget = float(view_budget)
+        self.derived_steps = bool(derived_steps)
         self._sensitivity = None  # (W (N,) of the scene being encoded, ViewDistribution)
         self.progress = progress or (lambda step: None)
         self.fit_progress = fit_progress
@@ -336,8 +343,15 @@ class Encoder:
         steps = {"dc": p.dc_step, "rest1": p.rest_step, "rest2": p.rest_step,
                  "rest3": p.rest_step, "opacity": p.opacity_step, "scale": p.scale_step,
                  "rot": p.rotation_step}
-        plans = {name: plan_float_stream(values, steps[name])
-                 for name, values in streams.float_streams.items()}
+        plans = {}
+        for name, values in streams.float_streams.items():
+            derive = None
+            if name == "rot" and self.derived_steps:
+                scales = plans["scale"].recon
+
+                def derive(base: int, scales=scales):
+                    return rotation_steps(scales, base)
+            plans[name] = plan_float_stream(values, steps[name], derive)
         choice = PriorChoice()
         if cells is not None:
             self.progress("colour hyperprior")

@@ -15,6 +15,10 @@ Each channel c is one of:
   and scale-table index the colour layer's INR hyperprior predicts from the Gaussian's
   position (:class:`ChannelPrior`): the symbol b - mean is coded with that scale's table.
 
+- derived steps (mode 6, rotation streams only): as factorized or predicted, but the step of
+  Gaussian i is ``step_index + offsets[class_i]`` with the class derived from its decoded
+  log-scales (:mod:`csgs_codec.codec.derived_steps`), and each class has its own table.
+
 The value decodes as ``float32((mu + q * k) * 2^-F)``. The encoder picks, per channel, the mode
 that codes smallest (counting the coefficients), so prediction is used only where it pays.
 """
@@ -25,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from csgs_codec.codec.derived_steps import MAX_CLASSES, DerivedSteps, check_table, derive_classes
 from csgs_codec.entropy.histogram import decode_histogram, encode_histogram, histogram_cost
 from csgs_codec.entropy.residual import (
     STEP_COUNT,
@@ -39,6 +44,7 @@ from csgs_codec.entropy.residual import (
 )
 from csgs_codec.entropy.table_choice import table_costs
 from csgs_codec.entropy.tables import gaussian_family
+from csgs_codec.errors import FormatError
 from csgs_codec.format.primitives import ByteReader, ByteWriter
 
 MODE_CONSTANT = 0
@@ -46,6 +52,7 @@ MODE_FACTORIZED = 1
 MODE_PREDICTED = 2
 MODE_HISTOGRAM = 4
 MODE_HYPERPRIOR = 5
+MODE_DERIVED = 6
 #: Fractional bits of prediction coefficients and bias.
 COEF_FRAC_BITS = 12
 #: |A_j| must stay below this; |B| below BIAS_LIMIT.
@@ -95,6 +102,7 @@ class ChannelPlan:
             prediction when ``coefs`` is set.
         coefs, bias: the channel prediction, or None.
         constant: the float32 value of a constant channel.
+        tables: (K,) int64 table of each step class (derived-steps mode only).
     """
 
     mode: int
@@ -104,6 +112,7 @@ class ChannelPlan:
     coefs: np.ndarray | None = None
     bias: int = 0
     constant: float = 0.0
+    tables: np.ndarray | None = None
 
 
 @dataclass
@@ -114,6 +123,7 @@ class StreamPlan:
         count, frac_bits, step_idx: N, the grid's fractional bits and the step index.
         channels: one :class:`ChannelPlan` per channel.
         recon: (N, C) float32 values the decoder will reconstruct (whatever the modes).
+        derived: the step classes every coded channel follows (mode 6), or None.
     """
 
     count: int
@@ -121,6 +131,7 @@ class StreamPlan:
     step_idx: int
     channels: list[ChannelPlan]
     recon: np.ndarray
+    derived: DerivedSteps | None = None
 
 
 @dataclass(frozen=True)
@@ -146,14 +157,21 @@ def write_float_stream(out: ByteWriter, values: np.ndarray, step: float) -> np.n
     return plan.recon
 
 
-def plan_float_stream(values: np.ndarray, step: float) -> StreamPlan:
+def plan_float_stream(values: np.ndarray, step: float, derive=None) -> StreamPlan:
     """Quantize ``values`` (N, C) with ``step`` (value units) and choose each channel's best
-    mode without a hyperprior."""
+    mode without a hyperprior.
+
+    ``derive``, when given, is called with the stream's step index and returns the
+    :class:`DerivedSteps` every coded channel then follows (mode 6), or None for one step.
+    """
     n, channels = values.shape
     f = frac_bits_for(values)
     recon = np.empty((n, channels), np.float32)
     indices = np.zeros((channels, n), np.int64)  # channels as rows, as in the reader
     step_idx = int(step_index(np.array([step * 2.0**f]))[0])
+    derived = derive(step_idx) if derive is not None and n else None
+    if derived is not None:
+        return _plan_derived(values, f, step_idx, derived)
     steps = np.full(n, step_idx, np.int64)
     plans = []
     for c in range(channels):
@@ -184,6 +202,58 @@ def plan_float_stream(values: np.ndarray, step: float) -> StreamPlan:
     return StreamPlan(n, f, step_idx, plans, recon)
 
 
+def _class_costs(residuals: np.ndarray, classes: np.ndarray, count: int
+                 ) -> tuple[float, np.ndarray]:
+    """(bits, (K,) best table per class) of ``residuals`` coded with one table per class."""
+    tables = np.zeros(count, np.int64)
+    bits = 0.0
+    for c in range(count):
+        member = residuals[classes == c]
+        if member.size:
+            costs = table_costs(member)
+            tables[c] = int(np.argmin(costs))
+            bits += float(costs[tables[c]])
+    return bits + 8 * count, tables
+
+
+def _plan_derived(values: np.ndarray, f: int, step_idx: int, derived: DerivedSteps
+                  ) -> StreamPlan:
+    """The plan of a stream whose coded channels all follow ``derived`` (mode 6)."""
+    n, channels = values.shape
+    why = check_table(derived.thresholds, derived.offsets, step_idx)
+    if why is not None:
+        raise ValueError(why)
+    recon = np.empty((n, channels), np.float32)
+    indices = np.zeros((channels, n), np.int64)
+    steps = derived.step_indices(step_idx)
+    table_bits = 8 * (5 * (derived.count - 1) + 2 * derived.count)
+    plans = []
+    for c in range(channels):
+        column = values[:, c].astype(np.float32)
+        if np.all(column == column[0]):
+            plans.append(ChannelPlan(MODE_CONSTANT, 0.0, constant=float(column[0])))
+            recon[:, c] = column[0]
+            continue
+        grid = to_grid(column.astype(np.float64), f)
+        mean = int(np.rint(np.median(grid)))
+        mean_arr = np.full(n, mean, np.int64)
+        k = quantize(grid, mean_arr, steps)
+        indices[c] = k
+        bits, tables = _class_costs(k, derived.classes, derived.count)
+        best = ChannelPlan(MODE_DERIVED, bits + table_bits, mean, k, None, 0, tables=tables)
+        fitted = _fit_prediction(indices[:c].T, k)
+        if fitted is not None:
+            coefs, bias = fitted
+            r = k - predict(indices[:c], coefs, bias)
+            bits, tables = _class_costs(r, derived.classes, derived.count)
+            bits += table_bits + 8 * (3 * c + 6)
+            if bits < best.cost:
+                best = ChannelPlan(MODE_DERIVED, bits, mean, r, coefs, bias, tables=tables)
+        plans.append(best)
+        recon[:, c] = from_grid(reconstruct(mean_arr, k, steps), f).astype(np.float32)
+    return StreamPlan(n, f, step_idx, plans, recon, derived)
+
+
 def prior_stream(plan: ChannelPlan, prior: ChannelPrior) -> bytes:
     """The residual stream of ``plan``'s channel coded with the hyperprior (mode 5)."""
     return encode_symbols(plan.base - prior.mean, prior.scale)
@@ -201,6 +271,9 @@ def write_planned_stream(out: ByteWriter, plan: StreamPlan,
         if ch.mode == MODE_CONSTANT:
             out.fixed("u8", MODE_CONSTANT)
             out.fixed("f32", ch.constant)
+            continue
+        if ch.mode == MODE_DERIVED:
+            _write_derived_channel(out, plan, ch, c)
             continue
         mode = MODE_HYPERPRIOR if c in priors else ch.mode
         out.fixed("u8", mode)
@@ -223,6 +296,28 @@ def write_planned_stream(out: ByteWriter, plan: StreamPlan,
             out.byte_string(encode_histogram(ch.base))
         else:
             out.byte_string(encode_symbols(ch.base, np.full(plan.count, table, np.int64)))
+
+
+def _write_derived_channel(out: ByteWriter, plan: StreamPlan, ch: ChannelPlan, c: int
+                           ) -> None:
+    """Append channel ``c``'s record in the derived-steps mode (FORMAT §12.8)."""
+    derived = plan.derived
+    out.fixed("u8", MODE_DERIVED)
+    out.svarint(ch.mean)
+    out.fixed("u8", plan.step_idx)
+    out.fixed("u8", derived.count)
+    for t in derived.thresholds:
+        out.fixed("f32", float(t))
+    for o in derived.offsets:
+        out.svarint(int(o))
+    for table in ch.tables:
+        out.fixed("u8", int(table))
+    out.varint(0 if ch.coefs is None else c)
+    if ch.coefs is not None:
+        for a in ch.coefs:
+            out.svarint(int(a))
+        out.svarint(int(ch.bias))
+    out.byte_string(encode_symbols(ch.base, ch.tables[derived.classes]))
 
 
 FIT_ROWS = 1 << 17
@@ -252,11 +347,14 @@ def _fit_prediction(previous: np.ndarray, k: np.ndarray):
 
 
 def read_float_stream(r: ByteReader, count: int, channels: int | None = None,
-                      priors: dict[int, ChannelPrior] | None = None) -> np.ndarray:
+                      priors: dict[int, ChannelPrior] | None = None,
+                      log_scales=None) -> np.ndarray:
     """Read a float stream body written by :func:`write_float_stream`: (count, C) float32.
 
     ``priors`` holds the hyperprior's parameters of the channels it models (channel index ->
-    :class:`ChannelPrior`); a channel in mode 5 without one is an error.
+    :class:`ChannelPrior`); a channel in mode 5 without one is an error. ``log_scales`` is a
+    callable returning the scene's decoded log-scales (N, 3) float32, which channels in mode
+    6 derive their steps from; None where mode 6 is not allowed (every stream but ROTN).
 
     Raises:
         FormatError: count or channel mismatch, a bad mode, table, step or coefficient, an
@@ -280,6 +378,17 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None,
         mode = r.fixed("u8", "mode")
         if mode == MODE_CONSTANT:
             out[c] = np.float32(r.fixed("f32", "constant_value"))
+            continue
+        if mode == MODE_DERIVED:
+            if log_scales is None:
+                raise r.error(f"channel {c}: derived steps (mode 6) are only allowed in ROTN")
+            k, q = _read_derived_channel(r, c, n, indices, peak, log_scales)
+            mean = k[1]
+            k = k[0]
+            top = int(np.abs(k).max()) if n else 0
+            peak = max(peak, top)
+            indices[c] = k
+            out[c] = from_grid(k * q + np.int64(mean), f)
             continue
         if mode not in (MODE_FACTORIZED, MODE_PREDICTED, MODE_HISTOGRAM, MODE_HYPERPRIOR):
             raise r.error(f"channel {c} has unknown mode {mode}")
@@ -330,3 +439,47 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None,
         values = k * np.int64(q) + np.int64(mean)  # mu + q k, bounded by 2^53 just above
         out[c] = from_grid(values, f)
     return np.ascontiguousarray(out.T)
+
+
+def _read_derived_channel(r: ByteReader, c: int, n: int, indices: np.ndarray, peak: int,
+                          log_scales) -> tuple[tuple[np.ndarray, int], np.ndarray]:
+    """((indices k (N,), mean), per-Gaussian steps q (N,)) of a channel in mode 6, the reader
+    just past its mode byte (FORMAT §12.8)."""
+    mean = r.svarint("mean")
+    step = r.fixed("u8", "step_index")
+    if abs(mean) > 1 << 53 or step >= STEP_COUNT:
+        raise r.error(f"channel {c}: mean or step index out of range")
+    k_count = r.fixed("u8", "class_count")
+    if not 1 <= k_count <= MAX_CLASSES:
+        raise r.error(f"channel {c}: class count {k_count} outside 1..{MAX_CLASSES}")
+    at = r.offset
+    thresholds = np.array([r.fixed("f32", "threshold") for _ in range(k_count - 1)],
+                          np.float32)
+    offsets = np.array([r.svarint("step_offset") for _ in range(k_count)], np.int64)
+    why = check_table(thresholds, offsets, step)
+    if why is not None:
+        raise FormatError(f"channel {c}: {why}", chunk=r.chunk, offset=at)
+    tables = np.array([r.fixed("u8", "scale_index") for _ in range(k_count)], np.int64)
+    if tables.max() >= gaussian_family().count:
+        raise r.error(f"channel {c}: scale index {int(tables.max())} out of range")
+    m = r.varint("coefficient_count", maximum=c)
+    prediction = 0
+    if m:
+        if m != c:
+            raise r.error(f"channel {c} has {m} coefficients, expected 0 or {c}")
+        coefs = np.array([r.svarint("coefficient") for _ in range(m)], np.int64)
+        bias = r.svarint("bias")
+        if np.abs(coefs).max() >= COEF_LIMIT or abs(bias) >= BIAS_LIMIT:
+            raise r.error(f"channel {c}: prediction coefficient out of range")
+        if peak >= INDEX_LIMIT:
+            raise r.error(f"channel {c}: earlier indices too large to predict from")
+        prediction = predict(indices[:c], coefs, bias)
+    stream = r.byte_string("residual_stream")
+    classes = derive_classes(log_scales(), thresholds)
+    k = decode_symbols(stream, tables[classes], chunk=r.chunk,
+                       base_offset=r.offset - len(stream)) + prediction
+    q = step_size(step + offsets)[classes]
+    room = (1 << 53) - abs(mean)
+    if n and np.any(np.abs(k) > room // q):
+        raise r.error(f"channel {c}: decoded value exceeds 2^53 on its grid")
+    return (k, mean), q

@@ -10,7 +10,9 @@ tiles gives tile 0's Gaussians, then tile 1's, and so on, each tile in its own d
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 
@@ -39,8 +41,9 @@ class TileJob:
         semantic: the encoder's semantic mode ("auto" or "none");
         keep_reconstruction: send the tile's reconstruction back (not when streaming a
             scene larger than memory).
-        coder: the encoder class that codes the tile (``Encoder``; passed in, so that this
-            module does not import the encoder that calls it).
+        coder: makes the encoder that codes the tile, ``coder(semantic=, hyperprior=)``:
+            the calling encoder's class with its other settings (passed in, so that this
+            module does not import the encoder that calls it; it pickles by name).
     """
 
     scene: GaussianScene | None
@@ -53,7 +56,7 @@ class TileJob:
     hyperprior: bool
     semantic: str
     keep_reconstruction: bool = True
-    coder: type | None = None
+    coder: Callable | None = None
 
 
 @dataclass
@@ -92,7 +95,7 @@ def encode_tile(job: TileJob) -> TileOutput:
 def plan_jobs(positions: np.ndarray, grid: PositionGrid, settings: Preset, tile_size: int, *,
               hyperprior: bool, semantic: str, scene: GaussianScene | None = None,
               source: str | None = None, keep_reconstruction: bool = True,
-              coder: type | None = None) -> list[TileJob]:
+              coder: Callable | None = None) -> list[TileJob]:
     """One job per tile of the scene whose positions are ``positions`` (N, 3), on the
     whole scene's ``grid``; tiles carry their Gaussians from ``scene`` or name ``source``."""
     jobs = []
@@ -115,7 +118,7 @@ def encode_tiled(encoder, scene: GaussianScene, grid: PositionGrid, settings: Pr
     ``record`` (a ``vdis`` chunk) goes into tile 0, after its base chunks."""
     use_prior = encoder.hyperprior if hyperprior is None else hyperprior
     jobs = plan_jobs(scene.positions, grid, settings, tile_size, hyperprior=use_prior,
-                     semantic=encoder.semantic, scene=scene, coder=type(encoder))
+                     semantic=encoder.semantic, scene=scene, coder=_tile_coder(encoder))
     encoder.progress(f"{len(jobs)} tiles")
     outputs = run_jobs(encode_tile, jobs, workers=encoder.workers, ray=encoder.ray,
                        progress=encoder.tile_progress)
@@ -146,6 +149,11 @@ def assemble(encoder, jobs: list[TileJob], outputs: list[TileOutput], count: int
                         stream_bytes=stream_bytes, tiles=len(outputs))
 
 
+def _tile_coder(encoder) -> Callable:
+    """What makes a tile's encoder: ``encoder``'s class with the settings a tile shares."""
+    return partial(type(encoder), derived_steps=encoder.derived_steps)
+
+
 def encode_ply_tiled(encoder, path: str) -> object:
     """Encode the binary PLY at ``path`` tile by tile without loading it whole: positions
     are read from the memory-mapped body, each worker reads its tile's rows itself, and no
@@ -170,7 +178,7 @@ def encode_ply_tiled(encoder, path: str) -> object:
     grid = PositionGrid.fit(positions, settings.position_bits)
     jobs = plan_jobs(positions, grid, settings, tile_size, hyperprior=encoder.hyperprior,
                      semantic=encoder.semantic, source=ply.path, keep_reconstruction=False,
-                     coder=type(encoder))
+                     coder=_tile_coder(encoder))
     del positions
     encoder.progress(f"{len(jobs)} tiles")
     outputs = run_jobs(encode_tile, jobs, workers=encoder.workers, ray=encoder.ray,

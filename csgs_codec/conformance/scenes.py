@@ -17,10 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
+from csgs_codec.codec.container_access import single_payload
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
 from csgs_codec.errors import CsgsError
 from csgs_codec.format import Chunk, read_layers, write_container
+from csgs_codec.format.primitives import ByteReader
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.scene.ply_io import ply_bytes, read_ply
 
@@ -127,6 +129,7 @@ def generate(out_dir: Path) -> None:
     _far_point_vectors(out_dir, donut)
     _view_pruned_vectors(out_dir, donut)
     _tiled_vectors(out_dir, donut)
+    _derived_steps_vectors(out_dir, donut)
 
 
 def _colour_prior_vectors(out_dir: Path, donut: GaussianScene) -> None:
@@ -233,3 +236,31 @@ def _tiled_vectors(out_dir: Path, donut: GaussianScene) -> None:
     bad = with_index(lambda t: t[:1] + [replace(t[1], upper=t[1].lower)] + t[2:])
     _write(out_dir, "tiled_box_misses_a_gaussian", bad,
            "tiled_q5 with tile 1's box in TIDX shrunk to its lower corner", _reads(bad))
+
+
+def _derived_steps_vectors(out_dir: Path, donut: GaussianScene) -> None:
+    """An encode whose rotation channels use derived steps (mode 6, classes from the decoded
+    anisotropy), and the same file with its first threshold set to +inf, which decoders
+    reject at that threshold's offset."""
+    head = donut.subset(np.arange(0, len(donut), 12))
+    data = Encoder(quality=5, hyperprior=False, derived_steps=True).encode(head)
+    _write(out_dir, "derived_steps_q5", data,
+           "every 12th Gaussian of samples/donut.ply (3,802) at quality 5 with rotation steps "
+           "derived from the decoded anisotropy (ROTN channels in mode 6)", _reads(data),
+           arrays=Decoder().decode(data))
+    payload = single_payload(read_layers(data, layers={"color"}), "ROTN")[0]
+    r = ByteReader(payload)
+    r.byte_string("axis_stream")
+    r.varint("count")
+    r.fixed("u8", "channel_count")
+    r.fixed("u8", "frac_bits")
+    r.fixed("u8", "mode")
+    r.svarint("mean")
+    r.fixed("u8", "step_index")
+    r.fixed("u8", "class_count")
+    top_byte = r.offset + 3  # f32 little-endian: 0x7f8 in the top bits is +inf
+    bad = _invalid(_invalid(data, patch=("ROTN", top_byte, 0x7F)),
+                   patch=("ROTN", top_byte - 1, 0x80))
+    _write(out_dir, "derived_steps_infinite_threshold", bad,
+           "derived_steps_q5 with channel 0's first ROTN threshold set to +inf (frame and CRC "
+           "rewritten): invalid, reported at that threshold", _reads(bad))

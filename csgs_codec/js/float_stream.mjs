@@ -71,9 +71,11 @@ function predict(indices, peaks, coefs, bias, n) {
  * @param {object} family the Gaussian tables
  * @param {{array: Float32Array, stride: number, offset: number}|null} target where value i
  *   of channel c goes: array[i * stride + offset + c] (default: a new N x C array)
+ * @param {(() => Float32Array)|null} logScales returns the decoded log-scales (N x 3) that
+ *   channels in mode 6 derive their steps from; null where mode 6 is not allowed (not ROTN)
  * @returns {Float32Array} the target array
  */
-export function readFloatStream(r, count, channels, priors, family, target = null) {
+export function readFloatStream(r, count, channels, priors, family, target = null, logScales = null) {
   const n = r.varint('count', MAX_COUNT);
   if (n !== count) throw r.error(`stream holds ${n} values, the scene has ${count} Gaussians`);
   const cCount = r.u8('channel_count');
@@ -92,6 +94,15 @@ export function readFloatStream(r, count, channels, priors, family, target = nul
       steps.push({ constant: r.f32('constant_value') });
       indices.push(new Int32Array(n));
       peaks.push(0);
+      continue;
+    }
+    if (mode === 6) {
+      if (!logScales) throw r.error(`channel ${c}: derived steps (mode 6) are only allowed in ROTN`);
+      const derived = readDerivedChannel(r, c, n, indices, peaks, peak, logScales, family);
+      if (derived.top > peak) peak = derived.top;
+      steps.push({ qs: derived.qs, mean: derived.mean });
+      indices.push(derived.top < INDEX_LIMIT ? Int32Array.from(derived.k) : derived.k);
+      peaks.push(derived.top);
       continue;
     }
     if (![1, 2, 4, 5].includes(mode)) throw r.error(`channel ${c} has unknown mode ${mode}`);
@@ -181,9 +192,96 @@ function writeValues(array, stride, offset, indices, steps, unit, n) {
         for (let i = start; i < end; i++, at += stride) array[at] = step.constant;
         continue;
       }
-      const { q, mean } = step;
+      const { q, qs, mean } = step;
       const k = indices[c];
+      if (qs) {
+        for (let i = start; i < end; i++, at += stride) array[at] = (k[i] * qs[i] + mean) * unit;
+        continue;
+      }
       for (let i = start; i < end; i++, at += stride) array[at] = (k[i] * q + mean) * unit;
     }
   }
+}
+
+/**
+ * A channel in mode 6 (derived steps, §12.8), the reader just past its mode byte: the step of
+ * Gaussian i is that of step_index + offset[class_i], class_i the number of thresholds at or
+ * below the spread max - min of its decoded log-scales (binary64, exact on float32 inputs).
+ * @returns {{k: Float64Array, qs: Float64Array, mean: number, top: number}}
+ */
+function readDerivedChannel(r, c, n, indices, peaks, peak, logScales, family) {
+  const mean = r.svarintBig('mean');
+  const step = r.u8('step_index');
+  if ((mean < 0n ? -mean : mean) > 2n ** 53n || step >= 176) throw r.error(`channel ${c}: mean or step index out of range`);
+  const classCount = r.u8('class_count');
+  if (classCount < 1 || classCount > 8) throw r.error(`channel ${c}: class count ${classCount} outside 1..8`);
+  const at = r.offset;
+  const thresholds = [];
+  for (let a = 0; a + 1 < classCount; a++) thresholds.push(r.f32('threshold'));
+  const offsets = [];
+  for (let a = 0; a < classCount; a++) offsets.push(Number(r.svarintBig('step_offset')));
+  const increasing = thresholds.every((t, a) => Number.isFinite(t) && (a === 0 ? t >= 0 : t > thresholds[a - 1]));
+  if (!increasing) throw r.error(`channel ${c}: thresholds must be finite, >= 0 and strictly increasing`, at);
+  if (offsets.some((o) => step + o < 0 || step + o >= 176)) throw r.error(`channel ${c}: step index ${step} plus offsets [${offsets}] leaves [0, 176)`, at);
+  const tables = [];
+  for (let a = 0; a < classCount; a++) tables.push(r.u8('scale_index'));
+  if (tables.some((t) => t >= 64)) throw r.error(`channel ${c}: scale index out of range`);
+  const m = r.varint('coefficient_count', c);
+  let prediction = null;
+  if (m) {
+    if (m !== c) throw r.error(`channel ${c} has ${m} coefficients, expected 0 or ${c}`);
+    const coefs = [];
+    for (let j = 0; j < m; j++) coefs.push(r.svarintBig('coefficient'));
+    const bias = r.svarintBig('bias');
+    const abs = (v) => (v < 0n ? -v : v);
+    if (coefs.some((a) => abs(a) >= COEF_LIMIT) || abs(bias) >= BIAS_LIMIT) {
+      throw r.error(`channel ${c}: prediction coefficient out of range`);
+    }
+    if (peak >= INDEX_LIMIT) throw r.error(`channel ${c}: earlier indices too large to predict from`);
+    prediction = predict(indices, peaks, coefs, bias, n);
+  }
+  const stream = r.byteString('residual_stream');
+  const scales = logScales();
+  const classes = new Uint8Array(n);
+  const perValue = new Uint8Array(n);
+  for (let i = 0; i < n; i++) {
+    const s0 = scales[3 * i];
+    const s1 = scales[3 * i + 1];
+    const s2 = scales[3 * i + 2];
+    const d = Math.max(s0, s1, s2) - Math.min(s0, s1, s2);
+    let cls = 0;
+    while (cls < thresholds.length && thresholds[cls] <= d) cls++;
+    classes[i] = cls;
+    perValue[i] = tables[cls];
+  }
+  const decoded = decodeSymbols(stream, perValue, n, family, r.chunk, r.offset - stream.length);
+  const k = decoded.values;
+  const stepOf = offsets.map((o) => stepSize(step + o));
+  const qs = new Float64Array(n);
+  const meanNum = Number(mean);
+  const room = TWO53 - Math.abs(meanNum);
+  let top = 0;
+  let over = false;
+  for (let i = 0; i < n; i++) {
+    const v = k[i] + (prediction ? prediction[i] : 0);
+    k[i] = v;
+    const q = stepOf[classes[i]];
+    qs[i] = q;
+    const a = Math.abs(v);
+    if (a > top) top = a;
+    let limit = Math.floor(room / q);
+    if (limit * q > room) limit -= 1;
+    if (a > limit) over = true;
+  }
+  if (decoded.big) {
+    for (const [i, s] of decoded.big) {
+      const exact = s + BigInt(prediction ? prediction[i] : 0);
+      const a = exact < 0n ? -exact : exact;
+      if (a * BigInt(qs[i]) > BigInt(room)) over = true;
+      k[i] = Number(exact);
+      if (Number(a) > top) top = Number(a);
+    }
+  }
+  if (over) throw r.error(`channel ${c}: decoded value exceeds 2^53 on its grid`);
+  return { k, qs, mean: meanNum, top };
 }

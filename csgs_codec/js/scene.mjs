@@ -72,10 +72,18 @@ export function makeTargets(header, Buffer = ArrayBuffer) {
 }
 
 /** Decode one task ('GEOM' or a colour stream code) of a prepared scene into its targets;
- * returns the dropped-component indices for ROTN. */
-export function decodeTask(prep, out, code, priors = null) {
+ * returns the dropped-component indices for ROTN. ``scalesDone``: SCAL is already in its
+ * target (a sequential decode); otherwise a ROTN channel in mode 6 decodes SCAL for itself
+ * (the parallel decode runs only without the hyperprior, so SCAL needs no priors there). */
+export function decodeTask(prep, out, code, priors = null, scalesDone = false) {
   if (code === 'GEOM') return decodePositions(prep.container, prep.header, out.positions);
-  return decodeStream(prep.container, prep.header, code, priors, prep.family, out.targets[code]);
+  const logScales = () => {
+    if (scalesDone) return out.targets.SCAL.array;
+    const own = { array: new Float32Array(3 * prep.header.count), stride: 3, offset: 0 };
+    decodeStream(prep.container, prep.header, 'SCAL', null, prep.family, own);
+    return own.array;
+  };
+  return decodeStream(prep.container, prep.header, code, priors, prep.family, out.targets[code], logScales);
 }
 
 /** The scene object of decoded targets, with the semantic layer when it was asked for. */
@@ -157,7 +165,7 @@ export function decodePrepared(prep) {
   }
   let axis = null;
   for (const code of prep.codes) {
-    const result = decodeTask(prep, out, code, priors.get(code) || null);
+    const result = decodeTask(prep, out, code, priors.get(code) || null, true);
     if (code === 'ROTN') axis = result;
   }
   if (!geometryDone) decodeTask(prep, out, 'GEOM');

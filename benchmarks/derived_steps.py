@@ -1,0 +1,263 @@
+"""Per-Gaussian steps derived from already-decoded attributes (issue 17): does it pay?
+
+No bitstream change is made here: the experiment simulates a colour stream whose step index
+is ``base + offset[class_i]`` per Gaussian, the class derived from attributes the decoder
+already has (no per-Gaussian side information), and each class coded with its own frozen
+table. For each scene and quality it encodes with the current codec (no hyperprior, as
+``view_pruning.py`` does), re-plans the chosen streams with the derived steps, rebuilds the
+decoded scene and scores foreground PSNR on held-out views never used for allocation (16
+orbit views at 20 degrees + 12 at 45 degrees, 800x600). Rates: the file's bytes plus the
+difference of the re-planned stream's estimated size (the planner's own cost: table costs,
+histogram cost, coefficients, 1 byte per class table) against the same estimate of the
+uniform stream, so estimator bias cancels.
+
+Variants (classes in brackets; offsets chosen by the encoder from a sensitivity model, with
+per-class multiplier m_c ~ mean_c(s)^(-1/2), rate-neutral by count, clipped to +-3 octaves,
+in 1/8-octave step indices):
+
+- ``rot_aniso``: rotation steps by anisotropy d = max - min decoded log-scale (8 classes,
+  edges 0.25, 0.5, 0.75, 1, 1.5, 2, 3), s = sinh(d)^2 (the relative image error of a small
+  rotation of a Gaussian with axis ratio e^d: (r - 1/r)^2 / 4).
+- ``rot_aniso_half`` / ``rot_aniso_clip8``: the same with offsets halved / clipped to +-1
+  octave (milder tables an encoder could pick instead).
+- ``rot_aniso_foot_W``: rotation by anisotropy x footprint (decoded opacity logit in 5 bins x
+  max log-scale in 4 quartile bins; 160 classes), s = W sinh(d)^2 with W the colour
+  sensitivity (sum of squared blending weights) over the default sphere of views.
+- ``dc_foot_W``: DC colour by footprint (20 classes), s = W.
+- ``rot_aniso_foot_W+dc_foot_W``: both.
+
+Ratios: ``ratio_vs_presets`` is the variant's bytes over the bytes the uniform presets 1..9
+need for the same held-out PSNR (log-linear interpolation).
+
+    .venv/bin/python benchmarks/derived_steps.py donut --qualities 2 5 8 --out rows.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from bench_common import FULL_PRECISION, SCENES, document, emit  # noqa: E402
+from view_pruning import held_out_views  # noqa: E402
+
+from csgs_codec.codec.encoder import Encoder  # noqa: E402
+from csgs_codec.codec.float_stream import _fit_prediction, frac_bits_for, predict  # noqa: E402
+from csgs_codec.codec.presets import preset  # noqa: E402
+from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams  # noqa: E402
+from csgs_codec.entropy.histogram import histogram_cost  # noqa: E402
+from csgs_codec.entropy.residual import (  # noqa: E402
+    STEP_COUNT,
+    from_grid,
+    quantize,
+    reconstruct,
+    step_index,
+    to_grid,
+)
+from csgs_codec.entropy.table_choice import table_costs  # noqa: E402
+from csgs_codec.render.comparison import to_unit_range  # noqa: E402
+from csgs_codec.render.metrics import foreground_mask  # noqa: E402
+from csgs_codec.render.rasterizer import render  # noqa: E402
+from csgs_codec.scene.ply_io import read_ply  # noqa: E402
+
+STEP_NAMES = {"dc": "dc_step", "opacity": "opacity_step", "scale": "scale_step",
+              "rot": "rotation_step"}
+ANISO_EDGES = np.array([0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0])
+OPACITY_EDGES = np.array([-2.0, 0.0, 2.0, 4.0])
+
+
+class HeldOut:
+    """Reference renders and foreground masks of a scene on the held-out views."""
+
+    def __init__(self, scene, width: int = 800, height: int = 600) -> None:
+        self.cameras = held_out_views(scene, width, height)
+        self.images, self.masks = [], []
+        for camera in self.cameras:
+            out = render(scene, camera, backend="numba")
+            self.images.append(to_unit_range(out.image))
+            self.masks.append(foreground_mask(out.alpha))
+
+    def psnr(self, candidate) -> float:
+        """Mean foreground PSNR (dB) of ``candidate`` over the views with foreground."""
+        values = []
+        for camera, ref, mask in zip(self.cameras, self.images, self.masks):
+            if mask.any():
+                image = to_unit_range(render(candidate, camera, backend="numba").image)
+                mse = float(np.mean((image[mask] - ref[mask]) ** 2))
+                values.append(10 * np.log10(1.0 / max(mse, 1e-20)))
+        return float(np.mean(values))
+
+
+def plan_cost(values: np.ndarray, step: float, offsets: np.ndarray | None = None,
+              classes: np.ndarray | None = None) -> tuple[float, np.ndarray]:
+    """(estimated bits, decoded (N, C) float32) of a float stream whose step index is
+    ``base + offsets`` per Gaussian (the codec's planner otherwise; one table per class)."""
+    n, channels = values.shape
+    f = frac_bits_for(values)
+    base = int(step_index(np.array([step * 2.0 ** f]))[0])
+    steps = np.full(n, base, np.int64)
+    if offsets is not None:
+        steps = np.clip(base + offsets, 0, STEP_COUNT - 1)
+    classes = np.zeros(n, np.int64) if classes is None else classes
+    present = np.unique(classes)
+
+    def per_class_tables(r: np.ndarray) -> float:
+        return sum(float(table_costs(r[classes == c]).min()) + 8 for c in present)
+
+    recon = np.empty((n, channels), np.float32)
+    indices = np.zeros((channels, n), np.int64)
+    total = 0.0
+    for c in range(channels):
+        column = values[:, c].astype(np.float32)
+        if np.all(column == column[0]):
+            recon[:, c] = column[0]
+            continue
+        grid = to_grid(column.astype(np.float64), f)
+        mean = np.full(n, int(np.rint(np.median(grid))), np.int64)
+        k = quantize(grid, mean, steps)
+        indices[c] = k
+        costs = [per_class_tables(k), histogram_cost(k)]
+        fitted = _fit_prediction(indices[:c].T, k)
+        if fitted is not None:
+            r = k - predict(indices[:c], *fitted)
+            costs += [per_class_tables(r) + 8 * (3 * c + 6), histogram_cost(r) + 8 * (3 * c + 6)]
+        total += min(costs) + 40
+        recon[:, c] = from_grid(reconstruct(mean, k, steps), f).astype(np.float32)
+    return total, recon
+
+
+def with_derived_steps(result, streams: SceneStreams, quality: int, changes: dict):
+    """(estimated bytes, decoded scene) of ``result`` with ``changes`` = {stream: (offsets
+    (N,), classes (N,))} applied to its streams."""
+    p = preset(quality)
+    decoded = {}
+    delta = 0.0
+    for name, values in streams.float_streams.items():
+        step = getattr(p, STEP_NAMES.get(name, "rest_step"))
+        bits, recon = plan_cost(values, step)
+        if name in changes:
+            new_bits, recon = plan_cost(values, step, *changes[name])
+            delta += (new_bits - bits) / 8
+        decoded[name] = recon
+    scene = join_streams(SceneStreams(decoded, streams.rot_axis, streams.sh_degree_stored),
+                         result.reconstruction.positions)
+    return len(result.data) + delta, scene
+
+
+def class_offsets(sensitivity: np.ndarray, classes: np.ndarray,
+                  clip: int = 24) -> tuple[np.ndarray, np.ndarray]:
+    """(per-Gaussian offsets, per-class offsets) in step indices: m_c ~ mean_c(s)^(-1/2)."""
+    k = int(classes.max()) + 1
+    count = np.bincount(classes, minlength=k).astype(float)
+    mean = np.bincount(classes, weights=sensitivity, minlength=k) / np.maximum(count, 1)
+    log_m = -0.5 * np.log2(np.maximum(mean, 1e-30))
+    log_m -= np.sum(count * log_m) / count.sum()
+    table = np.clip(np.rint(8 * log_m), -clip, clip).astype(np.int64)
+    return table[classes], table
+
+
+def variants(rec, weights: np.ndarray) -> dict:
+    """name -> {stream: callable returning (offsets, classes, table)} (see module notes)."""
+    spread = rec.scales.max(1) - rec.scales.min(1)
+    aniso = np.searchsorted(ANISO_EDGES, spread, side="right").astype(np.int64)
+    g = np.sinh(np.minimum(spread, 10.0)) ** 2
+    size_edges = np.quantile(rec.scales.max(1), [0.25, 0.5, 0.75])
+    foot = (np.searchsorted(OPACITY_EDGES, rec.opacity, side="right") * 4
+            + np.searchsorted(size_edges, rec.scales.max(1), side="right")).astype(np.int64)
+    both = aniso * (int(foot.max()) + 1) + foot
+
+    def make(sens, classes, clip=24, factor=1.0):
+        def build():
+            _, table = class_offsets(sens, classes, clip)
+            table = np.rint(table * factor).astype(np.int64)
+            return table[classes], classes, table
+        return build
+
+    return {
+        "rot_aniso": {"rot": make(g, aniso)},
+        "rot_aniso_half": {"rot": make(g, aniso, factor=0.5)},
+        "rot_aniso_clip8": {"rot": make(g, aniso, clip=8)},
+        "rot_aniso_foot_W": {"rot": make(weights * g, both)},
+        "dc_foot_W": {"dc": make(weights, foot)},
+        "rot_aniso_foot_W+dc_foot_W": {"rot": make(weights * g, both),
+                                       "dc": make(weights, foot)},
+    }
+
+
+def size_at_psnr(curve: list[tuple[float, float]], psnr: float) -> float:
+    """Bytes the uniform presets need for ``psnr`` (log-size linear in PSNR; nan outside)."""
+    points = sorted(curve)
+    xs = [p for p, _ in points]
+    if not xs[0] <= psnr <= xs[-1]:
+        return float("nan")
+    return float(np.exp(np.interp(psnr, xs, [np.log(b) for _, b in points])))
+
+
+def run_scene(name: str, qualities: list[int], names: list[str]) -> list[dict]:
+    """Rows of one scene: the uniform presets 1..9, then each variant at ``qualities``."""
+    from csgs_codec.render.sensitivity import blend_sensitivity
+    from csgs_codec.render.view_distribution import default_distribution
+
+    scene = read_ply(SCENES / f"{name}.ply")
+    held = HeldOut(scene)
+    start = time.perf_counter()
+    weights = blend_sensitivity(scene, default_distribution(scene).cameras).weight_sq
+    sensitivity_s = time.perf_counter() - start
+    rows, curve, encodes = [], [], {}
+    for quality in range(1, 10):
+        result = Encoder(quality=quality, hyperprior=False).encode_with_report(scene)
+        psnr = held.psnr(result.reconstruction)
+        curve.append((psnr, len(result.data)))
+        encodes[quality] = result
+        rows.append({"scene": f"{name}.ply", "full_precision": name in FULL_PRECISION,
+                     "quality": quality, "variant": "uniform", "bytes": len(result.data),
+                     "held_out_fg_psnr_db": psnr})
+    for quality in qualities:
+        result = encodes[quality]
+        streams = split_streams(scene.subset(result.order))
+        base_psnr = curve[quality - 1][0]
+        for vname, spec in variants(result.reconstruction, weights[result.order]).items():
+            if vname not in names:
+                continue
+            changes, tables = {}, {}
+            for stream, build in spec.items():
+                offsets, classes, table = build()
+                changes[stream] = (offsets, classes)
+                tables[stream] = table.tolist()
+            nbytes, decoded = with_derived_steps(result, streams, quality, changes)
+            psnr = held.psnr(decoded)
+            rows.append({"scene": f"{name}.ply", "full_precision": name in FULL_PRECISION,
+                         "quality": quality, "variant": vname, "bytes": nbytes,
+                         "held_out_fg_psnr_db": psnr, "delta_db": psnr - base_psnr,
+                         "bytes_vs_uniform": nbytes / len(result.data),
+                         "ratio_vs_presets": nbytes / size_at_psnr(curve, psnr),
+                         "offsets": tables, "sensitivity_s": sensitivity_s})
+            print(json.dumps(rows[-1])[:200], file=sys.stderr)
+    return rows
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("scenes", nargs="+")
+    parser.add_argument("--qualities", nargs="+", type=int, default=[2, 5, 8])
+    parser.add_argument("--variants", nargs="+",
+                        default=["rot_aniso", "rot_aniso_foot_W", "dc_foot_W",
+                                 "rot_aniso_foot_W+dc_foot_W"])
+    parser.add_argument("--out", default=None)
+    args = parser.parse_args()
+    rows = []
+    for name in args.scenes:
+        rows += run_scene(name, args.qualities, args.variants)
+    emit(document("derived_steps", rows, held_out_views="16 @20deg + 12 @45deg, 800x600",
+                  allocation="default sphere: 16 directions x 3 distances, 800x600"),
+         args.out)
+
+
+if __name__ == "__main__":
+    main()
