@@ -2,7 +2,7 @@
 
     python benchmarks/fuzz_decoder.py --inputs 1000000 [--workers 2] [--seed 0]
         [--out fuzz.json] [--crash-dir DIR] [--batch 500] [--trace-every K] [--start I]
-        [--max-seconds S]
+        [--max-seconds S] [--only-seeds TEXT]
 
 Inputs are the reproducible mutant sequence of tests/fuzz/campaign.py (input i can be rebuilt
 alone with ``tests.fuzz.campaign.mutant_at``), split into batches over worker processes. The
@@ -15,6 +15,8 @@ slowest again, untraced, best of three, after the run. Misbehaving inputs are wr
 ``--crash-dir`` as ``crash_<index>.csgs`` with a ``.json`` beside each. A batch that finishes
 more than ``2 x --batch`` seconds plus a minute after the one before it is reported as a hang
 and ends the run (its inputs ran far past the 1 s limit).
+``--only-seeds TEXT`` keeps the seeds whose name contains TEXT (e.g. ``tiled`` for the
+multi-tile files); the mutant sequence then follows that list, which the JSON records.
 """
 
 from __future__ import annotations
@@ -109,9 +111,15 @@ def main() -> int:
     parser.add_argument("--trace-every", type=int, default=1,
                         help="measure the heap peak of every k-th input (1: all; tracing "
                              "about doubles the decode time)")
+    parser.add_argument("--only-seeds", default=None, metavar="TEXT",
+                        help="fuzz only the seeds whose name contains TEXT")
     args = parser.parse_args()
 
     seeds = build_seeds()
+    if args.only_seeds is not None:
+        seeds = [s for s in seeds if args.only_seeds in s.name]
+        if not seeds:
+            parser.error(f"no seed name contains {args.only_seeds!r}")
     batches = [(s, min(args.batch, args.start + args.inputs - s))
                for s in range(args.start, args.start + args.inputs, args.batch)]
     total, hang, max_rss = Summary(), None, 0
