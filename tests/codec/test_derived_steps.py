@@ -173,3 +173,26 @@ def test_damaged_derived_step_payloads_only_raise_format_error():
             Decoder(threads=1).decode(_with_rotn(bytes(damaged)))
         except FormatError as err:
             assert err.chunk == "ROTN"
+
+
+def test_the_cli_flag_writes_mode_6_and_the_decode_matches(tmp_path):
+    from csgs_cli.main import main
+    from csgs_codec.codec.decoder import Decoder
+    from csgs_codec.format import read_layers
+    from tests.conftest import SAMPLE
+
+    out = tmp_path / "d.csgs"
+    assert main(["-q", "encode", str(SAMPLE), "-o", str(out), "--quality", "3",
+                 "--no-hyperprior", "--derived-steps"]) == 0
+    plain = tmp_path / "p.csgs"
+    assert main(["-q", "encode", str(SAMPLE), "-o", str(plain), "--quality", "3",
+                 "--no-hyperprior"]) == 0
+    def rotation_payload(path):
+        container = read_layers(path.read_bytes(), layers={"color"})
+        entry = next(e for e in container.toc if e.type == "ROTN")
+        return bytes(container.payloads[entry.index])
+
+    assert rotation_payload(out) != rotation_payload(plain)
+    derived, uniform = (Decoder().decode(p.read_bytes()) for p in (out, plain))
+    assert np.array_equal(derived.positions, uniform.positions)
+    assert not np.array_equal(derived.rotations, uniform.rotations)
