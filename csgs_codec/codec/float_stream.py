@@ -181,10 +181,7 @@ def plan_float_stream(values: np.ndarray, step: float, derive=None) -> StreamPla
             plans.append(ChannelPlan(MODE_CONSTANT, 0.0, constant=value))
             recon[:, c] = np.float32(value)
             continue
-        grid = to_grid(column.astype(np.float64), f)
-        mean = int(np.rint(np.median(grid)))
-        mean_arr = np.full(n, mean, np.int64)
-        k = quantize(grid, mean_arr, steps)
+        grid, mean, k = _median_quantized(column, f, steps)
         indices[c] = k
         candidates = [(float(table_costs(k).min()), MODE_FACTORIZED, k, None, 0),
                       (histogram_cost(k), MODE_HISTOGRAM, k, None, 0)]
@@ -198,7 +195,8 @@ def plan_float_stream(values: np.ndarray, step: float, derive=None) -> StreamPla
                            (histogram_cost(r) + overhead, MODE_HISTOGRAM, r, coefs, bias)]
         cost, mode, base, coefs, bias = min(candidates, key=lambda cand: cand[0])
         plans.append(ChannelPlan(mode, cost, mean, base, coefs, bias))
-        recon[:, c] = from_grid(reconstruct(mean_arr, k, steps), f).astype(np.float32)
+        means = np.full(n, mean, np.int64)
+        recon[:, c] = from_grid(reconstruct(means, k, steps), f).astype(np.float32)
     return StreamPlan(n, f, step_idx, plans, recon)
 
 
@@ -234,10 +232,7 @@ def _plan_derived(values: np.ndarray, f: int, step_idx: int, derived: DerivedSte
             plans.append(ChannelPlan(MODE_CONSTANT, 0.0, constant=float(column[0])))
             recon[:, c] = column[0]
             continue
-        grid = to_grid(column.astype(np.float64), f)
-        mean = int(np.rint(np.median(grid)))
-        mean_arr = np.full(n, mean, np.int64)
-        k = quantize(grid, mean_arr, steps)
+        grid, mean, k = _median_quantized(column, f, steps)
         indices[c] = k
         bits, tables = _class_costs(k, derived.classes, derived.count)
         best = ChannelPlan(MODE_DERIVED, bits + table_bits, mean, k, None, 0, tables=tables)
@@ -250,7 +245,8 @@ def _plan_derived(values: np.ndarray, f: int, step_idx: int, derived: DerivedSte
             if bits < best.cost:
                 best = ChannelPlan(MODE_DERIVED, bits, mean, r, coefs, bias, tables=tables)
         plans.append(best)
-        recon[:, c] = from_grid(reconstruct(mean_arr, k, steps), f).astype(np.float32)
+        means = np.full(n, mean, np.int64)
+        recon[:, c] = from_grid(reconstruct(means, k, steps), f).astype(np.float32)
     return StreamPlan(n, f, step_idx, plans, recon, derived)
 
 
@@ -483,3 +479,12 @@ def _read_derived_channel(r: ByteReader, c: int, n: int, indices: np.ndarray, pe
     if n and np.any(np.abs(k) > room // q):
         raise r.error(f"channel {c}: decoded value exceeds 2^53 on its grid")
     return (k, mean), q
+
+
+def _median_quantized(column: np.ndarray, frac_bits: int,
+                      steps) -> tuple[np.ndarray, int, np.ndarray]:
+    """A channel's values on the fixed-point grid (N,) int64, their median ``mean`` and the
+    quantization indices (N,) of the values around it with ``steps``."""
+    grid = to_grid(column.astype(np.float64), frac_bits)
+    mean = int(np.rint(np.median(grid)))
+    return grid, mean, quantize(grid, np.full(len(grid), mean, np.int64), steps)

@@ -126,15 +126,7 @@ export function readFloatStream(r, count, channels, priors, family, target = nul
     if (mode === 2 || m) {
       if (mode === 2) m = r.varint('coefficient_count', cCount);
       if (m !== c) throw r.error(`channel ${c} has ${m} coefficients, expected ${c}`);
-      const coefs = [];
-      for (let j = 0; j < m; j++) coefs.push(r.svarintBig('coefficient'));
-      const bias = r.svarintBig('bias');
-      const abs = (v) => (v < 0n ? -v : v);
-      if (coefs.some((a) => abs(a) >= COEF_LIMIT) || abs(bias) >= BIAS_LIMIT) {
-        throw r.error(`channel ${c}: prediction coefficient out of range`);
-      }
-      if (peak >= INDEX_LIMIT) throw r.error(`channel ${c}: earlier indices too large to predict from`);
-      prediction = predict(indices, peaks, coefs, bias, n);
+      prediction = readPrediction(r, c, m, indices, peaks, peak, n);
     }
     const stream = r.byteString('residual_stream');
     const at = r.offset - stream.length;
@@ -203,6 +195,20 @@ function writeValues(array, stride, offset, indices, steps, unit, n) {
   }
 }
 
+/** The channel prediction of §12.8 (m integer coefficients on the earlier channels' indices,
+ * and a bias), checked against the coefficient and index limits; returns the (n) predictions. */
+function readPrediction(r, c, m, indices, peaks, peak, n) {
+  const coefs = [];
+  for (let j = 0; j < m; j++) coefs.push(r.svarintBig('coefficient'));
+  const bias = r.svarintBig('bias');
+  const abs = (v) => (v < 0n ? -v : v);
+  if (coefs.some((a) => abs(a) >= COEF_LIMIT) || abs(bias) >= BIAS_LIMIT) {
+    throw r.error(`channel ${c}: prediction coefficient out of range`);
+  }
+  if (peak >= INDEX_LIMIT) throw r.error(`channel ${c}: earlier indices too large to predict from`);
+  return predict(indices, peaks, coefs, bias, n);
+}
+
 /**
  * A channel in mode 6 (derived steps, §12.8), the reader just past its mode byte: the step of
  * Gaussian i is that of step_index + offset[class_i], class_i the number of thresholds at or
@@ -230,15 +236,7 @@ function readDerivedChannel(r, c, n, indices, peaks, peak, logScales, family) {
   let prediction = null;
   if (m) {
     if (m !== c) throw r.error(`channel ${c} has ${m} coefficients, expected 0 or ${c}`);
-    const coefs = [];
-    for (let j = 0; j < m; j++) coefs.push(r.svarintBig('coefficient'));
-    const bias = r.svarintBig('bias');
-    const abs = (v) => (v < 0n ? -v : v);
-    if (coefs.some((a) => abs(a) >= COEF_LIMIT) || abs(bias) >= BIAS_LIMIT) {
-      throw r.error(`channel ${c}: prediction coefficient out of range`);
-    }
-    if (peak >= INDEX_LIMIT) throw r.error(`channel ${c}: earlier indices too large to predict from`);
-    prediction = predict(indices, peaks, coefs, bias, n);
+    prediction = readPrediction(r, c, m, indices, peaks, peak, n);
   }
   const stream = r.byteString('residual_stream');
   const scales = logScales();
