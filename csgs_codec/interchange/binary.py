@@ -96,6 +96,22 @@ def normalized_wxyz(rotations: np.ndarray) -> np.ndarray:
     return out
 
 
+def from_smallest_three(largest: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """(N, 4) float64 quaternions from "smallest three" storage: ``largest`` (N,) the slot
+    0..3 of the component left out (rebuilt as sqrt(1 - sum of the others' squares)) and
+    ``others`` (N, 3) the remaining components in slot order."""
+    n = len(largest)
+    out = np.zeros((n, 4))
+    rows = np.arange(n)
+    for slot in range(4):
+        take = largest != slot
+        # slot s receives the (s - [largest < s])-th of the three stored components
+        index = slot - (largest < slot)
+        out[take, slot] = others[rows[take], index[take]]
+    out[rows, largest] = np.sqrt(np.maximum(0.0, 1.0 - np.sum(others * others, axis=1)))
+    return out
+
+
 def sh_rest_from_channel_major(values: np.ndarray, n: int, coeffs: int) -> np.ndarray:
     """(N, 3 * coeffs) channel-major SH (PLY ``f_rest_*`` order) -> (N, coeffs, 3) float32."""
     return np.ascontiguousarray(

@@ -22,6 +22,7 @@ from csgs_codec.interchange.binary import (
     Bytes,
     alpha_to_logit,
     colour_to_dc,
+    from_smallest_three,
     sh_rest_from_channel_major,
 )
 from csgs_codec.interchange.source import SceneSource
@@ -122,19 +123,10 @@ def _colours(packed, bound) -> np.ndarray:
 
 
 def _rotations(packed) -> np.ndarray:
-    n = len(packed)
     others = np.stack([(_unorm(packed, shift, 10) - 0.5) * np.sqrt(2.0)
                        for shift in (20, 10, 0)], axis=1)
     largest = (packed.astype(np.int64) >> 30) & 3
-    out = np.zeros((n, 4))
-    rows = np.arange(n)
-    for slot in range(4):
-        take = largest != slot
-        # slot s receives the (s - [largest < s])-th of the three stored components
-        index = slot - (largest < slot)
-        out[take, slot] = others[rows[take], index[take]]
-    out[rows, largest] = np.sqrt(np.maximum(0.0, 1.0 - np.sum(others * others, axis=1)))
-    return out.astype(np.float32)
+    return from_smallest_three(largest, others).astype(np.float32)
 
 
 def _sh(rows, n: int, raw: Bytes) -> np.ndarray:

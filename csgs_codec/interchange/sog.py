@@ -28,7 +28,12 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.errors import InputError, UnsupportedError
-from csgs_codec.interchange.binary import SH_COEFFS, alpha_to_logit, optional_module
+from csgs_codec.interchange.binary import (
+    SH_COEFFS,
+    alpha_to_logit,
+    from_smallest_three,
+    optional_module,
+)
 from csgs_codec.interchange.source import SceneSource
 from csgs_codec.scene.gaussian_scene import GaussianScene
 
@@ -195,13 +200,7 @@ def _rotations(meta, files, path, n) -> np.ndarray:
     tag = pixels[:, 3].astype(np.int64)
     valid = (tag >= 252) & (tag <= 255)
     largest = np.where(valid, tag - 252, 0)
-    out = np.zeros((n, 4))
-    rows = np.arange(n)
-    for slot in range(4):
-        take = largest != slot
-        index = slot - (largest < slot)
-        out[take, slot] = others[rows[take], index[take]]
-    out[rows, largest] = np.sqrt(np.maximum(0.0, 1.0 - np.sum(others * others, axis=1)))
+    out = from_smallest_three(largest, others)
     out[~valid] = (1.0, 0.0, 0.0, 0.0)
     return out.astype(np.float32)
 
