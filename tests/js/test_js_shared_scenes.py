@@ -1,0 +1,58 @@
+"""The JavaScript receiver decodes real scenes, encoded by today's encoder at qualities 1, 5
+and 9 with its default settings, to the Python decoder's arrays (issue #18's acceptance).
+
+The default suite runs the two small SH-3 captures (real_sh3/, 4.7k and 8.2k Gaussians:
+every SH band, the colour hyperprior on the larger one); ``-m slow`` adds the five shared
+scenes (up to 248k Gaussians). Skipped when node or ../shared is absent.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from benchmarks._js_receiver import node_executable, run_js, scene_hashes
+from csgs_codec import Decoder, Encoder, read_ply
+from tests.conftest import SHARED_DATA, shared_path
+
+pytestmark = pytest.mark.skipif(node_executable() is None,
+                                reason="node (Node.js >= 18) is not on PATH")
+
+SMALL = ["real_sh3/fruit_drops.ply", "real_sh3/leica_sofort_top8192.ply"]
+LARGE = [f"scenes/{name}.ply" for name in ("donut", "biker", "guitar", "plant", "playbot")]
+QUALITIES = (1, 5, 9)
+
+
+def _check(relative: str, tmp_path) -> None:
+    scene = read_ply(shared_path(*relative.split("/")))
+    files, expected = [], []
+    for quality in QUALITIES:
+        data = Encoder(quality=quality).encode(scene)
+        path = tmp_path / f"q{quality}.csgs"
+        path.write_bytes(data)
+        decoded = Decoder().decode(data)
+        files.append(path)
+        expected.append((len(decoded), scene_hashes(decoded)))
+    for threads in (1, 2):
+        for quality, js, (count, arrays) in zip(QUALITIES, run_js(files, threads=threads),
+                                                expected):
+            what = f"{relative} q{quality}, {threads} thread(s)"
+            assert js["ok"], f"{what}: {js}"
+            assert js["count"] == count, what
+            assert js["arrays"] == arrays, f"{what}: decoded arrays differ"
+
+
+@pytest.mark.parametrize("relative", SMALL)
+def test_small_real_scenes_decode_as_in_python(relative, tmp_path):
+    _check(relative, tmp_path)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("relative", LARGE)
+def test_shared_scenes_decode_as_in_python(relative, tmp_path):
+    _check(relative, tmp_path)
+
+
+def test_the_scene_lists_name_files_that_exist():
+    if not SHARED_DATA.exists():
+        pytest.skip(f"shared data not present: {SHARED_DATA}")
+    assert all((SHARED_DATA / r).is_file() for r in SMALL + LARGE)
