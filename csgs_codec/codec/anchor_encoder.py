@@ -32,6 +32,7 @@ from csgs_codec.codec.anchor_grid import anchor_grid
 from csgs_codec.codec.anchor_payloads import AnchorHeader, mlps_to_bytes
 from csgs_codec.codec.encoder_checks import check_semantic_names
 from csgs_codec.codec.payloads import MAX_SEMANTIC_CHANNELS, names_to_bytes
+from csgs_codec.codec.presets import ANCHOR_BASE_STEPS, DEFAULT_QUALITY, MULTIPLIERS
 from csgs_codec.entropy.anchor_attributes import (
     FRAC_BITS,
     encode_block,
@@ -57,13 +58,6 @@ from csgs_codec.model.anchor_hyperprior import (
 )
 from csgs_codec.scene.anchor_scene import AnchorScene
 
-#: Steps at quality 8 (multiplier 1) in coding units: features, offsets (units of
-#: exp(scaling[:3])), natural-log scaling, semantic features. Semantic features are compared
-#: by cosine similarity, so a step of 1/64 (3/64 at the default quality, errors <= 0.024 per
-#: channel of a unit-scale feature) keeps selections intact at a few bits per channel.
-BASE_STEPS = {"f": 0.02, "offsets": 0.01, "scaling": 0.005, "semantic": 1.0 / 64}
-MULTIPLIERS = {1: 12.0, 2: 8.0, 3: 6.0, 4: 4.0, 5: 3.0, 6: 2.0, 7: 1.4, 8: 1.0, 9: 0.4}
-DEFAULT_QUALITY = 5
 DEFAULT_CARM_GROUPS = 5
 #: Scenes with fewer anchors also try hyperprior networks NARROW_WIDTHS wide and keep the
 #: smallest file (measured on a 148-anchor trained scene: the 32-wide hyperprior's 13 KB were
@@ -109,7 +103,7 @@ class AnchorEncoder:
     """Encodes Scaffold-GS anchor scenes to .csgs.
 
     Args:
-        quality: 1 (smallest) .. 9 (finest): the base steps are ``BASE_STEPS`` times
+        quality: 1 (smallest) .. 9 (finest): the base steps are ``ANCHOR_BASE_STEPS`` times
             ``MULTIPLIERS[quality]`` (default 5; not with ``lambda_``).
         lambda_: instead of a quality, the rate-distortion weight L of the fit, in squared
             value units per bit: the networks minimise bits + squared error / L for every
@@ -164,7 +158,7 @@ class AnchorEncoder:
         """Base step of attribute type ``kind`` at this quality (or lambda), value units."""
         if self.lambda_ is not None:
             return step_for_lambda(self.lambda_)
-        return BASE_STEPS[kind] * MULTIPLIERS[self.quality]
+        return ANCHOR_BASE_STEPS[kind] * MULTIPLIERS[self.quality]
 
     def encode(self, scene: AnchorScene) -> bytes:
         """The .csgs bytes of ``scene``."""
@@ -219,7 +213,7 @@ class AnchorEncoder:
         chunks.append(Chunk("AMSK", "base", encode_masks(mask)))
         mlps = None
         if s.mlps is not None:
-            payload, mlps = mlps_to_bytes(s.mlps, self.step("f") / BASE_STEPS["f"])
+            payload, mlps = mlps_to_bytes(s.mlps, self.step("f") / ANCHOR_BASE_STEPS["f"])
             chunks.append(Chunk("AMLP", "base", payload))
         chunks += [Chunk(name, "color", payload) for name, payload in best.layer.items()]
         recon = AnchorScene(grid.positions(cells), best.features, best.offsets, best.scaling,
@@ -289,7 +283,7 @@ def check_lambda(lam: float) -> None:
 
 def _nearest_quality(lam: float) -> int:
     """The quality whose feature step is nearest (log scale) to ``lam``'s (informative)."""
-    ratio = step_for_lambda(lam) / BASE_STEPS["f"]
+    ratio = step_for_lambda(lam) / ANCHOR_BASE_STEPS["f"]
     return min(MULTIPLIERS, key=lambda q: abs(math.log(MULTIPLIERS[q] / ratio)))
 
 

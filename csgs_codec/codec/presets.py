@@ -64,6 +64,13 @@ _BITS = {1: 10, 2: 11, 3: 11, 4: 12, 5: 12, 6: 13, 7: 14, 8: 14, 9: 16}
 PRESETS = {q: _row(q, _BITS[q], MULTIPLIERS[q]) for q in MULTIPLIERS}
 DEFAULT_QUALITY = 5
 
+#: Anchor scenes (spec §17) use the same multipliers on their own steps at quality 8, in
+#: coding units: features, offsets (units of exp(scaling[:3])), natural-log scaling, semantic
+#: features. Semantic features are compared by cosine similarity, so a step of 1/64 (3/64 at
+#: the default quality, errors <= 0.024 per channel of a unit-scale feature) keeps
+#: selections intact at a few bits per channel.
+ANCHOR_BASE_STEPS = {"f": 0.02, "offsets": 0.01, "scaling": 0.005, "semantic": 1.0 / 64}
+
 
 def preset(quality: int) -> Preset:
     """The preset for ``quality`` in 1..9.

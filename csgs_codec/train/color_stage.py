@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from csgs_codec.codec.anchor_encoder import BASE_STEPS, MULTIPLIERS
+from csgs_codec.codec.presets import ANCHOR_BASE_STEPS, MULTIPLIERS
 from csgs_codec.errors import InputError, ModelError
 from csgs_codec.render.metrics import psnr
 from csgs_codec.train import defaults
@@ -148,8 +148,9 @@ class ColorStageSettings:
     def steps(self) -> dict[str, float]:
         """Quantization step per attribute at ``quality`` (the encoder's base steps)."""
         scale = MULTIPLIERS[self.quality]
-        return {"features": BASE_STEPS["f"] * scale, "offsets": BASE_STEPS["offsets"] * scale,
-                "scaling": BASE_STEPS["scaling"] * scale}
+        base = ANCHOR_BASE_STEPS
+        return {"features": base["f"] * scale, "offsets": base["offsets"] * scale,
+                "scaling": base["scaling"] * scale}
 
 
 @dataclass

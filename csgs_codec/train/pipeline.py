@@ -27,12 +27,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from csgs_codec.codec.anchor_encoder import (
-    BASE_STEPS,
-    MULTIPLIERS,
-    AnchorEncoder,
-    AnchorEncodeResult,
-)
+from csgs_codec.codec.anchor_encoder import AnchorEncoder, AnchorEncodeResult
+from csgs_codec.codec.presets import ANCHOR_BASE_STEPS, MULTIPLIERS
 from csgs_codec.errors import CsgsWarning, InputError, ModelError
 from csgs_codec.model.anchor_hyperprior import STEP_RANGE, FitSettings
 from csgs_codec.model.scaffold import ScaffoldDecoder
@@ -186,7 +182,7 @@ def train_scene(views: list[TrainingView], points: np.ndarray, settings: TrainSe
         began = time.perf_counter()
         semantic = _semantic_stages(views, color, settings)
         seconds["stages2_3"] = time.perf_counter() - began
-        step = BASE_STEPS["semantic"] * MULTIPLIERS[quality]
+        step = ANCHOR_BASE_STEPS["semantic"] * MULTIPLIERS[quality]
         values = np.zeros((len(anchors), settings.semantic_dim), np.float32)
         values[color.order] = semantic.features * np.float32(step)
         anchors.semantic = values
@@ -237,7 +233,7 @@ def _semantic_steps(views: list[TrainingView], color: AnchorEncodeResult,
         prepared.append(SemanticView(matrix, torch.from_numpy(view.mask.astype(np.int64))))
     device = settings.color.device
     seed = settings.color.seed
-    base = BASE_STEPS["f"] * MULTIPLIERS[settings.color.quality]
+    base = ANCHOR_BASE_STEPS["f"] * MULTIPLIERS[settings.color.quality]
     step_range = (base / STEP_FACTOR, base * STEP_FACTOR)
     result = train_semantic_features(prepared, m, color_steps=color.steps["f"],
                                      dim=settings.semantic_dim,
