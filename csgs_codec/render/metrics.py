@@ -21,10 +21,6 @@ import numpy as np
 
 from csgs_codec.errors import InputError
 
-SSIM_WINDOW = 11
-SSIM_SIGMA = 1.5
-SSIM_C1 = 0.01**2
-SSIM_C2 = 0.03**2
 #: Accumulated opacity above which a pixel of the reference render counts as foreground.
 FOREGROUND_ALPHA = 0.05
 
@@ -57,45 +53,15 @@ def foreground_mask(alpha: np.ndarray, threshold: float = FOREGROUND_ALPHA) -> n
 
 
 def ssim(reference: np.ndarray, candidate: np.ndarray) -> float:
-    """Structural similarity of two [0, 1] images (H, W, C) or (H, W); 1.0 when equal."""
+    """Structural similarity of two [0, 1] images (H, W, C) or (H, W); 1.0 when equal
+    (:mod:`csgs_codec.render.ssim`, evaluated in float64 without gradients)."""
+    import torch
+
+    from csgs_codec.render.ssim import ssim as ssim_torch
+
     a, b = _pair(reference, candidate)
-    if a.ndim == 2:
-        a, b = a[..., None], b[..., None]
-    if min(a.shape[0], a.shape[1]) < SSIM_WINDOW:
-        return _ssim_single_window(a, b)
-    kernel = gaussian_kernel_1d(SSIM_WINDOW, SSIM_SIGMA)
-    mu_a, mu_b = _filter(a, kernel), _filter(b, kernel)
-    var_a = _filter(a * a, kernel) - mu_a**2
-    var_b = _filter(b * b, kernel) - mu_b**2
-    cov = _filter(a * b, kernel) - mu_a * mu_b
-    score = ((2 * mu_a * mu_b + SSIM_C1) * (2 * cov + SSIM_C2)
-             / ((mu_a**2 + mu_b**2 + SSIM_C1) * (var_a + var_b + SSIM_C2)))
-    return float(np.mean(score))
-
-
-def gaussian_kernel_1d(size: int, sigma: float) -> np.ndarray:
-    """(size,) float64 normalised Gaussian weights centred on the middle tap."""
-    x = np.arange(size, dtype=np.float64) - (size - 1) / 2
-    weights = np.exp(-0.5 * (x / sigma) ** 2)
-    return weights / weights.sum()
-
-
-def _filter(image: np.ndarray, kernel: np.ndarray) -> np.ndarray:
-    """Separable 'valid' filtering of (H, W, C) by ``kernel`` along H then W."""
-    k = len(kernel)
-    rows = sum(kernel[i] * image[i:image.shape[0] - k + 1 + i] for i in range(k))
-    return sum(kernel[j] * rows[:, j:rows.shape[1] - k + 1 + j] for j in range(k))
-
-
-def _ssim_single_window(a: np.ndarray, b: np.ndarray) -> float:
-    scores = []
-    for c in range(a.shape[2]):
-        x, y = a[..., c].ravel(), b[..., c].ravel()
-        mx, my = x.mean(), y.mean()
-        cov = np.mean((x - mx) * (y - my))
-        scores.append((2 * mx * my + SSIM_C1) * (2 * cov + SSIM_C2)
-                      / ((mx**2 + my**2 + SSIM_C1) * (x.var() + y.var() + SSIM_C2)))
-    return float(np.mean(scores))
+    with torch.no_grad():
+        return float(ssim_torch(torch.from_numpy(a), torch.from_numpy(b)))
 
 
 def _pair(reference: np.ndarray, candidate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

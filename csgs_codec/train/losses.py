@@ -35,12 +35,9 @@ from dataclasses import dataclass
 import torch
 
 from csgs_codec.errors import InputError
+from csgs_codec.render.ssim import ssim
 from csgs_codec.train import defaults
 
-SSIM_WINDOW = 11
-SSIM_SIGMA = 1.5
-SSIM_C1 = 0.01**2
-SSIM_C2 = 0.03**2
 #: Weight of the (1 - SSIM) term in :func:`photometric_loss` (3DGS's lambda_dssim).
 SSIM_LOSS_WEIGHT = 0.2
 #: Default margin of :func:`inter_mask_contrastive_loss`, in feature units.
@@ -51,52 +48,6 @@ def l1_loss(rendered: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     """Mean absolute difference of two tensors of the same shape: scalar."""
     _same_shape(rendered, target)
     return torch.mean(torch.abs(rendered - target))
-
-
-def _gaussian_taps(dtype: torch.dtype, device: torch.device) -> torch.Tensor:
-    x = torch.arange(SSIM_WINDOW, dtype=torch.float64) - (SSIM_WINDOW - 1) / 2
-    taps = torch.exp(-0.5 * (x / SSIM_SIGMA) ** 2)
-    return (taps / taps.sum()).to(dtype=dtype, device=device)
-
-
-def _valid_filter(planes: torch.Tensor, taps: torch.Tensor) -> torch.Tensor:
-    """[P, H, W] -> [P, H - k + 1, W - k + 1]: separable 'valid' filtering (rows, then columns)."""
-    k = taps.numel()
-    x = planes[:, None]
-    x = torch.nn.functional.conv2d(x, taps.view(1, 1, k, 1))
-    x = torch.nn.functional.conv2d(x, taps.view(1, 1, 1, k))
-    return x[:, 0]
-
-
-def ssim(rendered: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-    """Differentiable SSIM of two images (module notes): scalar, 1 for equal images.
-
-    Args:
-        rendered, target: [H, W, C] or [H, W] images in [0, 1], same shape and dtype.
-    """
-    _same_shape(rendered, target)
-    if rendered.ndim not in (2, 3) or rendered.numel() == 0:
-        raise InputError(f"expected a non-empty [H, W] or [H, W, C] image, got "
-                         f"{tuple(rendered.shape)}", property="image")
-    a = rendered if rendered.ndim == 3 else rendered[..., None]
-    b = target if target.ndim == 3 else target[..., None]
-    a, b = a.permute(2, 0, 1), b.permute(2, 0, 1)  # [C, H, W]
-    if min(a.shape[1], a.shape[2]) < SSIM_WINDOW:
-        mu_a = a.mean(dim=(1, 2), keepdim=True)
-        mu_b = b.mean(dim=(1, 2), keepdim=True)
-        var_a = ((a - mu_a) ** 2).mean(dim=(1, 2))
-        var_b = ((b - mu_b) ** 2).mean(dim=(1, 2))
-        cov = ((a - mu_a) * (b - mu_b)).mean(dim=(1, 2))
-        mu_a, mu_b = mu_a[:, 0, 0], mu_b[:, 0, 0]
-    else:
-        taps = _gaussian_taps(a.dtype, a.device)
-        mu_a, mu_b = _valid_filter(a, taps), _valid_filter(b, taps)
-        var_a = _valid_filter(a * a, taps) - mu_a**2
-        var_b = _valid_filter(b * b, taps) - mu_b**2
-        cov = _valid_filter(a * b, taps) - mu_a * mu_b
-    score = ((2 * mu_a * mu_b + SSIM_C1) * (2 * cov + SSIM_C2)
-             / ((mu_a**2 + mu_b**2 + SSIM_C1) * (var_a + var_b + SSIM_C2)))
-    return score.mean()
 
 
 def photometric_loss(rendered: torch.Tensor, target: torch.Tensor,
