@@ -134,7 +134,7 @@ def check_csgs_file(path: str) -> None:
 
     file = Path(path)
     if not file.is_file():
-        raise InputError("no such file" if not file.exists() else "not a file", file=path)
+        raise InputError("file not found" if not file.exists() else "not a file", file=path)
     try:
         with open(file, "rb") as fh:
             head = fh.read(len(CSGS_MAGIC))

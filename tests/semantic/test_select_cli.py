@@ -115,7 +115,7 @@ def test_select_on_a_scene_without_semantic_features_exits_2(files, tmp_path, ca
 def test_select_missing_scene_and_folder_output_exit_2(files, tmp_path, capsys):
     assert main(["select", str(tmp_path / "none.ply"), "--view", "orbit:0", "--click", "1,1",
                  "-o", str(tmp_path / "o.ply")]) == 2
-    assert "no such file" in capsys.readouterr().err
+    assert "none.ply: file not found" in capsys.readouterr().err
     assert main(["select", str(files["ply"]), "--view", "orbit:0", "--click", "1,1",
                  "-o", str(tmp_path)]) == 2
     assert "output is a folder" in capsys.readouterr().err

@@ -101,7 +101,7 @@ def test_view_web_refuses_bad_input_with_exit_code_2(tmp_path, capsys):
     csgs.write_bytes(b"\x89CSG\r\n\x1a\n" + bytes(8))
     cases = [
         ([str(ply), "--web"], ".csgs files"),
-        ([str(tmp_path / "missing.csgs"), "--web"], "no such file"),
+        ([str(tmp_path / "missing.csgs"), "--web"], "file not found"),
         ([str(csgs), "--web", "--layers", "semantic"], "--layers"),
         ([str(csgs), "--web", "--screenshot", str(tmp_path / "x.png")], "--screenshot"),
         ([str(csgs), "--web", "--port", "70000"], "--port"),
