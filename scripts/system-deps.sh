@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # System packages the tests need beyond Python packages: EGL + Mesa's software GL, so that
 # pyvista/VTK render offscreen without a display, Debian's chromium + chromium-driver for the
-# browser-viewer tests (tests/web) and Node.js for the JavaScript receiver's (tests/js). Installs them only when missing, and only when it can
-# (root with apt-get); otherwise says what is missing and goes on (the screenshot and browser
-# tests then skip with that reason).
+# browser-viewer tests (tests/web) and Node.js for the JavaScript receiver's (tests/js).
+# Installs them only when missing, and only when it can (root with apt-get); otherwise says
+# what is missing and goes on (the screenshot and browser tests then skip with that reason).
 set -u
 need=()
 ldconfig -p 2>/dev/null | grep -q 'libEGL.so.1' || need+=(libegl1)
