@@ -50,14 +50,3 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if "gpu" in item.keywords:
             item.add_marker(skip)
-
-
-@pytest.fixture(autouse=True, scope="session")
-def short_colour_prior_fits():
-    """Colour hyperprior fits of 100 steps in the test process: the encoder's own path at a
-    tenth of the time. Tests that measure what the prior gains set their own settings."""
-    from csgs_codec.codec.colour_prior_choice import fit_overrides
-    from csgs_codec.model.colour_hyperprior import ColourFitSettings
-
-    with fit_overrides(ColourFitSettings(steps=100, batch=512)):
-        yield

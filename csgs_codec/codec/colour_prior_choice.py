@@ -4,7 +4,6 @@ the channels, and only when, it makes the file smaller (the network's bytes coun
 from __future__ import annotations
 
 import warnings
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -39,30 +38,27 @@ TRIAL_STEPS = 300
 TRIAL_SHARE = 0.5
 
 
-@dataclass
-class _Overrides:
+@dataclass(frozen=True)
+class PriorFitPolicy:
+    """How the encoder fits the colour hyperprior and when it keeps it.
+
+    Attributes:
+        settings: the fit's training settings (a
+            :class:`~csgs_codec.model.colour_hyperprior.ColourFitSettings`); None: its
+            defaults (1,500 steps, about 10 s on one core).
+        min_gaussians: scenes (tiles) with fewer Gaussians skip the fit.
+        keep_when_larger: keep the prior for every channel it codes smaller even when the
+            network costs more than it saves, and skip the trial (conformance vectors and
+            tests that need the CHYP path on small scenes).
+    """
+
     settings: object = None
     min_gaussians: int = MIN_GAUSSIANS
     keep_when_larger: bool = False
 
 
-_OVERRIDES = _Overrides()
-
-
-@contextmanager
-def fit_overrides(settings=None, min_gaussians: int = MIN_GAUSSIANS,
-                  keep_when_larger: bool = False):
-    """Within the block, encoders fit the colour hyperprior with ``settings`` (a
-    ColourFitSettings) on scenes of at least ``min_gaussians``, and (``keep_when_larger``)
-    write it for every channel where it codes smaller even when the network costs more than
-    it saves. For tests and conformance vectors that need the CHYP path on small scenes."""
-    global _OVERRIDES
-    previous = _OVERRIDES
-    _OVERRIDES = _Overrides(settings, min_gaussians, keep_when_larger)
-    try:
-        yield
-    finally:
-        _OVERRIDES = previous
+#: What encoders do unless told otherwise.
+DEFAULT_PRIOR_FIT = PriorFitPolicy()
 
 
 @dataclass
@@ -75,7 +71,7 @@ class PriorChoice:
 
 
 def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int,
-                 on_step=None) -> PriorChoice:
+                 on_step=None, policy: PriorFitPolicy = DEFAULT_PRIOR_FIT) -> PriorChoice:
     """Fit the colour hyperprior on ``plans`` (stream -> plan, in stream order) and keep it
     where it pays.
 
@@ -88,13 +84,14 @@ def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int,
         cells: (N, 3) int64 network inputs (:func:`~csgs_codec.codec.colour_prior.prior_cells`).
         pos_bits: the grid's bits per axis.
         on_step: optional ``on_step(done, total)`` told of the fit's training steps.
+        policy: the fit's settings and when the prior is kept.
     """
     names = list(plans)
     layout = stream_layout(names)
     # Channels with derived steps (mode 6) keep their own per-class tables.
     coded = np.array([plans[s].channels[c].mode not in (MODE_CONSTANT, MODE_DERIVED)
                       for s, c in layout], bool)
-    if len(cells) < _OVERRIDES.min_gaussians or not coded.any():
+    if len(cells) < policy.min_gaussians or not coded.any():
         return PriorChoice()
     from csgs_codec.model.colour_hyperprior import ColourPriorFit
 
@@ -102,10 +99,10 @@ def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int,
                              for (s, c), on in zip(layout, coded) if on])
     needed = MIN_SAVING_SHARE * sum(plans[s].channels[c].cost for s, c in layout)
     try:
-        fit = ColourPriorFit(cells, pos_bits, bases, _OVERRIDES.settings, mean_bits=MEAN_BITS,
+        fit = ColourPriorFit(cells, pos_bits, bases, policy.settings, mean_bits=MEAN_BITS,
                              mean_limit=MEAN_LIMIT)
         total = fit.settings.steps
-        if total > TRIAL_STEPS and not _OVERRIDES.keep_when_larger:
+        if total > TRIAL_STEPS and not policy.keep_when_larger:
             fit.train(TRIAL_STEPS, on_step)
             trial_saving, _ = _evaluate(ColourPrior(coded, fit.export()), plans, cells)
             if trial_saving < TRIAL_SHARE * needed:
@@ -117,7 +114,7 @@ def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int,
                       "exactly but is larger", CsgsWarning, stacklevel=3)
         return PriorChoice()
     saving, choice = _evaluate(prior, plans, cells)
-    if saving <= needed and not _OVERRIDES.keep_when_larger:
+    if saving <= needed and not policy.keep_when_larger:
         return PriorChoice()
     return choice
 

@@ -15,7 +15,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from csgs_codec.codec.colour_prior import prior_cells
-from csgs_codec.codec.colour_prior_choice import PriorChoice, choose_prior
+from csgs_codec.codec.colour_prior_choice import (
+    DEFAULT_PRIOR_FIT,
+    PriorChoice,
+    PriorFitPolicy,
+    choose_prior,
+)
 from csgs_codec.codec.derived_steps import rotation_steps
 from csgs_codec.codec.encode_result import EncodeResult
 from csgs_codec.codec.encoder_checks import check_count, check_encodable, decodable_container
@@ -80,6 +85,9 @@ class Encoder:
         hyperprior: fit the colour layer's INR hyperprior (a few seconds; scenes of at
             least 8,192 Gaussians) and use it for the channels where it makes the file
             smaller. It changes the rate only: the decoded scene is the same either way.
+        prior_fit: how that fit runs and when its network is kept
+            (:class:`~csgs_codec.codec.colour_prior_choice.PriorFitPolicy`); the default
+            is what the CLI uses. Shorter fits change the bytes, never the decoded scene.
         semantic: "auto" writes the semantic layer when the scene has semantic channels or
             labels; "none" never writes it.
         prune_opacity: drop Gaussians whose opacity sigmoid(logit) is below this (lossy,
@@ -115,6 +123,7 @@ class Encoder:
     def __init__(self, quality: int | None = None, *, target_psnr: float | None = None,
                  lambda_: float | None = None, fast: bool = False, semantic: str = "auto",
                  prune_opacity: float | None = None, hyperprior: bool = True,
+                 prior_fit: PriorFitPolicy = DEFAULT_PRIOR_FIT,
                  view_pruning: bool = False, cameras=None,
                  view_budget: float = DEFAULT_BUDGET, derived_steps: bool = False,
                  tile_size: int | None = None, workers: int = 1, ray: str | None = None,
@@ -143,6 +152,10 @@ class Encoder:
         self.semantic = semantic
         self.prune_opacity = prune_opacity
         self.hyperprior = bool(hyperprior) and not self.fast
+        if not isinstance(prior_fit, PriorFitPolicy):
+            raise InputError(f"prior_fit must be a PriorFitPolicy, got {prior_fit!r}",
+                             property="prior_fit")
+        self.prior_fit = prior_fit
         if not 0.0 <= view_budget <= 10.0:
             raise InputError(f"view budget must be in [0, 10], got {view_budget}",
                              property="view_budget")
@@ -355,7 +368,7 @@ class Encoder:
         choice = PriorChoice()
         if cells is not None:
             self.progress("colour hyperprior")
-            choice = choose_prior(plans, cells, pos_bits, self.fit_progress)
+            choice = choose_prior(plans, cells, pos_bits, self.fit_progress, self.prior_fit)
         if choice.payload is not None:
             chunks.append(Chunk("CHYP", "color", choice.payload))
         for name, plan in plans.items():

@@ -136,12 +136,13 @@ def _colour_prior_vectors(out_dir: Path, donut: GaussianScene) -> None:
     """A file with the colour hyperprior (CHYP, channel mode 5) and the same file without its
     CHYP chunk. A short fit on 4,000 Gaussians, kept even where the network costs more than
     it saves, so the vector stays small."""
-    from csgs_codec.codec.colour_prior_choice import fit_overrides
+    from csgs_codec.codec.colour_prior_choice import PriorFitPolicy
     from csgs_codec.model.colour_hyperprior import ColourFitSettings
 
     head = donut.subset(np.arange(4000))
-    with fit_overrides(ColourFitSettings(steps=300), min_gaussians=0, keep_when_larger=True):
-        data = Encoder(quality=3).encode(head)
+    policy = PriorFitPolicy(ColourFitSettings(steps=300), min_gaussians=0,
+                            keep_when_larger=True)
+    data = Encoder(quality=3, prior_fit=policy).encode(head)
     _write(out_dir, "colour_prior_q3", data,
            "the first 4,000 Gaussians of samples/donut.ply at quality 3 with the colour "
            "hyperprior (CHYP; mode-5 channels)", _reads(data))

@@ -15,7 +15,7 @@ from csgs_codec.codec.colour_prior import (
     prior_from_bytes,
     prior_to_bytes,
 )
-from csgs_codec.codec.colour_prior_choice import fit_overrides
+from csgs_codec.codec.colour_prior_choice import PriorFitPolicy
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
 from csgs_codec.codec.payloads import SceneHeader
@@ -39,8 +39,8 @@ def donut():
 def small_pair(donut):
     """(with prior, without prior) encodes of 3,000 donut Gaussians at quality 4."""
     scene = donut.subset(np.arange(3000))
-    with fit_overrides(SHORT_FIT, min_gaussians=0, keep_when_larger=True):
-        with_prior = Encoder(quality=4).encode_with_report(scene)
+    policy = PriorFitPolicy(SHORT_FIT, min_gaussians=0, keep_when_larger=True)
+    with_prior = Encoder(quality=4, prior_fit=policy).encode_with_report(scene)
     without = Encoder(quality=4, hyperprior=False).encode_with_report(scene)
     return with_prior, without
 
@@ -87,8 +87,8 @@ def test_prior_decodes_identically_with_one_and_two_threads(small_pair):
 
 
 def test_prior_makes_a_real_scene_smaller(donut):
-    with fit_overrides(ColourFitSettings(steps=300)):
-        with_prior = Encoder(quality=5).encode_with_report(donut)
+    policy = PriorFitPolicy(ColourFitSettings(steps=300))
+    with_prior = Encoder(quality=5, prior_fit=policy).encode_with_report(donut)
     without = Encoder(quality=5, hyperprior=False).encode(donut)
     assert "CHYP" in with_prior.stream_bytes
     assert len(with_prior.data) < 0.98 * len(without)
@@ -160,9 +160,10 @@ def test_damaged_chyp_only_raises_format_error(small_pair):
 
 def test_fit_progress_counts_the_training_steps(donut):
     calls = []
-    with fit_overrides(ColourFitSettings(steps=120, batch=256), min_gaussians=0):
-        Encoder(quality=4, fit_progress=lambda done, total: calls.append((done, total))
-                ).encode(donut.subset(np.arange(2000)))
+    policy = PriorFitPolicy(ColourFitSettings(steps=120, batch=256), min_gaussians=0)
+    Encoder(quality=4, prior_fit=policy,
+            fit_progress=lambda done, total: calls.append((done, total))
+            ).encode(donut.subset(np.arange(2000)))
     assert calls == [(50, 120), (100, 120), (120, 120)]
 
 
@@ -191,8 +192,30 @@ def test_a_fit_run_in_parts_equals_one_run(donut):
 def test_a_trial_that_saves_little_stops_the_fit():
     calls = []
     scene = random_scene(6000, sh_degree=0, seed=5)  # attributes independent of position
-    with fit_overrides(ColourFitSettings(steps=600, batch=256), min_gaussians=0):
-        result = Encoder(quality=5, fit_progress=lambda done, total: calls.append(done)
-                         ).encode_with_report(scene)
+    policy = PriorFitPolicy(ColourFitSettings(steps=600, batch=256), min_gaussians=0)
+    result = Encoder(quality=5, prior_fit=policy,
+                     fit_progress=lambda done, total: calls.append(done)
+                     ).encode_with_report(scene)
     assert "CHYP" not in result.stream_bytes
     assert calls[-1] == 300
+
+
+def test_the_default_encoder_runs_the_full_fit_and_keeps_the_prior(donut):
+    """The encoder as users run it (no test settings): the whole 1,500-step fit on the
+    sample, the prior kept, and the file decodes to the reconstruction."""
+    from csgs_codec.codec.colour_prior_choice import DEFAULT_PRIOR_FIT
+
+    steps = []
+    encoder = Encoder(fit_progress=lambda done, total: steps.append((done, total)))
+    assert encoder.prior_fit is DEFAULT_PRIOR_FIT and DEFAULT_PRIOR_FIT.settings is None
+    result = encoder.encode_with_report(donut)
+    assert steps[-1] == (ColourFitSettings().steps, ColourFitSettings().steps)
+    assert "CHYP" in result.stream_bytes
+    _assert_same_scene(Decoder().decode(result.data), result.reconstruction)
+
+
+def test_prior_fit_must_be_a_policy():
+    from csgs_codec.errors import InputError
+
+    with pytest.raises(InputError, match="prior_fit"):
+        Encoder(prior_fit={"steps": 10})

@@ -8,6 +8,7 @@ import pytest
 from csgs_codec import Decoder, Encoder
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.scene.ply_io import read_ply
+from tests.codec.helpers import SHORT_PRIOR_FIT
 from tests.conftest import SAMPLE
 
 FIELDS = ("positions", "sh_dc", "sh_rest", "opacity", "scales", "rotations")
@@ -15,7 +16,7 @@ FIELDS = ("positions", "sh_dc", "sh_rest", "opacity", "scales", "rotations")
 
 @pytest.fixture(scope="module")
 def data():
-    return Encoder(quality=4).encode(read_ply(SAMPLE))
+    return Encoder(quality=4, prior_fit=SHORT_PRIOR_FIT).encode(read_ply(SAMPLE))
 
 
 def test_one_and_two_threads_decode_identically(data):
