@@ -76,6 +76,29 @@ def test_run_jobs_keeps_job_order():
     assert run_jobs(_square, [], workers=3) == []
 
 
+def _thread_settings(_: int) -> tuple[str | None, ...]:
+    import os
+
+    from csgs_codec.codec.parallel import THREAD_VARIABLES
+
+    return tuple(os.environ.get(name) for name in THREAD_VARIABLES)
+
+
+def test_local_workers_run_numeric_libraries_on_one_thread(monkeypatch):
+    """Two workers with two BLAS threads each on two cores spin against each other; a
+    variable the user set is kept, and this process's environment is left as it was."""
+    from csgs_codec.codec.parallel import THREAD_VARIABLES
+
+    for name in THREAD_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setenv("MKL_NUM_THREADS", "3")
+    seen = run_jobs(_thread_settings, [0, 1], workers=2)
+    expected = tuple("3" if name == "MKL_NUM_THREADS" else "1" for name in THREAD_VARIABLES)
+    assert seen == [expected, expected]
+    assert _thread_settings(0) == tuple("3" if name == "MKL_NUM_THREADS" else None
+                                        for name in THREAD_VARIABLES)
+
+
 def test_ray_local_cluster_writes_the_same_bytes(ply, serial):
     pytest.importorskip("ray")
     encoder = Encoder(quality=5, hyperprior=False, tile_size=600, workers=2, ray="local")
