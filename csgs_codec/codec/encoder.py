@@ -10,7 +10,7 @@ reconstruction with exactly the integer arithmetic the decoder runs, so
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -105,6 +105,12 @@ class Encoder:
             anisotropy (coarser for near-isotropic Gaussians, whose rotation barely shows;
             FORMAT §12.8 mode 6, no per-Gaussian side information). False (default) keeps
             one rotation step, as files before it.
+        refine: Adam steps that move each coded value to the lattice point whose decoded
+            scene renders closest to the original over the viewing distribution (``cameras``
+            or the default sphere; :mod:`csgs_codec.codec.refinement`). Same format and
+            decoder, lower render error at about the same size; seconds to minutes on a
+            CPU. 0 (default) codes each value at its nearest lattice point. Scenes of one
+            tile.
         tile_size: split the scene into spatial tiles of at most this many Gaussians
             (k-d cells, :mod:`csgs_codec.codec.tiling`), each coded on its own; None
             (default) tiles only scenes of more than 2,000,000 Gaussians, into tiles of at
@@ -118,6 +124,8 @@ class Encoder:
         progress: a callable ``progress(step_name)`` told of each stage, or None.
         fit_progress: a callable ``fit_progress(done, total)`` told of the colour hyperprior
             fit's training steps (it takes seconds), or None.
+        refine_progress: a callable ``refine_progress(done, total)`` told of refinement
+            steps, or None.
     """
 
     def __init__(self, quality: int | None = None, *, target_psnr: float | None = None,
@@ -126,9 +134,10 @@ class Encoder:
                  prior_fit: PriorFitPolicy = DEFAULT_PRIOR_FIT,
                  view_pruning: bool = False, cameras=None,
                  view_budget: float = DEFAULT_BUDGET, derived_steps: bool = False,
-                 tile_size: int | None = None, workers: int = 1, ray: str | None = None,
-                 tile_progress=None,
-                 progress=None, fit_progress=None, view_progress=None) -> None:
+                 refine: int = 0, tile_size: int | None = None, workers: int = 1,
+                 ray: str | None = None, tile_progress=None,
+                 progress=None, fit_progress=None, view_progress=None,
+                 refine_progress=None) -> None:
         if lambda_ is not None and (quality is not None or target_psnr is not None):
             raise InputError("lambda excludes quality and target PSNR: give one of them",
                              property="lambda")
@@ -163,6 +172,11 @@ class Encoder:
         self.cameras = None if cameras is None else list(cameras)
         self.view_budget = float(view_budget)
         self.derived_steps = bool(derived_steps)
+        if isinstance(refine, bool) or not isinstance(refine, int) or not 0 <= refine <= 100_000:
+            raise InputError(f"refine must be a step count in [0, 100000], got {refine!r}",
+                             property="refine")
+        self.refine = refine
+        self.refine_progress = refine_progress
         self._sensitivity = None  # (W (N,) of the scene being encoded, ViewDistribution)
         self.progress = progress or (lambda step: None)
         self.fit_progress = fit_progress
@@ -240,7 +254,7 @@ class Encoder:
         def encode(settings: Preset) -> EncodeResult:
             # The hyperprior changes the rate only, so the search (which scores renders)
             # runs without its fit; the kept settings are encoded once more with it below.
-            return self._encode(scene, settings, hyperprior=False)
+            return self._encode(scene, settings, hyperprior=False, refine=False)
 
         if self.lambda_ is not None:
             steps = rc.FAST_LAMBDA_STEPS if self.fast else rc.LAMBDA_STEPS
@@ -251,7 +265,20 @@ class Encoder:
                       if self.fast else {})
             result, report = rc.encode_to_target(encode, scene, self.target_psnr, probe=probe,
                                                  progress=self.progress, **search)
-        if self.hyperprior:
+        if self.refine:
+            # Refinement lowers the render error at about the same size; the searched
+            # encode stays when the refined one renders worse on the probe views (a target
+            # missed, or a lambda search's distortion raised).
+            self.progress("final encode")
+            final = self._encode(scene, scaled_preset(report.multiplier))
+            refined_psnr = probe.psnr(final.reconstruction)
+            floor = (self.target_psnr if self.lambda_ is None
+                     else probe.psnr(result.reconstruction))
+            if refined_psnr >= floor:
+                result = final
+                if self.lambda_ is None:
+                    report = replace(report, psnr=refined_psnr)
+        elif self.hyperprior:
             self.progress("final encode")
             final = self._encode(scene, scaled_preset(report.multiplier))
             if len(final.data) < len(result.data):
@@ -260,11 +287,11 @@ class Encoder:
         return result
 
     def _encode(self, scene: GaussianScene, settings: Preset, *,
-                hyperprior: bool | None = None) -> EncodeResult:
+                hyperprior: bool | None = None, refine: bool = True) -> EncodeResult:
         """Encode a validated scene with ``settings``, leaving out the Gaussians view pruning
         removes (``order`` indexes ``scene``; see :meth:`_encode_all` for the rest)."""
         if self._sensitivity is None:
-            return self._encode_all(scene, settings, hyperprior=hyperprior)
+            return self._encode_all(scene, settings, hyperprior=hyperprior, refine=refine)
         weights, views = self._sensitivity
         trial = self._encode_all(scene, settings, hyperprior=False)
         self.progress("view pruning")
@@ -274,19 +301,21 @@ class Encoder:
                             views.description)
         kept = np.flatnonzero(decision.keep)
         result = self._encode_all(scene.subset(decision.keep), settings, hyperprior=hyperprior,
-                                  record=Chunk("vdis", "base", record.to_bytes()))
+                                  record=Chunk("vdis", "base", record.to_bytes()),
+                                  refine=refine)
         result.order = kept[result.order]
         result.view_pruned = decision.dropped
         result.views = views.description
         return result
 
     def _encode_all(self, scene: GaussianScene, settings: Preset, *,
-                    hyperprior: bool | None = None, record: Chunk | None = None
-                    ) -> EncodeResult:
+                    hyperprior: bool | None = None, record: Chunk | None = None,
+                    refine: bool = True) -> EncodeResult:
         """Encode every Gaussian of a validated (and pruned) scene with ``settings`` (and
         the colour hyperprior when ``hyperprior``, default: the encoder's setting);
-        ``record`` (a ``vdis`` chunk) ends the base layer when given. A scene of more than
-        the tile size is split into spatial tiles (:mod:`csgs_codec.codec.tile_encoder`)."""
+        ``record`` (a ``vdis`` chunk) ends the base layer when given; ``refine``: run the
+        encoder's refinement steps. A scene of more than the tile size is split into spatial
+        tiles (:mod:`csgs_codec.codec.tile_encoder`)."""
         start = time.perf_counter()
         self.progress("geometry")
         grid = PositionGrid.fit(scene.positions, settings.position_bits)
@@ -294,12 +323,18 @@ class Encoder:
         if len(scene) > tile_size:
             from csgs_codec.codec.tile_encoder import encode_tiled
 
+            if self.refine:
+                raise InputError(f"refinement works on scenes of one tile: this one has "
+                                 f"{len(scene):,} Gaussians, more than the tile size "
+                                 f"{tile_size:,}", property="refine")
+
             result = encode_tiled(self, scene, grid, settings, tile_size,
                                   hyperprior=hyperprior, record=record)
         else:
             cells, inside = grid.quantize(scene.positions)
             coded = self.code_scene(scene, settings, grid, cells, inside,
-                                    hyperprior=hyperprior, record=record)
+                                    hyperprior=hyperprior, record=record,
+                                    refine=refine and self.refine > 0)
             self.progress("container")
             data = decodable_container(coded.chunks, len(scene))
             result = EncodeResult(data=data, reconstruction=coded.reconstruction,
@@ -310,10 +345,11 @@ class Encoder:
 
     def code_scene(self, scene: GaussianScene, settings: Preset, grid: PositionGrid,
                    cells: np.ndarray, inside: np.ndarray, *, hyperprior: bool | None = None,
-                   record: Chunk | None = None) -> CodedScene:
+                   record: Chunk | None = None, refine: bool = False) -> CodedScene:
         """The chunks (tile 0) of one scene or tile whose points sit at ``cells`` (N, 3)
         int64 on ``grid``, ``inside`` (N,) bool marking those inside it (the others are far
-        points), with its reconstruction and order."""
+        points), with its reconstruction and order; ``refine``: run the encoder's
+        refinement steps on the colour streams first."""
         inside_idx = np.flatnonzero(inside)
         far = plan_far_points(scene.positions, np.flatnonzero(~inside), grid,
                               settings.position_bits)
@@ -338,7 +374,10 @@ class Encoder:
         use_prior = self.hyperprior if hyperprior is None else hyperprior
         cells_in_order = (prior_cells(cells[inside_idx][perm], far_count) if use_prior
                           else None)
-        decoded_streams = self._colour_chunks(streams, chunks, settings, cells_in_order,
+        plans = self._plan_colour(streams.float_streams, settings)
+        if refine:
+            plans = self._refined_plans(ordered, streams, plans, positions, settings)
+        decoded_streams = self._colour_chunks(streams, plans, chunks, cells_in_order,
                                               max(grid.bits, 1))
         reconstruction = join_streams(decoded_streams, positions)
 
@@ -349,22 +388,56 @@ class Encoder:
         return CodedScene(chunks, reconstruction, order)
 
     # ------------------------------------------------------------------ layers
-    def _colour_chunks(self, streams: SceneStreams, chunks: list[Chunk], p: Preset,
-                       cells: np.ndarray | None, pos_bits: int) -> SceneStreams:
-        """Append the colour layer (CHYP when the hyperprior pays, then one chunk per
-        stream); ``cells`` (N, 3) are the hyperprior's inputs, None to skip it."""
+    def _plan_colour(self, values: dict[str, np.ndarray], p: Preset,
+                     lattices: dict | None = None) -> dict:
+        """The plan of each colour stream (name -> StreamPlan) of coding-form ``values``
+        with the steps of ``p``; ``lattices`` (name -> Lattice) fixes where a stream's
+        values may land (refinement)."""
         steps = {"dc": p.dc_step, "rest1": p.rest_step, "rest2": p.rest_step,
                  "rest3": p.rest_step, "opacity": p.opacity_step, "scale": p.scale_step,
                  "rot": p.rotation_step}
         plans = {}
-        for name, values in streams.float_streams.items():
+        for name, stream in values.items():
             derive = None
             if name == "rot" and self.derived_steps:
                 scales = plans["scale"].recon
 
                 def derive(base: int, scales=scales):
                     return rotation_steps(scales, base)
-            plans[name] = plan_float_stream(values, steps[name], derive)
+            plans[name] = plan_float_stream(stream, steps[name], derive,
+                                            (lattices or {}).get(name))
+        return plans
+
+    def _refined_plans(self, ordered: GaussianScene, streams: SceneStreams, plans: dict,
+                       positions: np.ndarray, p: Preset) -> dict:
+        """The colour plans after refinement (:mod:`csgs_codec.codec.refinement`): the
+        refined values planned on the lattices of ``plans``. ``streams`` is updated in
+        place to the refined values."""
+        from csgs_codec.codec.refinement import RefineSettings, refine_streams
+        from csgs_codec.render.view_distribution import (
+            camera_distribution,
+            default_distribution,
+        )
+
+        self.progress("refinement")
+        views = (default_distribution(ordered) if self.cameras is None
+                 else camera_distribution(self.cameras, "the given cameras"))
+        target = {"log_scales": ordered.scales, "opacity_logits": ordered.opacity,
+                  "quats": ordered.rotations}
+        target_sh = np.concatenate([ordered.sh_dc[:, None, :], ordered.sh_rest], axis=1)
+        refined = refine_streams(streams, plans, positions, target_sh, target, views.cameras,
+                                 RefineSettings(steps=self.refine), self.refine_progress)
+        if not refined:
+            return plans
+        streams.float_streams.update(refined)
+        return self._plan_colour(streams.float_streams, p,
+                                 {name: plans[name].lattice() for name in refined})
+
+    def _colour_chunks(self, streams: SceneStreams, plans: dict, chunks: list[Chunk],
+                       cells: np.ndarray | None, pos_bits: int) -> SceneStreams:
+        """Append the colour layer of planned ``streams`` (CHYP when the hyperprior pays,
+        then one chunk per stream); ``cells`` (N, 3) are the hyperprior's inputs, None to
+        skip it."""
         choice = PriorChoice()
         if cells is not None:
             self.progress("colour hyperprior")

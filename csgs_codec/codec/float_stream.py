@@ -115,6 +115,17 @@ class ChannelPlan:
     tables: np.ndarray | None = None
 
 
+@dataclass(frozen=True)
+class Lattice:
+    """Where a planned stream's values can land: its grid's fractional bits and, per channel,
+    the grid mean the quantization indices count from (constant channels: 0). Planning
+    values that already lie on a plan's lattice with that lattice and step reconstructs
+    them exactly (what refinement relies on)."""
+
+    frac_bits: int
+    means: tuple[int, ...]
+
+
 @dataclass
 class StreamPlan:
     """A float stream quantized and analysed, ready to write (see :func:`plan_float_stream`).
@@ -132,6 +143,10 @@ class StreamPlan:
     channels: list[ChannelPlan]
     recon: np.ndarray
     derived: DerivedSteps | None = None
+
+    def lattice(self) -> Lattice:
+        """This plan's :class:`Lattice`."""
+        return Lattice(self.frac_bits, tuple(int(ch.mean) for ch in self.channels))
 
 
 @dataclass(frozen=True)
@@ -157,15 +172,21 @@ def write_float_stream(out: ByteWriter, values: np.ndarray, step: float) -> np.n
     return plan.recon
 
 
-def plan_float_stream(values: np.ndarray, step: float, derive=None) -> StreamPlan:
+def plan_float_stream(values: np.ndarray, step: float, derive=None,
+                      lattice: Lattice | None = None) -> StreamPlan:
     """Quantize ``values`` (N, C) with ``step`` (value units) and choose each channel's best
     mode without a hyperprior.
 
     ``derive``, when given, is called with the stream's step index and returns the
     :class:`DerivedSteps` every coded channel then follows (mode 6), or None for one step.
+    ``lattice``, when given, fixes the grid and the channels' means instead of taking them
+    from ``values`` (a channel constant in ``values`` is still coded as a constant); not
+    with ``derive``.
     """
     n, channels = values.shape
-    f = frac_bits_for(values)
+    if lattice is not None and (derive is not None or len(lattice.means) != channels):
+        raise ValueError("a fixed lattice needs one mean per channel and no derived steps")
+    f = frac_bits_for(values) if lattice is None else lattice.frac_bits
     recon = np.empty((n, channels), np.float32)
     indices = np.zeros((channels, n), np.int64)  # channels as rows, as in the reader
     step_idx = int(step_index(np.array([step * 2.0**f]))[0])
@@ -181,7 +202,8 @@ def plan_float_stream(values: np.ndarray, step: float, derive=None) -> StreamPla
             plans.append(ChannelPlan(MODE_CONSTANT, 0.0, constant=value))
             recon[:, c] = np.float32(value)
             continue
-        grid, mean, k = _median_quantized(column, f, steps)
+        grid, mean, k = _median_quantized(column, f, steps,
+                                          None if lattice is None else lattice.means[c])
         indices[c] = k
         candidates = [(float(table_costs(k).min()), MODE_FACTORIZED, k, None, 0),
                       (histogram_cost(k), MODE_HISTOGRAM, k, None, 0)]
@@ -481,10 +503,11 @@ def _read_derived_channel(r: ByteReader, c: int, n: int, indices: np.ndarray, pe
     return (k, mean), q
 
 
-def _median_quantized(column: np.ndarray, frac_bits: int,
-                      steps) -> tuple[np.ndarray, int, np.ndarray]:
-    """A channel's values on the fixed-point grid (N,) int64, their median ``mean`` and the
-    quantization indices (N,) of the values around it with ``steps``."""
+def _median_quantized(column: np.ndarray, frac_bits: int, steps,
+                      mean: int | None = None) -> tuple[np.ndarray, int, np.ndarray]:
+    """A channel's values on the fixed-point grid (N,) int64, their ``mean`` (the median
+    unless given) and the quantization indices (N,) of the values around it with ``steps``."""
     grid = to_grid(column.astype(np.float64), frac_bits)
-    mean = int(np.rint(np.median(grid)))
+    if mean is None:
+        mean = int(np.rint(np.median(grid)))
     return grid, mean, quantize(grid, np.full(len(grid), mean, np.int64), steps)

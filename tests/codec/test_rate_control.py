@@ -66,3 +66,17 @@ def test_an_unreachable_target_warns_and_keeps_the_finest_encode(small_scene, pr
 def test_a_target_outside_the_range_is_refused(small_scene, target):
     with pytest.raises(InputError, match="target PSNR"):
         Encoder(target_psnr=target).encode(small_scene)
+
+
+def test_a_refined_final_encode_still_meets_the_target(small_scene, probe, monkeypatch):
+    """The search runs without refinement; its settings are encoded once more refined, and
+    that file is kept only where it still reaches the target on the probe views."""
+    monkeypatch.setattr("csgs_codec.codec.rate_control.RenderProbe", lambda scene: probe)
+    steps = []
+    result = Encoder(target_psnr=34.0, refine=3, hyperprior=False,
+                     refine_progress=lambda done, total: steps.append(done)
+                     ).encode_with_report(small_scene)
+    assert steps == [1, 2, 3]  # the trials were not refined, the final encode was
+    assert result.rate_control.psnr >= 34.0
+    assert probe.psnr(result.reconstruction) == pytest.approx(result.rate_control.psnr)
+    assert Decoder().decode(result.data).equals(result.reconstruction)
