@@ -53,13 +53,14 @@ def _run(args: list[str]) -> dict:
 
 
 def measure(size: int, work: Path, source: Path, untiled: bool = True,
-            engines: tuple = ENGINES) -> dict:
+            engines: tuple = ENGINES, tile: int | None = None) -> dict:
     """The cases for one scene size: the untiled encode (unless ``untiled`` is False: its
-    whole-scene read needs about 4 GB per million SH-3 Gaussians) and the tiled ``engines``."""
+    whole-scene read needs about 4 GB per million SH-3 Gaussians) and the tiled ``engines``,
+    with tiles of ``tile`` Gaussians (default: an eighth of the scene)."""
     ply = work / f"scene_{size}.ply"
     if not ply.exists():
         write_ply(upsampled_to(read_ply(source), size, seed=0), ply)
-    tile = size // 8
+    tile = tile or size // 8
     row = {"scene": f"{source.name} upsampled to {size:,} (jittered copies, seed 0)",
            "gaussians": size, "sh_degree": 3, "quality": 5, "tile_size": tile,
            "ply_mb": ply.stat().st_size / 2**20, "encodes": []}
@@ -141,6 +142,9 @@ def main() -> None:
     parser.add_argument("--engines", default=None, metavar="I,J",
                         help="only these tiled cases (indices into 0 local 1 worker, 1 local "
                              "2 workers, 2 ray 1 CPU, 3 ray 2 CPUs)")
+    parser.add_argument("--tile-size", type=int, default=None, metavar="N",
+                        help="Gaussians per tile (default: an eighth of each scene)")
+    parser.add_argument("--note", default="", help="a line about the machine's state")
     parser.add_argument("--append", default=None, metavar="JSON",
                         help="rows of an earlier run to keep before this run's")
     args = parser.parse_args()
@@ -151,9 +155,8 @@ def main() -> None:
                else tuple(ENGINES[int(i)] for i in args.engines.split(",")))
     for size in (int(s) for s in args.sizes.split(",")):
         untiled = args.no_untiled_above is None or size <= args.no_untiled_above
-        rows.append(measure(size, work, Path(args.source), untiled, engines))
-        emit(document("scale", rows, note="shared 2-core machine under load from other "
-                      "jobs: times are noisy"), args.out)  # after every size: partial results
+        rows.append(measure(size, work, Path(args.source), untiled, engines, args.tile_size))
+        emit(document("scale", rows, note=args.note), args.out)  # after each size: partial
     if args.plot:
         plot(rows, args.plot)
 
