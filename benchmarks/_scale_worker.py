@@ -7,8 +7,11 @@
 Prints one JSON line. Peak memory is sampled from /proc (Linux) every 0.1 s over this
 process and all its descendants (worker processes, a local Ray cluster) by a forked helper
 process: ``peak_tree_mb`` sums their resident sets (shared pages such as the mapped PLY
-counted once per process, so an upper bound), ``peak_self_mb`` is this process's own
-high-water mark. ``cpu_s`` is the CPU time of this process and its finished children (local
+counted once per process, so an upper bound), ``peak_tree_anon_mb`` sums their anonymous
+memory only (what the processes allocate; the mapped input, ``input_mb``, is page cache on
+top of it, at most once), ``peak_process_anon_mb`` is the largest anonymous memory of one
+process (with workers: one tile's work, or this process), ``peak_self_mb`` is this process's
+own high-water mark. ``cpu_s`` is the CPU time of this process and its finished children (local
 workers; a Ray cluster's workers are not counted).
 """
 
@@ -24,8 +27,10 @@ from pathlib import Path
 import numpy as np
 
 
-def _rss_tree_kb(root: int) -> int:
-    """Summed VmRSS (kB) of ``root`` and its descendants, from /proc."""
+def _memory_tree_kb(root: int, skip: int) -> tuple[int, int, int]:
+    """(summed VmRSS, summed RssAnon, largest RssAnon of one process), kB, over ``root`` and
+    its descendants except ``skip``, from /proc. RssAnon leaves out file pages such as the
+    memory-mapped input, which every process that touches them counts in its VmRSS."""
     children: dict[int, list[int]] = {}
     for entry in os.listdir("/proc"):
         if not entry.isdigit():
@@ -36,24 +41,32 @@ def _rss_tree_kb(root: int) -> int:
         except (OSError, ValueError, IndexError):
             continue
         children.setdefault(ppid, []).append(int(entry))
-    total, stack = 0, [root]
+    rss = anon = largest = 0
+    stack = [root]
     while stack:
         pid = stack.pop()
+        if pid == skip:
+            continue
         stack += children.get(pid, [])
         try:
             with open(f"/proc/{pid}/status") as fh:
                 for line in fh:
                     if line.startswith("VmRSS:"):
-                        total += int(line.split()[1])
+                        rss += int(line.split()[1])
+                    elif line.startswith("RssAnon:"):
+                        own = int(line.split()[1])
+                        anon += own
+                        largest = max(largest, own)
         except OSError:
             pass
-    return total
+    return rss, anon, largest
 
 
 class PeakSampler:
-    """Samples the summed RSS of this process's tree from a forked helper process (so the
-    sampling takes no time from this process's threads); ``stop`` returns the peak in MB.
-    The helper leaves itself out of the sum."""
+    """Samples this process's tree from a forked helper process (so the sampling takes no
+    time from this process's threads); ``stop`` returns the peaks in MB of the summed RSS,
+    the summed anonymous RSS and the largest anonymous RSS of one process. The helper leaves
+    itself out."""
 
     def __init__(self) -> None:
         import multiprocessing
@@ -64,20 +77,20 @@ class PeakSampler:
                                         daemon=True)
         self._process.start()
 
-    def stop(self) -> float:
+    def stop(self) -> tuple[float, float, float]:
         self._parent.send("stop")
-        peak_kb = self._parent.recv()
+        peaks = self._parent.recv()
         self._process.join()
-        return peak_kb / 1024
+        return tuple(kb / 1024 for kb in peaks)
 
 
 def _sample(root: int, pipe) -> None:
-    """The helper: sample every 0.1 s until told to stop, then send the peak (kB)."""
-    me, peak = os.getpid(), 0
+    """The helper: sample every 0.1 s until told to stop, then send the peaks (kB)."""
+    me, peaks = os.getpid(), (0, 0, 0)
     while not pipe.poll(0.1):
-        peak = max(peak, _rss_tree_kb(root) - _rss_tree_kb(me))
+        peaks = tuple(map(max, peaks, _memory_tree_kb(root, me)))
     pipe.recv()
-    pipe.send(peak)
+    pipe.send(peaks)
 
 
 def _high_water_mb() -> float:
@@ -106,10 +119,12 @@ def encode(args) -> dict:
     seconds = time.perf_counter() - start
     used = [resource.getrusage(who) for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]
     cpu = sum(u.ru_utime + u.ru_stime for u in used)  # before the sampler ends: not its share
-    peak = sampler.stop()
+    peak, anon, largest_anon = sampler.stop()
     Path(args.out).write_bytes(result.data)
     np.save(args.out + ".order.npy", result.order)
     return {"encode_s": seconds, "cpu_s": cpu, "peak_tree_mb": peak,
+            "peak_tree_anon_mb": anon, "peak_process_anon_mb": largest_anon,
+            "input_mb": Path(args.ply).stat().st_size / 2**20,
             "peak_self_mb": _high_water_mb(),
             "bytes": len(result.data), "tiles": result.tiles, "gaussians": len(result.order)}
 
