@@ -142,8 +142,13 @@ def decode(args) -> dict:
     order = np.load(args.csgs + ".order.npy")
     errors = {}
     for name in ("positions", "sh_dc", "sh_rest", "opacity", "scales"):
-        diff = getattr(full.scene, name).astype(np.float64) - getattr(scene, name)[order]
-        errors[f"{name}_rmse"] = float(np.sqrt(np.mean(diff**2)))
+        decoded, original = getattr(full.scene, name), getattr(scene, name)
+        total = 0.0
+        for start in range(0, len(order), 1 << 20):  # in slices: 20M SH-3 rows at once
+            part = order[start:start + (1 << 20)]  # would need tens of GB in float64
+            diff = decoded[start:start + len(part)].astype(np.float64) - original[part]
+            total += float(np.sum(diff**2))
+        errors[f"{name}_rmse"] = float(np.sqrt(total / max(decoded.size, 1)))
     lo = np.percentile(scene.positions, 1, axis=0)
     hi = np.percentile(scene.positions, 99, axis=0)
     mid = (lo + hi) / 2

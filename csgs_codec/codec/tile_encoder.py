@@ -1,10 +1,10 @@
 """Coding a scene as spatial tiles (FORMAT §6.3, §12.22), tiles side by side.
 
 The scene is cut into k-d cells (:mod:`csgs_codec.codec.tiling`); every tile is coded on
-its own, as a scene of its own (geometry frame, far points, colour hyperprior, streams), by
+its own, as a scene of its own (geometry frame, far points, color hyperprior, streams), by
 :func:`encode_tile`, in this process, local processes or on Ray
 (:mod:`csgs_codec.codec.parallel`). The file holds a ``TIDX`` chunk, then every tile's base
-chunks in tile order, then their colour chunks, then their semantic chunks. Decoding all
+chunks in tile order, then their color chunks, then their semantic chunks. Decoding all
 tiles gives tile 0's Gaussians, then tile 1's, and so on, each tile in its own decoded order.
 """
 
@@ -35,9 +35,10 @@ class TileJob:
         scene: the tile's Gaussians, or None when they are read from ``source``.
         source: a binary PLY the tile's rows are read from (memory-mapped), or None.
         rows: (M,) int64 rows of the tile in the input, increasing.
-        grid: the tile's position grid; cells: (M, 3) int64 cells of its points on it;
-            inside: (M,) bool, False for far points (their cells are 0).
-        settings: the preset's steps; hyperprior: fit the colour hyperprior;
+        grid: the whole scene's position grid (the worker places the tile on it: keeping
+            every tile's cells in the planning process would hold 33 bytes per Gaussian of
+            the scene there).
+        settings: the preset's steps; hyperprior: fit the color hyperprior;
         semantic: the encoder's semantic mode ("auto" or "none");
         keep_reconstruction: send the tile's reconstruction back (not when streaming a
             scene larger than memory).
@@ -50,8 +51,6 @@ class TileJob:
     source: str | None
     rows: np.ndarray
     grid: PositionGrid
-    cells: np.ndarray
-    inside: np.ndarray
     settings: Preset
     hyperprior: bool
     semantic: str
@@ -86,8 +85,12 @@ def encode_tile(job: TileJob) -> TileOutput:
             err.file = err.file or job.source
             err.args = (str(err),)
             raise
+    cells, inside = job.grid.quantize(scene.positions)
+    local_grid, local = tile_grid(cells[inside], job.grid)
+    tile_cells = np.zeros_like(cells)
+    tile_cells[inside] = local
     encoder = job.coder(semantic=job.semantic, hyperprior=job.hyperprior)
-    coded = encoder.code_scene(scene, job.settings, job.grid, job.cells, job.inside)
+    coded = encoder.code_scene(scene, job.settings, local_grid, tile_cells, inside)
     return TileOutput(coded.chunks, tile_info(coded.reconstruction.positions), coded.order,
                       coded.reconstruction if job.keep_reconstruction else None)
 
@@ -98,16 +101,9 @@ def plan_jobs(positions: np.ndarray, grid: PositionGrid, settings: Preset, tile_
               coder: Callable | None = None) -> list[TileJob]:
     """One job per tile of the scene whose positions are ``positions`` (N, 3), on the
     whole scene's ``grid``; tiles carry their Gaussians from ``scene`` or name ``source``."""
-    jobs = []
-    for rows in split_tiles(positions, tile_size):
-        cells, inside = grid.quantize(positions[rows])
-        local_grid, local = tile_grid(cells[inside], grid)
-        tile_cells = np.zeros_like(cells)
-        tile_cells[inside] = local
-        jobs.append(TileJob(None if scene is None else scene.subset(rows), source, rows,
-                            local_grid, tile_cells, inside, settings, hyperprior, semantic,
-                            keep_reconstruction, coder))
-    return jobs
+    return [TileJob(None if scene is None else scene.subset(rows), source, rows, grid,
+                    settings, hyperprior, semantic, keep_reconstruction, coder)
+            for rows in split_tiles(positions, tile_size)]
 
 
 def encode_tiled(encoder, scene: GaussianScene, grid: PositionGrid, settings: Preset,
