@@ -13,7 +13,7 @@ from pathlib import Path
 
 from PIL import Image, ImageDraw, ImageFont
 
-#: Distinguishable colours, in the order series take them.
+#: Distinguishable colors, in the order series take them.
 PALETTE = ((31, 119, 180), (255, 127, 14), (44, 160, 44), (214, 39, 40), (148, 103, 189),
            (140, 86, 75), (227, 119, 194), (127, 127, 127), (188, 189, 34), (23, 190, 207))
 MARKERS = ("circle", "square", "triangle", "diamond", "cross")
@@ -57,7 +57,7 @@ class Chart:
 
 
 def color(index: int) -> tuple[int, int, int]:
-    """The ``index``-th palette colour (cycling)."""
+    """The ``index``-th palette color (cycling)."""
     return PALETTE[index % len(PALETTE)]
 
 

@@ -13,14 +13,14 @@ import numpy as np
 
 from csgs_codec import GaussianScene
 
-#: Array attributes of a colour-only GaussianScene, in the order they are saved.
+#: Array attributes of a color-only GaussianScene, in the order they are saved.
 SCENE_ARRAYS = ("positions", "sh_dc", "sh_rest", "opacity", "scales", "rotations")
 #: Standard deviation of a copy's position jitter, as a fraction of the source Gaussian's
 #: mean world-unit scale: small enough that copies stay inside the object's surface.
 JITTER_FRACTION = 0.5
 
 
-def colour_only(scene: GaussianScene) -> GaussianScene:
+def color_only(scene: GaussianScene) -> GaussianScene:
     """``scene`` without its semantic channels and labels (the arrays are shared)."""
     return GaussianScene(**{name: getattr(scene, name) for name in SCENE_ARRAYS})
 
@@ -36,10 +36,10 @@ def subset_of_size(scene: GaussianScene, count: int, seed: int) -> GaussianScene
     if not 0 <= count <= len(scene):
         raise ValueError(f"a subset of {count} from {len(scene)} Gaussians")
     if count == len(scene):
-        return colour_only(scene)
+        return color_only(scene)
     rng = np.random.default_rng(seed)
     keep = np.sort(rng.choice(len(scene), size=count, replace=False))
-    return colour_only(scene.subset(keep))
+    return color_only(scene.subset(keep))
 
 
 def upsampled_to(scene: GaussianScene, count: int, seed: int,
@@ -63,11 +63,11 @@ def upsampled_to(scene: GaussianScene, count: int, seed: int,
     rng = np.random.default_rng(seed)
     rounds = -(-extra // n)
     sources = np.concatenate([rng.permutation(n) for _ in range(rounds)])[:extra]
-    copies = colour_only(scene.subset(sources))
+    copies = color_only(scene.subset(sources))
     spread = jitter_fraction * np.exp(copies.scales.astype(np.float64).mean(axis=1))
     noise = rng.standard_normal((extra, 3)) * spread[:, None]
     copies.positions = (copies.positions.astype(np.float64) + noise).astype(np.float32)
-    base = colour_only(scene)
+    base = color_only(scene)
     return GaussianScene(**{name: np.concatenate([getattr(base, name), getattr(copies, name)])
                             for name in SCENE_ARRAYS})
 
@@ -79,7 +79,7 @@ def scene_of_size(scene: GaussianScene, count: int, seed: int) -> tuple[Gaussian
         (scene, construction) where construction is "full", "subset" or "upsampled".
     """
     if count == len(scene):
-        return colour_only(scene), "full"
+        return color_only(scene), "full"
     if count < len(scene):
         return subset_of_size(scene, count, seed), "subset"
     return upsampled_to(scene, count, seed), "upsampled"

@@ -127,7 +127,7 @@ def encode_phase(folder: Path, quality: int, budget_s: float, max_runs: int) -> 
 
 
 def decode_phase(folder: Path, quality: int, budget_s: float, max_runs: int) -> dict:
-    """Decode ``folder/q{quality}.csgs`` (colour layer) and check it against the encoder."""
+    """Decode ``folder/q{quality}.csgs`` (color layer) and check it against the encoder."""
     Decoder().decode((folder / f"warmup_q{quality}.csgs").read_bytes(), layers="color")
     data = (folder / f"q{quality}.csgs").read_bytes()
     decoded, figures = measure(lambda: Decoder().decode(data, layers="color"), budget_s,

@@ -1,5 +1,5 @@
 """Anchor-scene coding benchmark: bits per anchor per attribute with and without CARM, the
-semantic layer's share of the file, and decode times (colour only, both layers).
+semantic layer's share of the file, and decode times (color only, both layers).
 
     .venv/bin/python benchmarks/anchors.py [--rate-anchors 10000] [--time-anchors 100000]
                                            [--quality 5] [--repeat 3] [--out FILE]
@@ -9,7 +9,7 @@ group-correlated channel groups, K = 10, 20% of offsets masked, S = 6, with MLPs
 encode is checked (decode == encoder reconstruction, bit for bit) before anything is timed.
 Decode times are the best of ``--repeat`` runs, wall and process CPU time (on a shared
 machine CPU time is the figure less distorted by other load); the target is <= 2 s for the
-colour layer of 100k anchors on 2 cores.
+color layer of 100k anchors on 2 cores.
 """
 
 from __future__ import annotations

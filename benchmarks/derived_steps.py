@@ -1,6 +1,6 @@
 """Per-Gaussian steps derived from already-decoded attributes (issue 17): does it pay?
 
-No bitstream change is made here: the experiment simulates a colour stream whose step index
+No bitstream change is made here: the experiment simulates a color stream whose step index
 is ``base + offset[class_i]`` per Gaussian, the class derived from attributes the decoder
 already has (no per-Gaussian side information), and each class coded with its own frozen
 table. For each scene and quality it encodes with the current codec (no hyperprior, as
@@ -21,9 +21,9 @@ in 1/8-octave step indices):
 - ``rot_aniso_half`` / ``rot_aniso_clip8``: the same with offsets halved / clipped to +-1
   octave (milder tables an encoder could pick instead).
 - ``rot_aniso_foot_W``: rotation by anisotropy x footprint (decoded opacity logit in 5 bins x
-  max log-scale in 4 quartile bins; 160 classes), s = W sinh(d)^2 with W the colour
+  max log-scale in 4 quartile bins; 160 classes), s = W sinh(d)^2 with W the color
   sensitivity (sum of squared blending weights) over the default sphere of views.
-- ``dc_foot_W``: DC colour by footprint (20 classes), s = W.
+- ``dc_foot_W``: DC color by footprint (20 classes), s = W.
 - ``rot_aniso_foot_W+dc_foot_W``: both.
 
 Ratios: ``ratio_vs_presets`` is the variant's bytes over the bytes the uniform presets 1..9

@@ -116,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
         chunks = [e.type for e in read_layers(data, layers={"color"}).toc]
         row = {"scene": path.stem, "full_precision_scene": path.stem in FULL_PRECISION,
                "quality": args.quality, "layers": args.layers, "gaussians": len(scene),
-               "bytes": len(data), "colour_hyperprior": "CHYP" in chunks, "chunks": chunks,
+               "bytes": len(data), "color_hyperprior": "CHYP" in chunks, "chunks": chunks,
                "encode_s": encode_s, "arrays_equal": True,
                **measure(file, data, args.layers, args.rounds, args.repeat)}
     node = subprocess.run([node_executable(), "--version"], capture_output=True, text=True,

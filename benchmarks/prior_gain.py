@@ -1,10 +1,10 @@
-"""Does the colour hyperprior earn its place? Colour-layer bits of the same quantization under
+"""Does the color hyperprior earn its place? Color-layer bits of the same quantization under
 three entropy models, and what the hyperprior costs in time.
 
     .venv/bin/python benchmarks/prior_gain.py [--scenes donut plant biker guitar playbot]
         [--qualities 2 5 8] [--out FILE]
 
-For each scene and preset the quantized colour attributes are identical in all three (the
+For each scene and preset the quantized color attributes are identical in all three (the
 hyperprior changes the rate only; the script checks that the decodes match):
 
 - ``factorized``: every coded channel with its own best single frozen Gaussian table or its
@@ -14,7 +14,7 @@ hyperprior changes the rate only; the script checks that the decodes match):
 - ``hyperprior``: the default encoder (channel prediction plus the INR hyperprior where it
   pays, the CHYP network's bytes included).
 
-Reports colour-layer bits per Gaussian of each, their ratios, whole-file sizes, the fit's
+Reports color-layer bits per Gaussian of each, their ratios, whole-file sizes, the fit's
 share of the encode time and decode times with and without the hyperprior.
 """
 
@@ -41,11 +41,11 @@ from csgs_codec.entropy.histogram import histogram_cost  # noqa: E402
 from csgs_codec.entropy.residual import quantize, to_grid  # noqa: E402
 from csgs_codec.entropy.table_choice import table_costs  # noqa: E402
 
-COLOUR_CHUNKS = set(STREAM_CHUNKS.values()) | {"CHYP"}
+COLOR_CHUNKS = set(STREAM_CHUNKS.values()) | {"CHYP"}
 
 
 def factorized_bits(reconstruction, settings) -> float:
-    """Bits of the colour streams of ``reconstruction`` (already in decoded order and on the
+    """Bits of the color streams of ``reconstruction`` (already in decoded order and on the
     grid) with one table per channel and no prediction, plus 3 bytes of header per channel."""
     streams = split_streams(reconstruction).float_streams
     steps = {"dc": settings.dc_step, "rest1": settings.rest_step, "rest2": settings.rest_step,
@@ -64,9 +64,9 @@ def factorized_bits(reconstruction, settings) -> float:
     return total
 
 
-def colour_bits(result) -> float:
-    """Colour-layer payload bits of an encode."""
-    return 8.0 * sum(v for k, v in result.stream_bytes.items() if k in COLOUR_CHUNKS)
+def color_bits(result) -> float:
+    """Color-layer payload bits of an encode."""
+    return 8.0 * sum(v for k, v in result.stream_bytes.items() if k in COLOR_CHUNKS)
 
 
 def _timed_decode(data: bytes) -> tuple[float, object]:
@@ -95,21 +95,21 @@ def run_scene(name: str, qualities: list[int]) -> list[dict]:
         factorized = factorized_bits(plain.reconstruction, preset(q))
         row = {
             "scene": name, "quality": q, "gaussians": n,
-            "colour_bits_per_gaussian": {
-                "factorized": factorized / n, "plain": colour_bits(plain) / n,
-                "hyperprior": colour_bits(prior) / n},
+            "color_bits_per_gaussian": {
+                "factorized": factorized / n, "plain": color_bits(plain) / n,
+                "hyperprior": color_bits(prior) / n},
             "chyp_bytes": prior.stream_bytes.get("CHYP", 0),
             "file_bits_per_gaussian": {"plain": 8 * len(plain.data) / n,
                                        "hyperprior": 8 * len(prior.data) / n},
-            "ratio_hyperprior_to_factorized": colour_bits(prior) / factorized,
-            "ratio_hyperprior_to_plain": colour_bits(prior) / colour_bits(plain),
-            "ratio_plain_to_factorized": colour_bits(plain) / factorized,
+            "ratio_hyperprior_to_factorized": color_bits(prior) / factorized,
+            "ratio_hyperprior_to_plain": color_bits(prior) / color_bits(plain),
+            "ratio_plain_to_factorized": color_bits(plain) / factorized,
             "encode_s": {"plain": plain.seconds, "hyperprior": prior.seconds},
             "decode_s": {"plain": plain_decode, "hyperprior": prior_decode},
         }
         rows.append(row)
-        bits = row["colour_bits_per_gaussian"]
-        print(f"{name} q{q}: colour bits/G factorized {bits['factorized']:.2f} plain "
+        bits = row["color_bits_per_gaussian"]
+        print(f"{name} q{q}: color bits/G factorized {bits['factorized']:.2f} plain "
               f"{bits['plain']:.2f} hyperprior {bits['hyperprior']:.2f} "
               f"(x{row['ratio_hyperprior_to_factorized']:.3f} of factorized, "
               f"x{row['ratio_hyperprior_to_plain']:.3f} of plain); encode {plain.seconds:.1f}"

@@ -1,7 +1,7 @@
 """``--refine N`` measured (issue 17 item 5): held-out dB and bytes of real files per CPU-minute.
 
 For each scene and quality: the plain encode and ``Encoder(refine=N)`` for each N, both
-without the colour hyperprior (it changes the rate only, and its fit would blur the time).
+without the color hyperprior (it changes the rate only, and its fit would blur the time).
 Every row is a real file: ``bytes`` its length, ``held_out_fg_psnr_db`` the foreground PSNR
 of its decode on views the refinement never used (16 orbit views at 20 degrees + 12 at 45
 degrees, 800x600; refinement uses the default sphere of views at 400 pixels wide),

@@ -2,12 +2,12 @@
 
 For each scene, size and quality preset: a scene of that many Gaussians (a seeded subset of
 the real scene below its size, the whole scene plus jittered copies above it; see
-benchmarks/_scaling.py) is encoded and decoded (colour layer), each phase in a fresh process
+benchmarks/_scaling.py) is encoded and decoded (color layer), each phase in a fresh process
 (benchmarks/_speed_worker.py) that times it, records its peak resident-memory growth and
 tracemalloc's peak of the numpy side, and checks the decode equals the encoder's
 reconstruction bit for bit. A power law time ~ N^b is fitted per scene, preset, phase and
 metric (least squares on log-log), over all sizes and over the large sizes alone (where fixed
-per-call costs no longer flatter it). Targets: b <= 1.1; colour-layer decode >= 300k
+per-call costs no longer flatter it). Targets: b <= 1.1; color-layer decode >= 300k
 Gaussians/s on 2 cores.
 
     .venv/bin/python benchmarks/speed.py --out bench-output/speed.json \\
@@ -164,9 +164,9 @@ def plot(rows: list[dict], growth: list[dict], large_from: int, path: str) -> No
     timed = [(phase, key, metric) for phase in PHASES
              for key, metric in ((f"{phase}_s", "seconds"), (f"{phase}_cpu_s", "cpu_seconds"))]
     charts = [Chart(f"{phase} {'wall' if metric == 'seconds' else 'CPU'} time"
-                    + (" (colour layer)" if phase == "decode" else ""), "Gaussians", "seconds",
+                    + (" (color layer)" if phase == "decode" else ""), "Gaussians", "seconds",
                     log_x=True, log_y=True) for phase, _, metric in timed]
-    rate = Chart("decode rate (colour layer)", "Gaussians", "Gaussians / s", log_x=True)
+    rate = Chart("decode rate (color layer)", "Gaussians", "Gaussians / s", log_x=True)
     memory = Chart("peak resident memory growth", "Gaussians", "MiB", log_x=True, log_y=True)
     for i, (scene, quality) in enumerate(keys):
         series = sorted((r for r in rows if r["scene"] == scene and r["quality"] == quality),

@@ -1,6 +1,6 @@
 """Time against error: encode time, decode time, render PSNR and size, with the Pareto fronts.
 
-For each scene and csgs quality preset: encode, decode (colour layer), check the decode equals
+For each scene and csgs quality preset: encode, decode (color layer), check the decode equals
 the encoder's reconstruction, then render both from the RD benchmark's orbit views and score
 them (the project's own rasterizer, black background, foreground PSNR as the headline). The
 peer codecs are not re-run: their rows (size, encode and decode time, PSNR) come from a JSON

@@ -6,7 +6,7 @@
         [--feature-rate-weight 1.0] [--contrastive-margin 4] [--threads 1] [--out FILE]
 
 Every 4th view is held out. Per lambda it reports the wall and CPU time of each stage, the
-held-out PSNR/SSIM of the decoded file (colour layer, rendered per view), the file size and
+held-out PSNR/SSIM of the decoded file (color layer, rendered per view), the file size and
 the bytes of each layer, the semantic share (payload bytes of the semantic chunks over the
 file's bytes; ``csgs info`` counts chunk frames too, a few bytes more), and the
 click-selection mIoU of the decoded semantic features against the synthetic ground truth

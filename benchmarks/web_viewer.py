@@ -11,8 +11,8 @@ shows what ``--layers color`` leaves out). Each is encoded once with the quality
 settings, served by csgs_codec.web.server and opened ``rounds`` times in a fresh page
 (Debian chromium, software WebGL through SwiftShader, the machine's CPU only). Per round:
 ``first_frame_ms`` (from navigation start to the first frame drawn with the splats sorted:
-page and engine load, header/TOC and colour-layer download, worker decode, upload, sort),
-``colour_decode_ms`` (the worker's decode of base + colour layers) and, with both layers,
+page and engine load, header/TOC and color-layer download, worker decode, upload, sort),
+``color_decode_ms`` (the worker's decode of base + color layers) and, with both layers,
 ``semantic_ready_ms``. Bytes: what the server sent of the scene file for a page asked for
 ``color`` and for ``color,semantic``, against the file size.
 """
@@ -60,8 +60,8 @@ def load_scene(name: str):
     return read_ply(path), f"../shared/data/scenes/{path.name}"
 
 
-def colour_end(data: bytes) -> int:
-    """Bytes from the start of the file to the end of its colour layer."""
+def color_end(data: bytes) -> int:
+    """Bytes from the start of the file to the end of its color layer."""
     toc = read_toc(open_source(data))
     return max(entry.end for entry in toc.entries if int(entry.layer) <= 1)
 
@@ -72,7 +72,7 @@ def open_page(browser, server: ViewerServer, size: str, want_semantic: bool) -> 
     server.reset_counter()
     browser.get(f"{server.url}?size={size}")
     state = wait_for_state(browser, lambda s: s["phase"] in ("done", "error") and (
-        s["colourShown"] or s["error"]), timeout=600)
+        s["colorShown"] or s["error"]), timeout=600)
     if state["error"]:
         raise RuntimeError(f"the page failed: {state['error']}")
     if want_semantic and state.get("hasSemantic") and not state["semanticReady"]:
@@ -95,11 +95,11 @@ def measure(name: str, quality: int, rounds: int, size: str, browser, tmp: Path)
         for _ in range(rounds):
             rows.append(open_page(browser, server, size, want_semantic=True))
     with ViewerServer(path, layers=("color",)) as server:
-        colour_only = open_page(browser, server, size, want_semantic=False)
-    if any(r["count"] != len(decoded) for r in [*rows, colour_only]):
+        color_only = open_page(browser, server, size, want_semantic=False)
+    if any(r["count"] != len(decoded) for r in [*rows, color_only]):
         raise RuntimeError("the page decoded another number of Gaussians than Python")
     first = [r["firstFrameMs"] for r in rows]
-    decode = [r["colourDecodeMs"] for r in rows]
+    decode = [r["colorDecodeMs"] for r in rows]
     semantic = [r["semanticMs"] for r in rows if r["semanticMs"] is not None]
     return {
         "scene": name, "source": source, "full_precision_scene": name in FULL_PRECISION,
@@ -108,12 +108,12 @@ def measure(name: str, quality: int, rounds: int, size: str, browser, tmp: Path)
         "canvas": size, "rounds": rounds,
         "first_frame_ms": first, "first_frame_ms_best": min(first),
         "first_frame_ms_median": statistics.median(first),
-        "colour_decode_ms": decode, "colour_decode_ms_median": statistics.median(decode),
+        "color_decode_ms": decode, "color_decode_ms_median": statistics.median(decode),
         "semantic_ready_ms": semantic or None,
-        "file_bytes": len(data), "colour_layer_end_bytes": colour_end(data),
-        "fetched_bytes_color": colour_only["scene_bytes_sent"],
+        "file_bytes": len(data), "color_layer_end_bytes": color_end(data),
+        "fetched_bytes_color": color_only["scene_bytes_sent"],
         "fetched_bytes_color_semantic": rows[-1]["scene_bytes_sent"],
-        "fetched_ratio_color_to_file": colour_only["scene_bytes_sent"] / len(data),
+        "fetched_ratio_color_to_file": color_only["scene_bytes_sent"] / len(data),
     }
 
 

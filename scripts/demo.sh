@@ -22,7 +22,7 @@ echo "== what the bitstream holds"
 "$csgs" info "$out/donut.csgs"
 
 echo
-echo "== decode the colour layer"
+echo "== decode the color layer"
 "$csgs" decode "$out/donut.csgs" -o "$out/donut_decoded.ply"
 
 echo

@@ -8,7 +8,7 @@ max to ``attribute_bits`` and stored as one integer generic attribute. Draco cod
 integer attributes close to raw, so this is a baseline, not a tuned 3DGS codec.
 
 File layout (little-endian), all of it counted in the size: ``b"DRGS"``, u8 layout version
-(1), u8 attribute bits, u8 SH rest coefficients per colour (0, 3, 8 or 15), u8 zero, u16
+(1), u8 attribute bits, u8 SH rest coefficients per color (0, 3, 8 or 15), u8 zero, u16
 channel count C, C x (float32 low, float32 high), then the Draco point-cloud buffer. Draco
 may reorder the points; decoded Gaussians are matched to originals by position.
 """

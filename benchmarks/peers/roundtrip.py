@@ -86,7 +86,7 @@ def roundtrip_report(original: GaussianScene, decoded: GaussianScene) -> dict:
     """Counts and per-attribute error statistics of ``decoded`` against ``original``.
 
     Units in the keys: ``world`` (scene units), ``rel_extent`` (fraction of the robust
-    extent), ``rgb01`` (degree-0 colour 0.5 + SH_C0 * f_dc clipped to [0, 1]), ``coef`` (raw
+    extent), ``rgb01`` (degree-0 color 0.5 + SH_C0 * f_dc clipped to [0, 1]), ``coef`` (raw
     SH coefficient), ``alpha`` (sigmoid opacity), ``logscale`` (natural-log scale), ``deg``
     (rotation angle). Each has ``_max``, ``_rms`` and ``_mean`` of the absolute error.
     ``visible_only`` repeats them over the Gaussians whose original alpha is at least

@@ -33,10 +33,10 @@ PACKAGE = "@playcanvas/splat-transform"
 FORMATS = {
     "sog": ("playcanvas-sog", ".sog",
             "PlayCanvas SOG: WebP-packed quantized attributes, k-means codebooks for "
-            "scale/colour and an SH palette"),
+            "scale/color and an SH palette"),
     "compressed-ply": ("playcanvas-compressed-ply", ".compressed.ply",
                        "PlayCanvas compressed PLY: 256-Gaussian chunks, 11/10/11-bit "
-                       "positions and scales, 8-bit colour and opacity, 2-10-10-10 rotations"),
+                       "positions and scales, 8-bit color and opacity, 2-10-10-10 rotations"),
     "spz": ("niantic-spz", ".spz",
             "Niantic SPZ v4 written by Niantic's spz library (WebAssembly, @adobe/spz) "
             "inside splat-transform"),

@@ -13,7 +13,7 @@ from csgs_codec.errors import InputError
 NAME = "encode"
 HELP = ("compress a 3DGS scene (PLY, compressed PLY, .splat, .ksplat, SPZ, SOG, GLB) or a "
         "Scaffold-GS anchor scene into a .csgs bitstream")
-STAGES = ("geometry", "colour", "colour hyperprior", "semantic", "container")
+STAGES = ("geometry", "color", "color hyperprior", "semantic", "container")
 
 
 def add_arguments(parser) -> None:
@@ -37,10 +37,10 @@ def add_arguments(parser) -> None:
                              "squared value units per bit (4e-4 is near quality 5)")
     parser.add_argument("--fast", action="store_true",
                         help="a faster encode for a slightly larger file (anchor scenes: a "
-                             "short fit, 3-5x faster; 3DGS scenes: no colour hyperprior fit "
+                             "short fit, 3-5x faster; 3DGS scenes: no color hyperprior fit "
                              "and shorter --target-psnr and --lambda searches)")
     parser.add_argument("--no-hyperprior", dest="hyperprior", action="store_false",
-                        help="3DGS scenes: skip the colour hyperprior fit (about 10 s on "
+                        help="3DGS scenes: skip the color hyperprior fit (about 10 s on "
                              "scenes of 8,192+ Gaussians); the file is larger, the decoded "
                              "scene the same")
     parser.add_argument("--semantic", choices=("auto", "none"), default="auto",
@@ -135,7 +135,7 @@ def run(args) -> int:
         bar.update(1)
 
     encoder.progress = progress
-    step_bars = [_StepBar("colour hyperprior fit", "step", args.quiet),
+    step_bars = [_StepBar("color hyperprior fit", "step", args.quiet),
                  _StepBar("view sensitivity", "view", args.quiet),
                  _StepBar("tiles", "tile", args.quiet),
                  _StepBar("refinement", "step", args.quiet)]

@@ -1,5 +1,5 @@
 """``csgs train DATA -o scene.csgs``: train a scene from images, cameras and masks (the three
-CSGaussian stages) and write it as a .csgs with colour and semantic layers."""
+CSGaussian stages) and write it as a .csgs with color and semantic layers."""
 
 from __future__ import annotations
 
@@ -64,7 +64,7 @@ def add_arguments(parser) -> None:
                         help="instance-mask folder (default: masks/ beside the images; "
                              "without one a built-in segmenter makes masks, with a warning)")
     parser.add_argument("--no-semantic", action="store_true",
-                        help="train colour only (no masks, no semantic layer)")
+                        help="train color only (no masks, no semantic layer)")
     parser.add_argument("--test-every", type=int, default=8, metavar="K",
                         help="hold out every K-th view to score the result (0: none; "
                              "default 8)")

@@ -9,8 +9,8 @@ from __future__ import annotations
 from csgs_codec.errors import InputError
 
 NAME = "view"
-HELP = ("preview a scene with pyvista: Gaussians as oriented ellipsoids or points coloured by "
-        "DC colour or semantic label; --screenshot renders offscreen to a PNG; --web opens a "
+HELP = ("preview a scene with pyvista: Gaussians as oriented ellipsoids or points colored by "
+        "DC color or semantic label; --screenshot renders offscreen to a PNG; --web opens a "
         ".csgs in the browser viewer (decoded in the page, click to select objects)")
 #: Options of the pyvista preview that mean nothing to the browser viewer.
 PYVISTA_ONLY = ("screenshot", "select", "select_mask")
@@ -28,8 +28,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--points", action="store_true",
                         help="draw points instead of oriented ellipsoids (faster)")
     parser.add_argument("--color", default="auto", choices=("auto", "dc", "label", "semantic"),
-                        help="colour by DC colour, integer label or the first three semantic "
-                             "channels (default: label when present, else DC colour)")
+                        help="color by DC color, integer label or the first three semantic "
+                             "channels (default: label when present, else DC color)")
     parser.add_argument("--size", metavar="WxH", default="800x600", help="window size")
     parser.add_argument("--up", metavar="AXIS",
                         help="up axis of the view: +x -x +y -y +z -z (default: guessed)")
@@ -47,7 +47,7 @@ def add_arguments(parser) -> None:
     web = parser.add_argument_group("browser viewer")
     web.add_argument("--web", action="store_true",
                      help="serve the browser viewer for this .csgs on a local port and open it: "
-                          "decoded in the page (colour layer first, then the semantic layer), "
+                          "decoded in the page (color layer first, then the semantic layer), "
                           "click an object to select it; runs until Ctrl-C")
     web.add_argument("--port", type=int, default=0, metavar="P",
                      help="port of --web (default: any free port)")
@@ -57,7 +57,7 @@ def add_arguments(parser) -> None:
                      help="with --web: print the address instead of opening a browser")
     web.add_argument("--layers", metavar="LAYERS",
                      help="with --web: 'color' (the page fetches and decodes only the base and "
-                          "colour layers) or 'color,semantic' (default)")
+                          "color layers) or 'color,semantic' (default)")
 
 
 def run(args) -> int:

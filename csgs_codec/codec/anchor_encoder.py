@@ -2,7 +2,7 @@
 
 Base layer: ``ANCH`` header, ``GEOM`` anchor cells (lossless, canonical order), ``AHYP``
 hyperprior, ``ACRM`` CARM networks, ``AMSK`` offset masks, ``AMLP`` Scaffold MLPs (float streams).
-Colour layer: ``AFEA`` features (one residual stream per CARM group), ``AOFF`` kept offsets,
+Color layer: ``AFEA`` features (one residual stream per CARM group), ``AOFF`` kept offsets,
 ``ASCL`` scaling. Semantic layer: ``SHYP`` semantic hyperprior, ``ASEM`` semantic features,
 ``SEML`` labels. Everything after the cells is in the decoded (canonical) order, and the
 encoder reconstructs with the integer networks the decoder runs, so
@@ -204,7 +204,7 @@ class AnchorEncoder:
         for settings in self._candidate_fits(m):
             hyper, carm = fit_prior(cells, pos_bits, targets, carm_groups=groups,
                                     settings=settings)
-            coded = _code_colour(s, cells, hyper, carm)
+            coded = _code_color(s, cells, hyper, carm)
             if best is None or coded.size < best.size:
                 best = coded
         fit_seconds = time.perf_counter() - fit_start
@@ -305,8 +305,8 @@ def _check_magnitudes(scene: AnchorScene) -> None:
 
 
 @dataclass
-class _ColourCoding:
-    """One candidate coding of the colour layer: network payloads, layer chunks and the
+class _ColorCoding:
+    """One candidate coding of the color layer: network payloads, layer chunks and the
     reconstruction (anchors in decoded order)."""
 
     hyper: bytes
@@ -323,7 +323,7 @@ class _ColourCoding:
         return len(self.hyper) + len(self.carm) + sum(len(v) for v in self.layer.values())
 
 
-def _code_colour(s: AnchorScene, cells: np.ndarray, hyper, carm) -> _ColourCoding:
+def _code_color(s: AnchorScene, cells: np.ndarray, hyper, carm) -> _ColorCoding:
     """Code features, kept offsets and scaling of ``s`` with the given networks."""
     m, f, k = len(s), s.feat_dim, s.n_offsets
     mask = s.offset_mask
@@ -347,7 +347,7 @@ def _code_colour(s: AnchorScene, cells: np.ndarray, hyper, carm) -> _ColourCodin
     offsets[mask] = _floats(rec_kept)
     steps = {"f": step_values(p_f.step), "offsets": step_values(p_off.step),
              "scaling": step_values(p_scl.step)}
-    return _ColourCoding(intnet_to_bytes(hyper), carm_bytes, layer, _floats(rec_f), offsets,
+    return _ColorCoding(intnet_to_bytes(hyper), carm_bytes, layer, _floats(rec_f), offsets,
                          _floats(rec_scl), steps)
 
 

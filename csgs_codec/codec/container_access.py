@@ -7,10 +7,10 @@ from csgs_codec.errors import FormatError, InputError
 
 def parse_layers(layers) -> set[str]:
     """Normalise a layers argument ("color", "color,semantic", "semantic,color", or an
-    iterable of names) to a set; the colour layer is always decoded.
+    iterable of names) to a set; the color layer is always decoded.
 
     Raises:
-        InputError: an unknown layer name, or no layer at all ("" does not mean colour).
+        InputError: an unknown layer name, or no layer at all ("" does not mean color).
     """
     names = set(layers.split(",")) if isinstance(layers, str) else set(layers)
     names = {n.strip() for n in names if n.strip()}

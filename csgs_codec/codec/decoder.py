@@ -12,8 +12,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from csgs_codec.codec.colour_prior import (
-    ColourPrior,
+from csgs_codec.codec.color_prior import (
+    ColorPrior,
     channel_priors,
     modelled_streams,
     prior_cells,
@@ -122,7 +122,7 @@ class Decoder:
         max_gaussians: refuse files declaring more Gaussians than this.
         max_gaussians_per_byte: refuse files declaring more Gaussians per byte of the file
             than this (files of this package's encoder always pass the defaults).
-        threads: threads decoding the geometry and the colour streams side by side (default
+        threads: threads decoding the geometry and the color streams side by side (default
             2, or 1 on a one-core machine); the output is the same for any count.
     """
 
@@ -140,7 +140,7 @@ class Decoder:
         :mod:`csgs_codec.format.source`).
 
         Args:
-            layers: "color" (geometry + colour; never reads semantic bytes) or
+            layers: "color" (geometry + color; never reads semantic bytes) or
                 "color,semantic".
             tiles, region: decode only some spatial tiles (see :meth:`decode_with_report`).
 
@@ -271,7 +271,7 @@ class Decoder:
         """The scene of one tile's chunks (``container`` holds only that tile's entries)."""
         header = SceneHeader.from_bytes(*single_payload(container, "SCNE"))
         self._check_count(header, container.source_size)
-        prior = (self._colour_prior(container, header)
+        prior = (self._color_prior(container, header)
                  if any(e.type == "CHYP" for e in container.toc) else None)
         pool = ThreadPoolExecutor(threads) if threads > 1 else None
         try:
@@ -280,7 +280,7 @@ class Decoder:
             # (numpy releases the GIL). Results are taken in a fixed order, so the
             # output and the first error raised do not depend on scheduling.
             positions_job = _submit(pool, self._positions, container, header)
-            streams = self._colour_streams(container, header, pool, prior, positions_job)
+            streams = self._color_streams(container, header, pool, prior, positions_job)
             positions, _ = positions_job.result()
         finally:
             if pool is not None:
@@ -328,26 +328,26 @@ class Decoder:
             positions = np.concatenate([positions, far])
         return positions, cells
 
-    # ------------------------------------------------------------------ colour layer
-    def _colour_prior(self, container, header: SceneHeader) -> ColourPrior:
-        """The colour hyperprior of the CHYP chunk (parsed, not yet evaluated)."""
+    # ------------------------------------------------------------------ color layer
+    def _color_prior(self, container, header: SceneHeader) -> ColorPrior:
+        """The color hyperprior of the CHYP chunk (parsed, not yet evaluated)."""
         data, offset = single_payload(container, "CHYP")
         pos_bits = max(header.grid_bits, 1)
         if pos_bits > 32:
-            raise FormatError(f"the colour hyperprior needs a grid of at most 32 bits, the "
+            raise FormatError(f"the color hyperprior needs a grid of at most 32 bits, the "
                               f"header has {pos_bits}", chunk="CHYP", offset=offset)
         return prior_from_bytes(data, base_offset=offset, names=_stream_names(header),
                                 pos_bits=pos_bits)
 
-    def _colour_streams(self, container, header: SceneHeader, pool: ThreadPoolExecutor | None,
-                        prior: ColourPrior | None, positions_job: Future) -> SceneStreams:
-        """Decode the colour streams; those with hyperprior channels after the geometry
+    def _color_streams(self, container, header: SceneHeader, pool: ThreadPoolExecutor | None,
+                        prior: ColorPrior | None, positions_job: Future) -> SceneStreams:
+        """Decode the color streams; those with hyperprior channels after the geometry
         (``positions_job``) and the network's evaluation, the others right away."""
         names = _stream_names(header)
         present = {e.type for e in container.toc}
         extra = present & set(CHUNK_STREAMS) - {STREAM_CHUNKS[n] for n in names}
         if extra:
-            raise FormatError(f"unexpected colour chunk(s) {sorted(extra)} for SH degree "
+            raise FormatError(f"unexpected color chunk(s) {sorted(extra)} for SH degree "
                               f"{header.sh_degree_coded}", chunk=sorted(extra)[0])
         modelled = modelled_streams(prior, names) if prior is not None else set()
         # Rotations may derive their steps from the decoded scales (mode 6): they are
@@ -359,7 +359,7 @@ class Decoder:
             return jobs["scale"].result()[0]
 
         def submit(name: str, priors=None) -> None:
-            jobs[name] = _submit(pool, _colour_stream, container, header, name, priors,
+            jobs[name] = _submit(pool, _color_stream, container, header, name, priors,
                                  scales if name == "rot" else None)
 
         for name in names:
@@ -370,7 +370,7 @@ class Decoder:
             if modelled:
                 _, cells = positions_job.result()
                 if len(cells) and int(cells.max()) >= 1 << prior.net.pos_bits:
-                    raise FormatError(f"the colour hyperprior needs cells below "
+                    raise FormatError(f"the color hyperprior needs cells below "
                                       f"2^{prior.net.pos_bits}", chunk="CHYP")
                 priors = channel_priors(prior, prior_cells(cells, header.far_count), names)
             for name in names:
@@ -493,16 +493,16 @@ def _refuse_chunk(container, code: str, why: str) -> None:
 
 
 def _stream_names(header: SceneHeader) -> list[str]:
-    """The colour streams a scene with this header has, in order."""
+    """The color streams a scene with this header has, in order."""
     return (["dc"] + [f"rest{b}" for b in range(1, header.sh_degree_coded + 1)]
             + ["opacity", "scale", "rot"])
 
 
-def _colour_stream(container, header: SceneHeader, name: str,
+def _color_stream(container, header: SceneHeader, name: str,
                    priors: dict[int, ChannelPrior] | None = None, log_scales=None
                    ) -> tuple[np.ndarray, np.ndarray | None]:
     """(values (N, C) float32, dropped-component index per Gaussian for "rot" else None) of
-    one colour stream; ``priors`` are the hyperprior's for its modelled channels, and
+    one color stream; ``priors`` are the hyperprior's for its modelled channels, and
     ``log_scales`` (rotations only) returns the decoded scales mode 6 derives steps from."""
     code = STREAM_CHUNKS[name]
     data, offset = single_payload(container, code)

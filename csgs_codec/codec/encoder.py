@@ -14,8 +14,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from csgs_codec.codec.colour_prior import prior_cells
-from csgs_codec.codec.colour_prior_choice import (
+from csgs_codec.codec.color_prior import prior_cells
+from csgs_codec.codec.color_prior_choice import (
     DEFAULT_PRIOR_FIT,
     PriorChoice,
     PriorFitPolicy,
@@ -79,14 +79,14 @@ class Encoder:
         lambda_: instead of a quality or target, the encode minimising J = D + lambda * R on
             the probe views: D the foreground MSE in squared 8-bit levels, R the file's bits
             per Gaussian (:func:`~csgs_codec.codec.rate_control.encode_for_lambda`).
-        fast: no colour hyperprior fit, and shorter searches: target PSNR with fewer trial
+        fast: no color hyperprior fit, and shorter searches: target PSNR with fewer trial
             encodes and a looser tolerance (the target is still met; the file may be
             larger), lambda with fewer encodes on half the probe views.
-        hyperprior: fit the colour layer's INR hyperprior (a few seconds; scenes of at
+        hyperprior: fit the color layer's INR hyperprior (a few seconds; scenes of at
             least 8,192 Gaussians) and use it for the channels where it makes the file
             smaller. It changes the rate only: the decoded scene is the same either way.
         prior_fit: how that fit runs and when its network is kept
-            (:class:`~csgs_codec.codec.colour_prior_choice.PriorFitPolicy`); the default
+            (:class:`~csgs_codec.codec.color_prior_choice.PriorFitPolicy`); the default
             is what the CLI uses. Shorter fits change the bytes, never the decoded scene.
         semantic: "auto" writes the semantic layer when the scene has semantic channels or
             labels; "none" never writes it.
@@ -122,7 +122,7 @@ class Encoder:
             the same as with local workers.
         tile_progress: a callable ``tile_progress(done, total)`` told of tiles coded, or None.
         progress: a callable ``progress(step_name)`` told of each stage, or None.
-        fit_progress: a callable ``fit_progress(done, total)`` told of the colour hyperprior
+        fit_progress: a callable ``fit_progress(done, total)`` told of the color hyperprior
             fit's training steps (it takes seconds), or None.
         refine_progress: a callable ``refine_progress(done, total)`` told of refinement
             steps, or None.
@@ -224,7 +224,7 @@ class Encoder:
         return result
 
     def _render_sensitivity(self, scene: GaussianScene):
-        """(colour sensitivity W (N,), its ViewDistribution) of ``scene``, or None when view
+        """(color sensitivity W (N,), its ViewDistribution) of ``scene``, or None when view
         pruning is off or the scene is too small for it."""
         if not self.view_pruning or len(scene) < MIN_PRUNED_SCENE:
             return None
@@ -312,7 +312,7 @@ class Encoder:
                     hyperprior: bool | None = None, record: Chunk | None = None,
                     refine: bool = True) -> EncodeResult:
         """Encode every Gaussian of a validated (and pruned) scene with ``settings`` (and
-        the colour hyperprior when ``hyperprior``, default: the encoder's setting);
+        the color hyperprior when ``hyperprior``, default: the encoder's setting);
         ``record`` (a ``vdis`` chunk) ends the base layer when given; ``refine``: run the
         encoder's refinement steps. A scene of more than the tile size is split into spatial
         tiles (:mod:`csgs_codec.codec.tile_encoder`)."""
@@ -349,7 +349,7 @@ class Encoder:
         """The chunks (tile 0) of one scene or tile whose points sit at ``cells`` (N, 3)
         int64 on ``grid``, ``inside`` (N,) bool marking those inside it (the others are far
         points), with its reconstruction and order; ``refine``: run the encoder's
-        refinement steps on the colour streams first."""
+        refinement steps on the color streams first."""
         inside_idx = np.flatnonzero(inside)
         far = plan_far_points(scene.positions, np.flatnonzero(~inside), grid,
                               settings.position_bits)
@@ -370,14 +370,14 @@ class Encoder:
         chunks = [Chunk("SCNE", "base", header.to_bytes()), Chunk("GEOM", "base", geometry),
                   *far.chunks, *([record] if record is not None else [])]
 
-        self.progress("colour")
+        self.progress("color")
         use_prior = self.hyperprior if hyperprior is None else hyperprior
         cells_in_order = (prior_cells(cells[inside_idx][perm], far_count) if use_prior
                           else None)
-        plans = self._plan_colour(streams.float_streams, settings)
+        plans = self._plan_color(streams.float_streams, settings)
         if refine:
             plans = self._refined_plans(ordered, streams, plans, positions, settings)
-        decoded_streams = self._colour_chunks(streams, plans, chunks, cells_in_order,
+        decoded_streams = self._color_chunks(streams, plans, chunks, cells_in_order,
                                               max(grid.bits, 1))
         reconstruction = join_streams(decoded_streams, positions)
 
@@ -388,9 +388,9 @@ class Encoder:
         return CodedScene(chunks, reconstruction, order)
 
     # ------------------------------------------------------------------ layers
-    def _plan_colour(self, values: dict[str, np.ndarray], p: Preset,
+    def _plan_color(self, values: dict[str, np.ndarray], p: Preset,
                      lattices: dict | None = None) -> dict:
-        """The plan of each colour stream (name -> StreamPlan) of coding-form ``values``
+        """The plan of each color stream (name -> StreamPlan) of coding-form ``values``
         with the steps of ``p``; ``lattices`` (name -> Lattice) fixes where a stream's
         values may land (refinement)."""
         steps = {"dc": p.dc_step, "rest1": p.rest_step, "rest2": p.rest_step,
@@ -410,7 +410,7 @@ class Encoder:
 
     def _refined_plans(self, ordered: GaussianScene, streams: SceneStreams, plans: dict,
                        positions: np.ndarray, p: Preset) -> dict:
-        """The colour plans after refinement (:mod:`csgs_codec.codec.refinement`): the
+        """The color plans after refinement (:mod:`csgs_codec.codec.refinement`): the
         refined values planned on the lattices of ``plans``. ``streams`` is updated in
         place to the refined values."""
         from csgs_codec.codec.refinement import RefineSettings, refine_streams
@@ -430,17 +430,17 @@ class Encoder:
         if not refined:
             return plans
         streams.float_streams.update(refined)
-        return self._plan_colour(streams.float_streams, p,
+        return self._plan_color(streams.float_streams, p,
                                  {name: plans[name].lattice() for name in refined})
 
-    def _colour_chunks(self, streams: SceneStreams, plans: dict, chunks: list[Chunk],
+    def _color_chunks(self, streams: SceneStreams, plans: dict, chunks: list[Chunk],
                        cells: np.ndarray | None, pos_bits: int) -> SceneStreams:
-        """Append the colour layer of planned ``streams`` (CHYP when the hyperprior pays,
+        """Append the color layer of planned ``streams`` (CHYP when the hyperprior pays,
         then one chunk per stream); ``cells`` (N, 3) are the hyperprior's inputs, None to
         skip it."""
         choice = PriorChoice()
         if cells is not None:
-            self.progress("colour hyperprior")
+            self.progress("color hyperprior")
             choice = choose_prior(plans, cells, pos_bits, self.fit_progress, self.prior_fit)
         if choice.payload is not None:
             chunks.append(Chunk("CHYP", "color", choice.payload))

@@ -12,7 +12,7 @@ Each channel c is one of:
   table of its own (:mod:`csgs_codec.entropy.histogram`) instead of a frozen Gaussian table,
   for channels whose distribution is not Gaussian.
 - hyperprior (mode 5): k or k - P (the *base residual* b) coded per Gaussian with the mean
-  and scale-table index the colour layer's INR hyperprior predicts from the Gaussian's
+  and scale-table index the color layer's INR hyperprior predicts from the Gaussian's
   position (:class:`ChannelPrior`): the symbol b - mean is coded with that scale's table.
 
 - derived steps (mode 6, rotation streams only): as factorized or predicted, but the step of
@@ -151,7 +151,7 @@ class StreamPlan:
 
 @dataclass(frozen=True)
 class ChannelPrior:
-    """Per-Gaussian entropy parameters of one channel from the colour hyperprior.
+    """Per-Gaussian entropy parameters of one channel from the color hyperprior.
 
     Attributes:
         mean: (N,) int64 rounded mean of the base residual, in steps (may be a strided view).
@@ -414,7 +414,7 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None,
         if mode == MODE_HYPERPRIOR:
             prior = (priors or {}).get(c)
             if prior is None:
-                raise r.error(f"channel {c} uses the colour hyperprior, which does not model "
+                raise r.error(f"channel {c} uses the color hyperprior, which does not model "
                               "it (no CHYP chunk, or its channel mask leaves it out)")
         mean = r.svarint("mean")
         table = 0 if mode in (MODE_HISTOGRAM, MODE_HYPERPRIOR) else r.fixed("u8", "scale_index")

@@ -1,11 +1,11 @@
-"""Byte layout of the colour codec's chunk payloads (spec/FORMAT.md §12), both directions.
+"""Byte layout of the color codec's chunk payloads (spec/FORMAT.md §12), both directions.
 
 Chunk types (all critical):
 
     base      SCNE  scene header: counts, SH degrees, position grid, value grid
               GEOM  quantized positions (the geometry coder's payload)
               OUTL  far outliers: exact float32 positions of Gaussians outside the grid
-    color     CHYP  colour hyperprior: channel mask + integer network (optional)
+    color     CHYP  color hyperprior: channel mask + integer network (optional)
               SHDC  SH degree-0 coefficients       (float stream, 3 channels)
               SHBA/SHBB/SHBC  SH bands 1/2/3        (float stream, 9/15/21 channels)
               OPAC  opacity logits                  (float stream, 1 channel)

@@ -1,7 +1,7 @@
 """Quality presets: quantization steps per attribute type and position resolution.
 
-Steps are in each attribute's coding form: SH coefficients (colour = 0.5 + 0.2821 * dc, so a
-dc step of 0.01 is about 0.7/255 of colour), opacity logits, natural-log scales, the
+Steps are in each attribute's coding form: SH coefficients (color = 0.5 + 0.2821 * dc, so a
+dc step of 0.01 is about 0.7/255 of color), opacity logits, natural-log scales, the
 smallest-three rotation components scaled to [-1, 1], and semantic features in the trainer's
 units (click selection on unit-scale features is unchanged down to a step of 1/8, measured by
 benchmarks/selection.py, so quality 1 uses 1/8 and quality 9 1/240). Position bits are per

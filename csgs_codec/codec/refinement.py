@@ -1,7 +1,7 @@
 """Refinement (``Encoder(refine=N)``, ``--refine N``): the encoder nudges the values it is
 about to quantize so that the *decoded* scene renders like the original.
 
-The first plan of the colour streams fixes each stream's lattice (grid, step and channel
+The first plan of the color streams fixes each stream's lattice (grid, step and channel
 means, :class:`~csgs_codec.codec.float_stream.Lattice`). N Adam steps then optimise the
 coding-form values (DC and higher SH bands, opacity logits, log-scales, smallest-three
 rotation components; positions stay where the geometry decodes them) against renders of the

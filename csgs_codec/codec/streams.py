@@ -1,4 +1,4 @@
-"""Split a scene into the attribute streams the colour layer codes, and join them back.
+"""Split a scene into the attribute streams the color layer codes, and join them back.
 
 A stream is one attribute type in its coding form (see csgs_codec/scene/attribute_forms.py):
 

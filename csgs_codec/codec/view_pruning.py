@@ -2,12 +2,12 @@
 
 A Gaussian costs the same bits (about 40-90) whether it fills the picture or never reaches a
 pixel. Over the viewing distribution (:mod:`csgs_codec.render.view_distribution`) removing
-Gaussian i changes each pixel it reaches by about its blending weight w times its colour, so
+Gaussian i changes each pixel it reaches by about its blending weight w times its color, so
 Gaussians are ranked by
 
     drop_cost_i = W_i * |c_i|^2,   W_i = sum of w^2 over views and pixels,
 
-with c_i its view-independent colour (0.5 + 0.2821 * DC, clamped at 0, as rendered on the
+with c_i its view-independent color (0.5 + 0.2821 * DC, clamped at 0, as rendered on the
 black scoring background). Many faint Gaussians over the same pixels err together, so the
 sum of their costs understates what removing all of them does (on plant it let a third of
 the scene go for 12 dB): how many of the ranked Gaussians go is measured instead. The
@@ -32,7 +32,7 @@ from csgs_codec.scene.gaussian_scene import GaussianScene
 DEFAULT_BUDGET = 0.1
 #: Probe views (of the distribution, evenly spaced) on which quantization error is measured.
 PROBE_VIEWS = 12
-#: SH degree-0 basis constant: colour = 0.5 + C0 * dc.
+#: SH degree-0 basis constant: color = 0.5 + C0 * dc.
 _C0 = 0.28209479177387814
 
 
@@ -45,7 +45,7 @@ class PruneDecision:
         unseen: Gaussians no view of the distribution reaches (all removed).
         dropped: Gaussians removed in all (``unseen`` included).
         quantization_sse: squared error of the quantized scene against the original on the
-            probe views (colours in [0, 1], summed over pixels and channels).
+            probe views (colors in [0, 1], summed over pixels and channels).
         drop_sse: the removed Gaussians' summed drop cost (the ranking's estimate).
     """
 
@@ -58,8 +58,8 @@ class PruneDecision:
 
 def drop_costs(scene: GaussianScene, weight_sq: np.ndarray) -> np.ndarray:
     """(N,) float64 estimated squared error of removing each Gaussian (module notes)."""
-    colour = np.maximum(0.5 + _C0 * scene.sh_dc.astype(np.float64), 0.0)
-    return np.asarray(weight_sq, np.float64) * np.sum(colour * colour, axis=1)
+    color = np.maximum(0.5 + _C0 * scene.sh_dc.astype(np.float64), 0.0)
+    return np.asarray(weight_sq, np.float64) * np.sum(color * color, axis=1)
 
 
 def probe_cameras(cameras: Sequence[Camera], count: int | None = None) -> list[Camera]:
@@ -85,7 +85,7 @@ def render_images(scene: GaussianScene, cameras: Sequence[Camera]) -> list[np.nd
 def render_sse(reference: list[np.ndarray], candidate: GaussianScene,
                cameras: Sequence[Camera]) -> np.ndarray:
     """(V,) float64 squared difference between each ``reference`` render and
-    ``candidate``'s render of the same camera (colours in [0, 1], summed over pixels and
+    ``candidate``'s render of the same camera (colors in [0, 1], summed over pixels and
     channels)."""
     return np.array([float(np.sum((a - b) ** 2)) for a, b in
                      zip(reference, render_images(candidate, cameras))])

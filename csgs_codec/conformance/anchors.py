@@ -118,16 +118,16 @@ def generate(out_dir: Path) -> None:
     _write(out_dir, "anchors_semantic_q5_acrm_v2", current,
            "anchors_semantic_q5 as the encoder writes it now: CARM networks in dense network "
            "version 2 (coded weights)", AnchorDecoder().decode(current, layers="color,semantic"))
-    colour = AnchorEncoder(quality=8, carm_groups=1, semantic="none", fit=fit).encode(scene)
-    _write(out_dir, "anchors_colour_q8", colour,
+    color = AnchorEncoder(quality=8, carm_groups=1, semantic="none", fit=fit).encode(scene)
+    _write(out_dir, "anchors_color_q8", color,
            "the same anchors at quality 8 without CARM and without a semantic layer",
-           AnchorDecoder().decode(colour))
-    legacy = _replaced(colour, "AMLP",
+           AnchorDecoder().decode(color))
+    legacy = _replaced(color, "AMLP",
                        mlps_to_bytes(scene.mlps, version=MLP_VERSION_F16)[0])
-    _write(out_dir, "anchors_colour_q8_mlp_float16", legacy,
-           "anchors_colour_q8 with its MLP weights in AMLP version 1 (float16)",
+    _write(out_dir, "anchors_color_q8_mlp_float16", legacy,
+           "anchors_color_q8 with its MLP weights in AMLP version 1 (float16)",
            AnchorDecoder().decode(legacy))
     _write(out_dir, "anchors_missing_features", _without(full, "AFEA"),
            "anchors_semantic_q5 without its AFEA chunk: every read fails naming AFEA")
     _write(out_dir, "anchors_missing_semantic_features", _without(full, "ASEM"),
-           "anchors_semantic_q5 without ASEM: colour decodes, semantic fails naming ASEM")
+           "anchors_semantic_q5 without ASEM: color decodes, semantic fails naming ASEM")

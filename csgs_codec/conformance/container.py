@@ -191,7 +191,7 @@ def _invalid_vectors() -> list[Vector]:
     rows_bad[1] = (b"fi1l",) + rows_bad[1][1:]
     bad_type = _assemble(rows_bad, [data[e.offset:e.end] for e in swapped])
 
-    # Overlong varint: the colour entry's tile written as 0x80 0x00 instead of 0x00.
+    # Overlong varint: the color entry's tile written as 0x80 0x00 instead of 0x00.
     rows_v, frames_v = _rows_and_frames([(e.type, int(e.layer), e.tile, full.payloads[e.index])
                                          for e in swapped], extra_toc=1)
     body = bytearray(encode_toc_body(rows_v))

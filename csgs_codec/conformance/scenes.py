@@ -104,8 +104,8 @@ def generate(out_dir: Path) -> None:
     r = REVISION
     donut = read_ply(DONUT)
     for quality in (3, 7):
-        # Written without the colour hyperprior, as when they landed; the prior has its own
-        # vectors (_colour_prior_vectors).
+        # Written without the color hyperprior, as when they landed; the prior has its own
+        # vectors (_color_prior_vectors).
         data = Encoder(quality=quality, hyperprior=False).encode(donut)
         _write(out_dir, f"donut_q{quality}{r}", data,
                f"samples/donut.ply (45,624 Gaussians, SH 0) at quality {quality}",
@@ -125,30 +125,30 @@ def generate(out_dir: Path) -> None:
     _write(out_dir, f"truncated_opacity_payload{r}", bad,
            "semantic_small_r2 with the OPAC payload cut in half (frame and CRC rewritten)",
            _reads(bad))
-    _colour_prior_vectors(out_dir, donut)
+    _color_prior_vectors(out_dir, donut)
     _far_point_vectors(out_dir, donut)
     _view_pruned_vectors(out_dir, donut)
     _tiled_vectors(out_dir, donut)
     _derived_steps_vectors(out_dir, donut)
 
 
-def _colour_prior_vectors(out_dir: Path, donut: GaussianScene) -> None:
-    """A file with the colour hyperprior (CHYP, channel mode 5) and the same file without its
+def _color_prior_vectors(out_dir: Path, donut: GaussianScene) -> None:
+    """A file with the color hyperprior (CHYP, channel mode 5) and the same file without its
     CHYP chunk. A short fit on 4,000 Gaussians, kept even where the network costs more than
     it saves, so the vector stays small."""
-    from csgs_codec.codec.colour_prior_choice import PriorFitPolicy
-    from csgs_codec.model.colour_hyperprior import ColourFitSettings
+    from csgs_codec.codec.color_prior_choice import PriorFitPolicy
+    from csgs_codec.model.color_hyperprior import ColorFitSettings
 
     head = donut.subset(np.arange(4000))
-    policy = PriorFitPolicy(ColourFitSettings(steps=300), min_gaussians=0,
+    policy = PriorFitPolicy(ColorFitSettings(steps=300), min_gaussians=0,
                             keep_when_larger=True)
     data = Encoder(quality=3, prior_fit=policy).encode(head)
-    _write(out_dir, "colour_prior_q3", data,
-           "the first 4,000 Gaussians of samples/donut.ply at quality 3 with the colour "
+    _write(out_dir, "color_prior_q3", data,
+           "the first 4,000 Gaussians of samples/donut.ply at quality 3 with the color "
            "hyperprior (CHYP; mode-5 channels)", _reads(data))
     bad = _invalid(data, drop="CHYP")
-    _write(out_dir, "colour_prior_missing_chyp", bad,
-           "colour_prior_q3 without its CHYP chunk: mode-5 channels have no prior",
+    _write(out_dir, "color_prior_missing_chyp", bad,
+           "color_prior_q3 without its CHYP chunk: mode-5 channels have no prior",
            _reads(bad))
 
 

@@ -1,6 +1,6 @@
 """Histogram-coded integer symbols: a static frequency table made from the data and sent along.
 
-Where a channel's residuals are not Gaussian (bimodal opacities, skewed colours), the frozen
+Where a channel's residuals are not Gaussian (bimodal opacities, skewed colors), the frozen
 Gaussian tables waste bits; a table of the residuals' own frequencies (the empirical, per-
 channel "factorized" density) codes them within a few hundredths of a bit of their
 zeroth-order entropy, for a table of a few dozen bytes.

@@ -69,8 +69,8 @@ _TABLE = (
               "View distribution: where the encoder's views came from, how many Gaussians "
               "view pruning left out (informative)."),
     ChunkType("CHYP", Layer.COLOR,
-              "Colour hyperprior: channel mask and integer network on the Gaussians' cells."),
-    ChunkType("SHDC", Layer.COLOR, "SH degree-0 colour coefficients (float stream, 3 ch)."),
+              "Color hyperprior: channel mask and integer network on the Gaussians' cells."),
+    ChunkType("SHDC", Layer.COLOR, "SH degree-0 color coefficients (float stream, 3 ch)."),
     ChunkType("SHBA", Layer.COLOR, "SH band 1 coefficients (float stream, 9 ch)."),
     ChunkType("SHBB", Layer.COLOR, "SH band 2 coefficients (float stream, 15 ch)."),
     ChunkType("SHBC", Layer.COLOR, "SH band 3 coefficients (float stream, 21 ch)."),

@@ -1,5 +1,5 @@
 """Shared helpers of the interchange readers: bounds-checked byte access and the activations
-between the stored forms (8-bit colour, linear scale, alpha) and the INRIA raw values."""
+between the stored forms (8-bit color, linear scale, alpha) and the INRIA raw values."""
 
 from __future__ import annotations
 
@@ -7,14 +7,14 @@ import numpy as np
 
 from csgs_codec.errors import InputError
 
-#: Degree-0 real spherical harmonic, Y_00 = 1 / (2 sqrt(pi)): colour = 0.5 + SH_C0 * f_dc.
+#: Degree-0 real spherical harmonic, Y_00 = 1 / (2 sqrt(pi)): color = 0.5 + SH_C0 * f_dc.
 SH_C0 = 0.28209479177387814
 #: Alpha is clamped to [ALPHA_EPS, 1 - ALPHA_EPS] before the logit, so 0 and 1 stay finite
 #: (logit +-13.8), as splat-transform does.
 ALPHA_EPS = 1e-6
 #: Linear scales at or below this read as this (log -27.6): a zero-thickness Gaussian.
 MIN_LINEAR_SCALE = 1e-12
-#: SH coefficient count per colour channel for SH degree 0..3.
+#: SH coefficient count per color channel for SH degree 0..3.
 SH_COEFFS = (0, 3, 8, 15)
 
 
@@ -51,13 +51,13 @@ class Bytes:
         return np.frombuffer(self.data, dtype=dtype, count=count, offset=offset)
 
 
-def colour_to_dc(values: np.ndarray) -> np.ndarray:
-    """8-bit or [0, 1] colour (already divided by 255) -> SH DC coefficient, float32."""
+def color_to_dc(values: np.ndarray) -> np.ndarray:
+    """8-bit or [0, 1] color (already divided by 255) -> SH DC coefficient, float32."""
     return ((np.asarray(values, np.float64) - 0.5) / SH_C0).astype(np.float32)
 
 
-def dc_to_colour(dc: np.ndarray) -> np.ndarray:
-    """SH DC coefficient -> colour in [0, 1] before clamping, float64."""
+def dc_to_color(dc: np.ndarray) -> np.ndarray:
+    """SH DC coefficient -> color in [0, 1] before clamping, float64."""
     return 0.5 + SH_C0 * np.asarray(dc, np.float64)
 
 

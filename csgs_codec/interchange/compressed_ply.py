@@ -4,11 +4,11 @@ A binary little-endian PLY with three elements (github.com/playcanvas/splat-tran
 ``writers/write-compressed-ply.ts`` and ``readers/read-ply.ts``):
 
 * ``chunk``: per 256 Gaussians, float bounds ``min_x``..``max_z``, ``min_scale_x``..
-  ``max_scale_z`` (log scales) and, in newer files, ``min_r``..``max_b`` (colour);
+  ``max_scale_z`` (log scales) and, in newer files, ``min_r``..``max_b`` (color);
 * ``vertex``: uint ``packed_position`` (11/10/11 bits of the chunk's box),
   ``packed_rotation`` (2 bits: index of the largest quaternion component, then three 10-bit
   others as (v / sqrt 2 + 1/2)), ``packed_scale`` (11/10/11 bits of the chunk's scale box),
-  ``packed_color`` (RGBA 8 bits each: colour within the chunk's colour box, or 0..1 without
+  ``packed_color`` (RGBA 8 bits each: color within the chunk's color box, or 0..1 without
   one, and alpha);
 * optional ``sh``: uchar ``f_rest_*`` (channel-major) as 8 (v - 1/2) over (b + 1/2) / 256,
   with 0 and 255 meaning the ends of [-4, 4].
@@ -21,7 +21,7 @@ import numpy as np
 from csgs_codec.interchange.binary import (
     Bytes,
     alpha_to_logit,
-    colour_to_dc,
+    color_to_dc,
     from_smallest_three,
     sh_rest_from_channel_major,
 )
@@ -32,7 +32,7 @@ from csgs_codec.scene.ply_header import MAX_HEADER_BYTES, PlyHeader, parse_heade
 CHUNK = 256
 BOUNDS = ("min_x", "min_y", "min_z", "max_x", "max_y", "max_z", "min_scale_x",
           "min_scale_y", "min_scale_z", "max_scale_x", "max_scale_y", "max_scale_z")
-COLOUR_BOUNDS = ("min_r", "min_g", "min_b", "max_r", "max_g", "max_b")
+COLOR_BOUNDS = ("min_r", "min_g", "min_b", "max_r", "max_g", "max_b")
 PACKED = ("packed_position", "packed_rotation", "packed_scale", "packed_color")
 
 
@@ -85,14 +85,14 @@ def parse_compressed_ply(data: bytes, source: str = "<bytes>"
     bound = {name: chunk[name].astype(np.float64)[which] for name in chunk.dtype.names}
     scene = GaussianScene(
         positions=_lerp_11_10_11(vertex["packed_position"], bound, ""),
-        sh_dc=_colours(vertex["packed_color"], bound),
+        sh_dc=_colors(vertex["packed_color"], bound),
         sh_rest=_sh(columns.get("sh"), n, raw),
         opacity=alpha_to_logit((vertex["packed_color"] & 0xFF) / 255.0),
         scales=_lerp_11_10_11(vertex["packed_scale"], bound, "scale_"),
         rotations=_rotations(vertex["packed_rotation"]),
     )
-    details = {"chunks": len(chunk), "colour_bounds": all(c in chunk.dtype.names
-                                                          for c in COLOUR_BOUNDS)}
+    details = {"chunks": len(chunk), "color_bounds": all(c in chunk.dtype.names
+                                                          for c in COLOR_BOUNDS)}
     return scene, SceneSource("compressed-ply", "PlayCanvas compressed PLY", lossy=True,
                               details=details)
 
@@ -112,14 +112,14 @@ def _lerp_11_10_11(packed, bound, prefix: str) -> np.ndarray:
     return np.stack(out, axis=1).astype(np.float32)
 
 
-def _colours(packed, bound) -> np.ndarray:
+def _colors(packed, bound) -> np.ndarray:
     out = []
     for shift, c in ((24, "r"), (16, "g"), (8, "b")):
         t = _unorm(packed, shift, 8)
         if f"min_{c}" in bound and f"max_{c}" in bound:
             t = bound[f"min_{c}"] * (1 - t) + bound[f"max_{c}"] * t
         out.append(t)
-    return colour_to_dc(np.stack(out, axis=1))
+    return color_to_dc(np.stack(out, axis=1))
 
 
 def _rotations(packed) -> np.ndarray:

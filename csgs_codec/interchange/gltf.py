@@ -28,7 +28,7 @@ from csgs_codec.errors import CsgsWarning, UnsupportedError
 from csgs_codec.interchange.binary import (
     Bytes,
     alpha_to_logit,
-    dc_to_colour,
+    dc_to_color,
     linear_to_log_scale,
     logit_to_alpha,
 )
@@ -74,11 +74,11 @@ def glb_bytes(scene: GaussianScene) -> bytes:
     norm = np.linalg.norm(rotations.astype(np.float64), axis=1, keepdims=True)
     rotations = np.where(norm > 0, rotations / np.where(norm > 0, norm, 1), [0, 0, 0, 1])
     alpha = logit_to_alpha(scene.opacity)
-    colour = _srgb_to_linear(np.clip(dc_to_colour(scene.sh_dc), 0.0, 1.0))
-    colour_0 = np.clip(np.rint(np.column_stack([colour, alpha]) * 255), 0, 255)
+    color = _srgb_to_linear(np.clip(dc_to_color(scene.sh_dc), 0.0, 1.0))
+    color_0 = np.clip(np.rint(np.column_stack([color, alpha]) * 255), 0, 255)
     attributes = [
         ("POSITION", positions, FLOAT, "VEC3"),
-        ("COLOR_0", colour_0.astype(np.uint8), UNSIGNED_BYTE, "VEC4"),
+        ("COLOR_0", color_0.astype(np.uint8), UNSIGNED_BYTE, "VEC4"),
         (PREFIX + "ROTATION", rotations[:, [1, 2, 3, 0]].astype(np.float32), FLOAT, "VEC4"),
         (PREFIX + "SCALE", np.exp(scene.scales.astype(np.float64)).astype(np.float32), FLOAT,
          "VEC3"),

@@ -11,11 +11,11 @@ Layout (GaussianSplats3D ``src/loaders/SplatBuffer.js``), all little-endian:
   bytes u16 at 20, quantization range u32 at 24 (0: the level's default), full bucket count
   at 32, partial bucket count at 36, SH degree u16 at 40;
 * per section: partial bucket lengths u32, bucket centres float32 x3 (levels 1-2), then
-  max-splat-count records of centre, scale, rotation, colour RGBA u8 and SH.
+  max-splat-count records of centre, scale, rotation, color RGBA u8 and SH.
 
 Level 0 stores floats; levels 1-2 store centres as u16 offsets from their bucket's centre
 ((u - range) x block size / 2 / range), scales and rotations (w, x, y, z) as float16; level 2
-stores SH as u8 spanning the header's SH range. Colour is 8-bit (0.5 + SH_C0 f_dc), alpha
+stores SH as u8 spanning the header's SH range. Color is 8-bit (0.5 + SH_C0 f_dc), alpha
 8-bit, scale linear. SH is channel-major within each degree: R, G, B of degree 1, then R, G,
 B of degree 2.
 """
@@ -28,7 +28,7 @@ from csgs_codec.errors import UnsupportedError
 from csgs_codec.interchange.binary import (
     Bytes,
     alpha_to_logit,
-    colour_to_dc,
+    color_to_dc,
     linear_to_log_scale,
     normalized_wxyz,
 )
@@ -190,7 +190,7 @@ def _assemble(parts, degree: int) -> GaussianScene:
         row += m
     return GaussianScene(
         positions=centres.astype(np.float32),
-        sh_dc=colour_to_dc(rgba[:, :3] / 255.0),
+        sh_dc=color_to_dc(rgba[:, :3] / 255.0),
         sh_rest=sh_rest,
         opacity=alpha_to_logit(rgba[:, 3] / 255.0),
         scales=linear_to_log_scale(scale),

@@ -218,7 +218,7 @@ def _read_v2(meta: dict, files: _Files, path: Path) -> GaussianScene:
     limit = 2 * n + (1 << 16)
     scales, _, _ = _image(files, meta, "scales", 0, path, n, limit)
     sh0, _, _ = _image(files, meta, "sh0", 0, path, n, limit)
-    scale_book, colour_book = _codebook(meta, "scales", path), _codebook(meta, "sh0", path)
+    scale_book, color_book = _codebook(meta, "scales", path), _codebook(meta, "sh0", path)
     sh_rest = np.zeros((n, 0, 3), np.float32)
     if isinstance(meta.get("shN"), dict):
         bands = _get(meta, "shN.bands", path, int)
@@ -233,7 +233,7 @@ def _read_v2(meta: dict, files: _Files, path: Path) -> GaussianScene:
         sh_rest = _palette_sh(meta, files, path, n, bands, palette, lambda b: book[b])
     return GaussianScene(
         positions=_positions(meta, files, path, n),
-        sh_dc=colour_book[sh0[:n, :3]].astype(np.float32),
+        sh_dc=color_book[sh0[:n, :3]].astype(np.float32),
         sh_rest=sh_rest,
         opacity=alpha_to_logit(sh0[:n, 3] / 255.0),
         scales=scale_book[scales[:n, :3]].astype(np.float32),
@@ -270,7 +270,7 @@ def _read_v1(meta: dict, files: _Files, path: Path) -> GaussianScene:
     s_span = _floats(meta, "scales.maxs", path, 3) - s_min
     c_min = _floats(meta, "sh0.mins", path, 4)
     c_span = _floats(meta, "sh0.maxs", path, 4) - c_min
-    colour = c_min + c_span * (sh0[:n].astype(np.float64) / 255.0)
+    color = c_min + c_span * (sh0[:n].astype(np.float64) / 255.0)
     sh_rest = np.zeros((n, 0, 3), np.float32)
     if isinstance(meta.get("shN"), dict):
         lo = _get(meta, "shN.mins", path, (int, float))
@@ -290,9 +290,9 @@ def _read_v1(meta: dict, files: _Files, path: Path) -> GaussianScene:
                               lambda b: lo + (hi - lo) * (b / 255.0))
     return GaussianScene(
         positions=_positions(meta, files, path, n),
-        sh_dc=colour[:, :3].astype(np.float32),
+        sh_dc=color[:, :3].astype(np.float32),
         sh_rest=sh_rest,
-        opacity=colour[:, 3].astype(np.float32),
+        opacity=color[:, 3].astype(np.float32),
         scales=(s_min + s_span * (scales[:n, :3] / 255.0)).astype(np.float32),
         rotations=_rotations(meta, files, path, n),
     )

@@ -1,6 +1,6 @@
 """antimatter15 ``.splat``: 32-byte records, no header, no SH.
 
-Record: position float32 x3, linear scale float32 x3, colour RGBA uint8 (RGB = 255 (0.5 +
+Record: position float32 x3, linear scale float32 x3, color RGBA uint8 (RGB = 255 (0.5 +
 SH_C0 f_dc), A = 255 sigmoid(opacity)), rotation uint8 x4 (w, x, y, z of the unit quaternion
 as 128 q + 128), all little-endian. The format has no magic: files are recognised by their
 ``.splat`` extension and a size that is a multiple of 32.
@@ -13,8 +13,8 @@ import numpy as np
 from csgs_codec.interchange.binary import (
     Bytes,
     alpha_to_logit,
-    colour_to_dc,
-    dc_to_colour,
+    color_to_dc,
+    dc_to_color,
     linear_to_log_scale,
     logit_to_alpha,
     normalized_wxyz,
@@ -47,7 +47,7 @@ def parse_splat(data: bytes, source: str = "<bytes>") -> tuple[GaussianScene, Sc
     rotation = (rows["rotation"].astype(np.float64) - 128.0) / 128.0
     scene = GaussianScene(
         positions=np.array(rows["position"], np.float32),
-        sh_dc=colour_to_dc(rows["rgba"][:, :3] / 255.0),
+        sh_dc=color_to_dc(rows["rgba"][:, :3] / 255.0),
         sh_rest=np.zeros((n, 0, 3), np.float32),
         opacity=alpha_to_logit(rows["rgba"][:, 3] / 255.0),
         scales=linear_to_log_scale(rows["scale"]),
@@ -59,14 +59,14 @@ def parse_splat(data: bytes, source: str = "<bytes>") -> tuple[GaussianScene, Sc
 def splat_bytes(scene: GaussianScene) -> bytes:
     """The scene as ``.splat`` records, in scene order (SH bands beyond DC are dropped).
 
-    Colour and alpha are rounded to the nearest of 256 levels (the reference converter
+    Color and alpha are rounded to the nearest of 256 levels (the reference converter
     truncates), the unit quaternion to 128 q + 128 rounded and clamped to 0..255.
     """
     scene.validate()
     rows = np.zeros(len(scene), RECORD)
     rows["position"] = scene.positions
     rows["scale"] = np.exp(scene.scales.astype(np.float64))
-    rows["rgba"][:, :3] = to_uint8(255.0 * dc_to_colour(scene.sh_dc))
+    rows["rgba"][:, :3] = to_uint8(255.0 * dc_to_color(scene.sh_dc))
     rows["rgba"][:, 3] = to_uint8(255.0 * logit_to_alpha(scene.opacity))
     rows["rotation"] = to_uint8(128.0 * normalized_wxyz(scene.rotations) + 128.0)
     return rows.tobytes()

@@ -4,14 +4,14 @@ Layout (github.com/nianticlabs/spz, README and src/cc/load-spz.cc):
 
 * v1-v3: one gzip stream holding a 16-byte header (magic "NGSP" as u32 0x5053474e,
   version, point count u32; SH degree, fractional bits, flags, reserved u8) and then the
-  attribute blocks back to back: positions, alphas, colours, scales, rotations, SH; v3 files
+  attribute blocks back to back: positions, alphas, colors, scales, rotations, SH; v3 files
   may carry extension records after them.
 * v4: a plain 32-byte header (the 16 above, then stream count u8 at 15, TOC offset u32 at
   16, 12 reserved bytes), optional extension records, a table of contents of (compressed
   size u64, uncompressed size u64) per stream, then one zstd frame per non-empty block.
 
 Blocks: positions as 24-bit signed fixed point with ``fractional bits`` (v1: float16);
-alpha u8 = 255 sigmoid(opacity); colour u8 = 255 (0.15 f_dc + 0.5); scale u8 = 16 (log
+alpha u8 = 255 sigmoid(opacity); color u8 = 255 (0.15 f_dc + 0.5); scale u8 = 16 (log
 scale + 10); rotation v1-v2 as x, y, z u8 (b / 127.5 - 1, w >= 0 derived), v3+ as a u32 with
 the largest component's index in the top 2 bits and the other three as sign + 9-bit
 magnitude of |q| / sqrt(1/2); SH u8 = 128 x + 128, coefficient-major with RGB inner.
@@ -45,8 +45,8 @@ GZIP_MAGIC = b"\x1f\x8b"
 NGSP_MAGIC = struct.pack("<I", MAGIC)
 LEGACY_HEADER = struct.Struct("<IIIBBBB")
 HEADER_V4 = struct.Struct("<IIIBBBBI12x")
-COLOUR_SCALE = 0.15
-#: SH coefficients per colour channel for SH degree 0..4 (degree 4 is not a csgs scene).
+COLOR_SCALE = 0.15
+#: SH coefficients per color channel for SH degree 0..4 (degree 4 is not a csgs scene).
 SH_DIMS = (0, 3, 8, 15, 24)
 FLAG_ANTIALIASED = 0x1
 FLAG_EXTENSIONS = 0x2
@@ -208,11 +208,11 @@ def _unpack(header: dict, blocks: dict) -> GaussianScene:
         xyz = np.frombuffer(blocks["rotations"], np.uint8).reshape(n, 3) / 127.5 - 1.0
         w = np.sqrt(np.maximum(0.0, 1.0 - np.sum(xyz * xyz, axis=1)))
         rotations = np.column_stack([w, xyz])
-    colours = np.frombuffer(blocks["colors"], np.uint8).reshape(n, 3)
+    colors = np.frombuffer(blocks["colors"], np.uint8).reshape(n, 3)
     sh = np.frombuffer(blocks["sh"], np.uint8).reshape(n, dims, 3)
     return GaussianScene(
         positions=positions,
-        sh_dc=((colours / 255.0 - 0.5) / COLOUR_SCALE).astype(np.float32),
+        sh_dc=((colors / 255.0 - 0.5) / COLOR_SCALE).astype(np.float32),
         sh_rest=((sh.astype(np.float32) - 128.0) / 128.0),
         opacity=alpha_to_logit(np.frombuffer(blocks["alphas"], np.uint8) / 255.0),
         scales=(np.frombuffer(blocks["scales"], np.uint8).reshape(n, 3) / 16.0 - 10.0
@@ -300,7 +300,7 @@ def _pack(scene: GaussianScene, fractional: int, sh1_bits: int, sh_rest_bits: in
         return np.clip(round_half_away(values), 0, 255).astype(np.uint8)
 
     alphas = u8(255.0 * logit_to_alpha(scene.opacity))
-    colours = u8(scene.sh_dc.astype(np.float64) * (COLOUR_SCALE * 255.0) + 127.5)
+    colors = u8(scene.sh_dc.astype(np.float64) * (COLOR_SCALE * 255.0) + 127.5)
     scales = u8((scene.scales.astype(np.float64) + 10.0) * 16.0)
     rotations = _pack_smallest_three(normalized_wxyz(scene.rotations))
     sh = round_half_away(scene.sh_rest.astype(np.float64) * 128.0) + 128.0
@@ -308,7 +308,7 @@ def _pack(scene: GaussianScene, fractional: int, sh1_bits: int, sh_rest_bits: in
     bucket[:3] = 1 << (8 - sh1_bits)
     bucket = bucket[None, :, None]
     sh = np.clip((sh + bucket // 2) // bucket * bucket, 0, 255).astype(np.uint8)
-    return [positions.astype(np.uint8).tobytes(), alphas.tobytes(), colours.tobytes(),
+    return [positions.astype(np.uint8).tobytes(), alphas.tobytes(), colors.tobytes(),
             scales.tobytes(), rotations.astype("<u4").tobytes(), sh.reshape(n, -1).tobytes()]
 
 

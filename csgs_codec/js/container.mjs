@@ -1,6 +1,6 @@
 /**
  * The .csgs container (spec/FORMAT.md §3-§8, §10): header, table of contents with its CRC,
- * chunk frames with theirs. Reads only the layers asked for: a colour-only read never touches
+ * chunk frames with theirs. Reads only the layers asked for: a color-only read never touches
  * a byte of the semantic layer.
  */
 

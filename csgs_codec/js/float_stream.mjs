@@ -1,6 +1,6 @@
 /**
  * Float stream bodies (spec/FORMAT.md §12.8): per channel a constant, or quantization indices
- * k coded with a frozen table (modes 1, 2), a histogram (mode 4) or the colour hyperprior's
+ * k coded with a frozen table (modes 1, 2), a histogram (mode 4) or the color hyperprior's
  * per-Gaussian tables (mode 5), optionally predicted from the channels before it; values
  * decode as float32((mu + q k) 2^-F).
  */
@@ -66,7 +66,7 @@ function predict(indices, peaks, coefs, bias, n) {
  * @param {import('./bytes.mjs').ByteReader} r positioned at the body
  * @param {number} count N the chunk expects
  * @param {number} channels C the chunk expects
- * @param {Map<number, {mean: Float64Array, scale: Uint8Array}>|null} priors the colour
+ * @param {Map<number, {mean: Float64Array, scale: Uint8Array}>|null} priors the color
  *   hyperprior's per-Gaussian mean and table of the channels it models
  * @param {object} family the Gaussian tables
  * @param {{array: Float32Array, stride: number, offset: number}|null} target where value i
@@ -109,7 +109,7 @@ export function readFloatStream(r, count, channels, priors, family, target = nul
     let prior = null;
     if (mode === 5) {
       prior = priors ? priors.get(c) : undefined;
-      if (!prior) throw r.error(`channel ${c} uses the colour hyperprior, which does not model it`);
+      if (!prior) throw r.error(`channel ${c} uses the color hyperprior, which does not model it`);
     }
     const mean = r.svarintBig('mean');
     const table = mode === 4 || mode === 5 ? 0 : r.u8('scale_index');

@@ -1,10 +1,10 @@
 /**
  * Decoding a standard scene on two threads in Node (worker_threads), like the Python
- * decoder's two threads: geometry and the colour streams are independent (except where the
- * colour hyperprior needs the geometry first; such files decode on one thread), so this thread
+ * decoder's two threads: geometry and the color streams are independent (except where the
+ * color hyperprior needs the geometry first; such files decode on one thread), so this thread
  * and a worker take them one at a time from a shared queue (largest estimated cost first),
  * writing into shared arrays.
- * The first error in the reference decoder's order (colour streams in order, then geometry)
+ * The first error in the reference decoder's order (color streams in order, then geometry)
  * is the one raised, whichever lane found it.
  */
 

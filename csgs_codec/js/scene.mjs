@@ -1,13 +1,13 @@
 /**
- * Decoding a standard (Gaussian) scene: the colour codec's chunks of spec/FORMAT.md §12.4 -
+ * Decoding a standard (Gaussian) scene: the color codec's chunks of spec/FORMAT.md §12.4 -
  * §12.19 on top of the container; a tiled file (§12.22) decodes tile by tile. Anchor scenes (§17) are not implemented here: a file with
  * an ANCH chunk raises UnsupportedError.
  */
 
 import { decodePositions, readHeader } from './base_layer.mjs';
 import { single } from './chunks.mjs';
-import { BAND_CODES, SH_REST, decodeStream, rotations } from './colour_layer.mjs';
-import { channelPriors, modelledStreams, parseColourPrior } from './colour_prior.mjs';
+import { BAND_CODES, SH_REST, decodeStream, rotations } from './color_layer.mjs';
+import { channelPriors, modelledStreams, parseColorPrior } from './color_prior.mjs';
 import { readLayers } from './container.mjs';
 import { FormatError, UnsupportedError } from './errors.mjs';
 import { decodeSemantic } from './semantic_layer.mjs';
@@ -18,7 +18,7 @@ const MAX_GAUSSIANS = 2 ** 24;
 const MAX_GAUSSIANS_PER_BYTE = 64;
 
 /**
- * The checks and parameters every decode starts with: container, header, colour hyperprior.
+ * The checks and parameters every decode starts with: container, header, color hyperprior.
  * @returns {object} the prepared decode (container, header, codes, prior, modelled, ...)
  */
 export function prepareScene(data, options) {
@@ -41,18 +41,18 @@ export function prepareContainer(container, size, layers, options) {
   if (container.toc.entries.some((e) => e.type === 'CHYP')) {
     const [bytes, offset] = single(container, 'CHYP');
     const posBits = Math.max(header.bits, 1);
-    if (posBits > 32) throw new FormatError('the colour hyperprior needs a grid of at most 32 bits', { chunk: 'CHYP', offset });
-    prior = parseColourPrior(bytes, offset, codes, posBits, family);
+    if (posBits > 32) throw new FormatError('the color hyperprior needs a grid of at most 32 bits', { chunk: 'CHYP', offset });
+    prior = parseColorPrior(bytes, offset, codes, posBits, family);
   }
   const present = new Set(container.toc.entries.map((e) => e.type));
   const extra = [...BAND_CODES, 'SHDC', 'OPAC', 'SCAL', 'ROTN'].filter((c) => present.has(c) && !codes.includes(c)).sort();
-  if (extra.length) throw new FormatError(`unexpected colour chunk(s) ${extra} for SH degree ${header.coded}`, { chunk: extra[0] });
+  if (extra.length) throw new FormatError(`unexpected color chunk(s) ${extra} for SH degree ${header.coded}`, { chunk: extra[0] });
   const modelled = prior ? modelledStreams(prior, codes) : new Set();
   return { layers, family, sine, container, header, codes, prior, modelled };
 }
 
 /**
- * The output arrays of the colour streams, each stream's place in them ({array, stride,
+ * The output arrays of the color streams, each stream's place in them ({array, stride,
  * offset}) and the positions array; ``Buffer`` makes their storage (ArrayBuffer or
  * SharedArrayBuffer).
  */
@@ -71,7 +71,7 @@ export function makeTargets(header, Buffer = ArrayBuffer) {
   return { targets, shRest, positions: f32(3 * n) };
 }
 
-/** Decode one task ('GEOM' or a colour stream code) of a prepared scene into its targets;
+/** Decode one task ('GEOM' or a color stream code) of a prepared scene into its targets;
  * returns the dropped-component indices for ROTN. ``scalesDone``: SCAL is already in its
  * target (a sequential decode); otherwise a ROTN channel in mode 6 decodes SCAL for itself
  * (the parallel decode runs only without the hyperprior, so SCAL needs no priors there). */
@@ -149,7 +149,7 @@ export function joinTiledScenes(tiled, scenes) {
 }
 
 /** The rest of decodeScene after prepareScene, on this thread. Errors come in the order the
- * reference decoder reports them: hyperprior cells, colour streams in order, geometry. */
+ * reference decoder reports them: hyperprior cells, color streams in order, geometry. */
 export function decodePrepared(prep) {
   const out = makeTargets(prep.header);
   let priors = new Map();
@@ -159,7 +159,7 @@ export function decodePrepared(prep) {
     geometryDone = true;
     const cellLimit = 2 ** prep.prior.net.posBits;
     for (const axis of [cells.x, cells.y, cells.z]) {
-      for (let i = 0; i < axis.length; i++) if (axis[i] >= cellLimit) throw new FormatError('the colour hyperprior needs smaller cells', { chunk: 'CHYP' });
+      for (let i = 0; i < axis.length; i++) if (axis[i] >= cellLimit) throw new FormatError('the color hyperprior needs smaller cells', { chunk: 'CHYP' });
     }
     priors = channelPriors(prep.prior, cells, prep.header.count, prep.codes, prep.sine);
   }

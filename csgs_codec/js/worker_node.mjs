@@ -1,5 +1,5 @@
 /**
- * Worker thread of parallel_node.mjs: takes tasks (colour streams, geometry) from the shared
+ * Worker thread of parallel_node.mjs: takes tasks (color streams, geometry) from the shared
  * queue it is sent, decodes them into the shared output arrays and reports, per task it took,
  * success or the error it raised.
  */

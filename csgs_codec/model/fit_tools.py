@@ -1,4 +1,4 @@
-"""Pieces shared by the hyperprior fits (anchor and colour): the MLP shape, the bin-mass rate
+"""Pieces shared by the hyperprior fits (anchor and color): the MLP shape, the bin-mass rate
 estimate, a plain Adam, gradient clipping and output scaling before integer export."""
 
 from __future__ import annotations

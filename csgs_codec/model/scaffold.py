@@ -4,7 +4,7 @@ Follows the official renderer (github.com/city-super/Scaffold-GS,
 ``gaussian_renderer/__init__.py`` ``generate_neural_gaussians``): for a camera centre c and
 anchor i, ``d = x_i - c``, view direction ``d / |d|`` and distance ``|d|``; each head sees
 ``[f_i, d / |d|, (|d|), (appearance)]``. Opacity is the tanh head's output and a Gaussian
-exists only where it is > 0 (masked offsets get opacity 0 and so vanish); colour is the
+exists only where it is > 0 (masked offsets get opacity 0 and so vanish); color is the
 sigmoid head's RGB; scale is ``exp(l[3:]) * sigmoid(cov[:3])``; rotation is ``cov[3:7]``
 normalized (w, x, y, z); position is ``x + O_k * exp(l[:3])``.
 """
@@ -50,7 +50,7 @@ class ScaffoldMLPs(nn.Module):
         opacity_dist, cov_dist, color_dist: whether each head takes the distance input
             (HAC and CSGaussian: all True; Scaffold-GS defaults: all False).
         appearance_count, appearance_dim: size of the per-camera appearance embedding table
-            (0 for none); its vector is appended to the colour head's input.
+            (0 for none); its vector is appended to the color head's input.
     """
 
     def __init__(self, feat_dim: int = 50, n_offsets: int = 10, hidden: int | None = None, *,
@@ -132,12 +132,12 @@ class ScaffoldMLPs(nn.Module):
             features: [M, F] anchor features.
             view_dir: [M, 3] unit vectors from the camera centre to the anchors.
             dist: [M, 1] anchor-camera distances, world units.
-            appearance_index: training camera whose appearance vector the colour head gets
+            appearance_index: training camera whose appearance vector the color head gets
                 (None: the mean vector); ignored without an appearance table.
 
         Returns:
             opacity [M, K] in (-1, 1); cov [M, K, 7] (3 scale logits, 4 quaternion w,x,y,z);
-            colour [M, K, 3] RGB in (0, 1).
+            color [M, K, 3] RGB in (0, 1).
         """
         m, k = features.shape[0], self.n_offsets
         with_dist = torch.cat([features, view_dir, dist], dim=1)
@@ -218,7 +218,7 @@ class DecodedView:
     """A view's neural Gaussians as a standard scene plus where each Gaussian came from.
 
     Attributes:
-        gaussians: the N Gaussians as a :class:`GaussianScene` (colour as SH DC, opacity as
+        gaussians: the N Gaussians as a :class:`GaussianScene` (color as SH DC, opacity as
             logit, log-scales, normalized rotations; anchor semantic/labels repeated).
         anchor_index: (N,) int64 source anchor of each Gaussian.
         offset_index: (N,) int64 offset slot k of each Gaussian.
@@ -235,7 +235,7 @@ class ScaffoldDecoder:
     Args:
         scene: the anchors (validated here).
         mlps: the heads; default: built from ``scene.mlps``.
-        appearance_index: training camera whose appearance embedding the colour head uses
+        appearance_index: training camera whose appearance embedding the color head uses
             (None: the mean embedding, a neutral choice for novel views).
 
     Raises:

@@ -135,7 +135,7 @@ def composite(order: torch.Tensor, means2d: torch.Tensor, conics: torch.Tensor,
         order: [M] int64 indices of the Gaussians to draw, near to far.
         means2d: [N, 2] pixel coordinates; conics: [N, 3]; opacities: [N] in (0, 1).
         extents: [N, 2] footprint half sizes in pixels (alpha < 1/255 outside).
-        values: [N, C] per-Gaussian quantities to accumulate (colour, depth, features).
+        values: [N, C] per-Gaussian quantities to accumulate (color, depth, features).
         width, height: image size in pixels.
         pair_budget: most footprint-box pixels per band of rows.
         checkpointed: True recomputes every band in the backward pass instead of storing its

@@ -1,6 +1,6 @@
 """A quick look at a scene with pyvista: Gaussians as oriented ellipsoids or as points.
 
-Each Gaussian is drawn with its DC colour (0.5 + C0 * sh_dc, clipped), or with a colour per
+Each Gaussian is drawn with its DC color (0.5 + C0 * sh_dc, clipped), or with a color per
 integer label when the scene has labels, or with its first three semantic channels mapped to
 RGB when it has semantic features but no labels. Ellipsoids span ``sigma_scale`` standard
 deviations along each axis of the Gaussian. The view is the first orbit camera
@@ -21,12 +21,12 @@ from csgs_codec.errors import InputError, UnsupportedError
 from csgs_codec.render.orbit import orbit_cameras
 from csgs_codec.scene.gaussian_scene import GaussianScene
 
-#: Real spherical-harmonic constant of band 0: colour = 0.5 + SH_C0 * sh_dc.
+#: Real spherical-harmonic constant of band 0: color = 0.5 + SH_C0 * sh_dc.
 SH_C0 = 0.28209479177387814
 COLOR_MODES = ("auto", "dc", "label", "semantic")
 #: Gaussians at or below this opacity are not drawn.
 MIN_PREVIEW_OPACITY = 0.1
-#: Brightness of unselected Gaussians when a selection is shown (a fraction of their colour).
+#: Brightness of unselected Gaussians when a selection is shown (a fraction of their color).
 UNSELECTED_SHADE = 0.3
 
 
@@ -36,7 +36,7 @@ def dc_colors(scene: GaussianScene) -> np.ndarray:
 
 
 def label_colors(labels: np.ndarray) -> np.ndarray:
-    """(N, 3) float32 RGB: a distinct, saturated colour per integer label (golden-ratio hues)."""
+    """(N, 3) float32 RGB: a distinct, saturated color per integer label (golden-ratio hues)."""
     labels = np.asarray(labels, dtype=np.int64)
     hue = np.mod(labels * 0.6180339887498949, 1.0)
     sector = hue * 6.0
@@ -57,20 +57,20 @@ def semantic_colors(semantic: np.ndarray) -> np.ndarray:
 def gaussian_colors(scene: GaussianScene, color_by: str = "auto") -> np.ndarray:
     """(N, 3) float32 RGB per Gaussian; ``color_by`` is one of :data:`COLOR_MODES`.
 
-    "auto" uses labels when present, else DC colour.
+    "auto" uses labels when present, else DC color.
     """
     if color_by not in COLOR_MODES:
-        raise InputError(f"colour mode must be one of {', '.join(COLOR_MODES)}, got {color_by!r}",
+        raise InputError(f"color mode must be one of {', '.join(COLOR_MODES)}, got {color_by!r}",
                          property="color")
     if color_by == "auto":
         color_by = "label" if scene.labels is not None else "dc"
     if color_by == "label":
         if scene.labels is None:
-            raise InputError("the scene has no labels to colour by", property="labels")
+            raise InputError("the scene has no labels to color by", property="labels")
         return label_colors(scene.labels)
     if color_by == "semantic":
         if scene.semantic is None:
-            raise InputError("the scene has no semantic features to colour by",
+            raise InputError("the scene has no semantic features to color by",
                              property="semantic")
         return semantic_colors(scene.semantic)
     return dc_colors(scene)
@@ -78,7 +78,7 @@ def gaussian_colors(scene: GaussianScene, color_by: str = "auto") -> np.ndarray:
 
 def highlight_selection(colors: np.ndarray, selection: np.ndarray) -> np.ndarray:
     """(N, 3) float32 RGB: ``colors`` where ``selection`` ((N,) bool) holds, a dim grey
-    (:data:`UNSELECTED_SHADE` of the colour's mean) elsewhere.
+    (:data:`UNSELECTED_SHADE` of the color's mean) elsewhere.
 
     Raises:
         InputError: ``selection`` is not an (N,) bool array.
@@ -101,7 +101,7 @@ def preview_camera(scene: GaussianScene, window_size: tuple[int, int] = (800, 60
 
 def ellipsoid_mesh(positions: np.ndarray, log_scales: np.ndarray, quaternions: np.ndarray,
                    colors: np.ndarray, *, sigma_scale: float = 1.5, resolution: int = 8):
-    """One pyvista PolyData of K ellipsoids with per-point "rgb" colours.
+    """One pyvista PolyData of K ellipsoids with per-point "rgb" colors.
 
     Args:
         positions: (K, 3) centres, world units.

@@ -1,6 +1,6 @@
 """CUDA rasterization through gsplat, used when torch sees a GPU and gsplat is installed.
 
-Colours come from this package's SH evaluation (:func:`csgs_codec.render.sh.sh_to_color`), so
+Colors come from this package's SH evaluation (:func:`csgs_codec.render.sh.sh_to_color`), so
 only projection and compositing are gsplat's. gsplat bounds each footprint at three standard
 deviations where the reference uses the exact 1/255 alpha contour, so images agree closely
 but not to the last bit.

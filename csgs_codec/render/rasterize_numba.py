@@ -1,6 +1,6 @@
 """Fast forward rasterizer on the CPU with numba (optional: ``pip install csgs[fast]``).
 
-Projection and colours come from the torch reference (:func:`prepare_gaussians`, vectorised and
+Projection and colors come from the torch reference (:func:`prepare_gaussians`, vectorised and
 cheap); binning and compositing, the expensive part, run in compiled parallel loops
 (:mod:`csgs_codec.render.numba_kernels`). Forward only, no gradients.
 """
@@ -47,7 +47,7 @@ def rasterize_numba(prepared: PreparedGaussians, camera: Camera, *,
     """Composite prepared Gaussians with the numba kernels.
 
     Args:
-        prepared: projected Gaussians and colours from
+        prepared: projected Gaussians and colors from
             :func:`csgs_codec.render.rasterize_torch.prepare_gaussians` (any float dtype;
             compositing runs in float32).
         camera: the view (its size sets H, W).

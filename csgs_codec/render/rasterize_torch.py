@@ -1,7 +1,7 @@
 """The differentiable reference rasterizer (pure torch, on CPU tensors).
 
 Use :func:`rasterize_gaussians` for training: every output is differentiable with respect to
-means, log-scales, quaternions, opacity logits, SH coefficients (or colours) and features.
+means, log-scales, quaternions, opacity logits, SH coefficients (or colors) and features.
 The numba and gsplat paths are tested against this one.
 """
 
@@ -56,13 +56,13 @@ def prepare_gaussians(means: torch.Tensor, log_scales: torch.Tensor, quats: torc
                       opacity_logits: torch.Tensor, camera: Camera, *,
                       sh: torch.Tensor | None = None, colors: torch.Tensor | None = None,
                       near_plane: float = DEFAULT_NEAR_PLANE) -> PreparedGaussians:
-    """Project Gaussians and evaluate their colour for this camera.
+    """Project Gaussians and evaluate their color for this camera.
 
     Args:
         means: [N, 3]; log_scales: [N, 3]; quats: [N, 4] (w, x, y, z); opacity_logits: [N].
         camera: the view.
         sh: [N, K, 3] SH coefficients, K in {1, 4, 9, 16}, DC first; or
-        colors: [N, 3] colours used as they are (exactly one of ``sh`` and ``colors``).
+        colors: [N, 3] colors used as they are (exactly one of ``sh`` and ``colors``).
         near_plane: camera-space z below which Gaussians are culled.
 
     Returns:
@@ -107,7 +107,7 @@ def rasterize_gaussians(means: torch.Tensor, log_scales: torch.Tensor, quats: to
         opacity_logits: [N] opacities before the sigmoid.
         camera: pinhole camera (its size sets H, W).
         sh: [N, K, 3] SH coefficients (K = 1, 4, 9 or 16, DC first) or
-        colors: [N, 3] colours (exactly one of the two).
+        colors: [N, 3] colors (exactly one of the two).
         features: optional [N, F] per-Gaussian features to render (e.g. semantics).
         background: RGB behind the scene, default black.
         near_plane: camera-space z (world units) below which Gaussians are culled.

@@ -13,7 +13,7 @@ class RenderOutput:
 
     Attributes:
         image: (H, W, 3) float32 linear RGB, background composited behind; not clipped (values
-            may exceed 1 where SH colours do).
+            may exceed 1 where SH colors do).
         alpha: (H, W) float32 accumulated opacity in [0, 1).
         depth: (H, W) float32 expected camera-space z (world units), 0 where alpha is 0.
         features: (H, W, F) float32 accumulated per-Gaussian features, or None.

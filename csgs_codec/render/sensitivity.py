@@ -1,13 +1,13 @@
 """Render sensitivities: how much each Gaussian's attributes matter to the pictures.
 
-A Gaussian's colour enters a pixel through its blending weight w = alpha * T (its opacity
-there times the transmittance in front of it). An error e in its colour changes that pixel by
-w * e, so over a set of views its squared colour error weighs
+A Gaussian's color enters a pixel through its blending weight w = alpha * T (its opacity
+there times the transmittance in front of it). An error e in its color changes that pixel by
+w * e, so over a set of views its squared color error weighs
 
     W_i = sum over views and pixels of w_i^2
 
-in the rendered MSE (exactly, for the DC colour; SH bands add their basis value per view).
-W is the sensitivity the step classes of the colour layer follow: high-rate theory gives a
+in the rendered MSE (exactly, for the DC color; SH bands add their basis value per view).
+W is the sensitivity the step classes of the color layer follow: high-rate theory gives a
 step proportional to W^(-1/2) for the smallest rate at a given MSE. Gaussians with W = 0
 reach no pixel of any view.
 
@@ -38,7 +38,7 @@ class Sensitivity:
     """Per-Gaussian blending-weight sums over a set of views.
 
     Attributes:
-        weight_sq: (N,) float64 W_i = sum of w^2 over views and pixels (colour sensitivity,
+        weight_sq: (N,) float64 W_i = sum of w^2 over views and pixels (color sensitivity,
             in pixels).
         weight_sum: (N,) float64 sum of w over views and pixels (the Gaussian's share of
             the pictures, in pixels).
@@ -78,7 +78,7 @@ def blend_sensitivity(scene: GaussianScene, cameras: list[Camera],
     weight_sq = np.zeros(n, np.float64)
     weight_sum = np.zeros(n, np.float64)
     tensors = scene_tensors(scene)
-    # Colour does not change where a Gaussian lands or its weights: DC alone is enough.
+    # Color does not change where a Gaussian lands or its weights: DC alone is enough.
     colors = torch.zeros((n, 3), dtype=tensors["means"].dtype)
     for done, camera in enumerate(cameras, start=1):
         with torch.no_grad():

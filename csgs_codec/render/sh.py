@@ -1,8 +1,8 @@
-"""Real spherical harmonics of degree 0..3 and the 3DGS view-dependent colour.
+"""Real spherical harmonics of degree 0..3 and the 3DGS view-dependent color.
 
 The basis order and constants are the ones every 3DGS trainer uses (INRIA layout): index 0 is
 the DC term, then band 1 (3 functions), band 2 (5) and band 3 (7), each band ordered m = -l..l
-with the Condon-Shortley sign folded into the constants. The colour of a Gaussian seen along the
+with the Condon-Shortley sign folded into the constants. The color of a Gaussian seen along the
 unit direction d (from the camera centre to the Gaussian) is ``max(0, 0.5 + sum_k c_k Y_k(d))``.
 """
 
@@ -76,10 +76,10 @@ def sh_to_color(sh: torch.Tensor, directions: torch.Tensor) -> torch.Tensor:
         sh: [N, K, 3] coefficients, K = (degree + 1) ** 2 in {1, 4, 9, 16}, DC first, then
             the rest coefficient-major (as ``cat([sh_dc[:, None], sh_rest], dim=1)``).
         directions: [N, 3] viewing directions from the camera centre to each Gaussian; they
-            are normalised here (a zero vector gives the DC colour only).
+            are normalised here (a zero vector gives the DC color only).
 
     Returns:
-        [N, 3] colour ``max(0, 0.5 + sum_k sh[:, k] * Y_k(d))``, linear, unbounded above.
+        [N, 3] color ``max(0, 0.5 + sum_k sh[:, k] * Y_k(d))``, linear, unbounded above.
     """
     degree = sh_degree_of_count(int(sh.shape[-2]))
     norm = torch.linalg.vector_norm(directions, dim=-1, keepdim=True)

@@ -5,7 +5,7 @@ The arrays follow the official Scaffold-GS trainer (github.com/city-super/Scaffo
 
 * Gaussian k of anchor i sits at ``positions[i] + offsets[i, k] * exp(scaling[i, :3])``;
 * its scale is ``exp(scaling[i, 3:]) * sigmoid(cov_mlp(...)[:3])``;
-* opacity (tanh head), colour (sigmoid head) and scale/rotation (linear head) come from three
+* opacity (tanh head), color (sigmoid head) and scale/rotation (linear head) come from three
   two-layer MLPs over ``[feature, view direction, (distance), (appearance embedding)]``.
 
 This module holds plain numpy data (no torch); :mod:`csgs_codec.model.scaffold` evaluates it.
@@ -92,7 +92,7 @@ class ScaffoldMLPWeights:
     """The Scaffold-GS MLP weights of one scene (numpy; torch modules are built from them).
 
     Input layout of every head: ``[feature (F), view direction (3), distance (1 if the head
-    uses it)]``, and the colour head appends the appearance embedding (A) last, exactly as the
+    uses it)]``, and the color head appends the appearance embedding (A) last, exactly as the
     official renderer concatenates them. Whether a head takes the distance is read from its
     input width.
 

@@ -9,7 +9,7 @@ import numpy as np
 from csgs_codec.errors import InputError
 from csgs_codec.scene.ply_names import ply_property
 
-#: Number of SH rest coefficients per colour channel for SH degree 0..3.
+#: Number of SH rest coefficients per color channel for SH degree 0..3.
 SH_REST_COUNTS = {0: 0, 1: 3, 2: 8, 3: 15}
 #: Inverse of :data:`SH_REST_COUNTS`.
 SH_DEGREE_OF_REST = {v: k for k, v in SH_REST_COUNTS.items()}
@@ -23,7 +23,7 @@ class GaussianScene:
 
     Attributes:
         positions: (N, 3) float32, world units.
-        sh_dc: (N, 3) float32, degree-0 SH coefficient per colour channel (RGB).
+        sh_dc: (N, 3) float32, degree-0 SH coefficient per color channel (RGB).
         sh_rest: (N, B, 3) float32, higher SH coefficients, B in {0, 3, 8, 15}
             (degree 0..3), coefficient-major then RGB.
         opacity: (N,) float32, opacity logits (opacity = sigmoid(value)).

@@ -12,15 +12,15 @@ def ply_property(attribute: str, channel: int, *, sh_bands: int = 0,
     """The PLY property name of column ``channel`` of ``attribute`` as
     :meth:`GaussianScene.attributes` lays it out.
 
-    ``sh_rest`` columns are band-major (column 3 b + c is band coefficient b of colour c) and
-    the PLY's ``f_rest_*`` colour-major (INRIA order), so ``f_rest_{c * sh_bands + b}``.
+    ``sh_rest`` columns are band-major (column 3 b + c is band coefficient b of color c) and
+    the PLY's ``f_rest_*`` color-major (INRIA order), so ``f_rest_{c * sh_bands + b}``.
     Unknown attributes are returned unchanged.
     """
     if attribute in _FIXED:
         return _FIXED[attribute][channel]
     if attribute == "sh_rest" and sh_bands:
-        band, colour = divmod(int(channel), 3)
-        return f"f_rest_{colour * sh_bands + band}"
+        band, color = divmod(int(channel), 3)
+        return f"f_rest_{color * sh_bands + band}"
     if attribute == "semantic" and channel < len(semantic_names):
         return semantic_names[channel]
     return attribute

@@ -1,7 +1,7 @@
 """Click selection: the Gaussians (or anchors) whose semantic feature matches the pixel clicked.
 
 The semantic features are rendered into a feature map for the camera (the same alpha
-compositing as colour), the feature under the click is divided by the pixel's accumulated
+compositing as color), the feature under the click is divided by the pixel's accumulated
 opacity and normalised, and each element is scored by the cosine between its own feature and
 that direction. Two rules turn scores into a selection:
 

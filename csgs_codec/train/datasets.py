@@ -61,7 +61,7 @@ def load_dataset(path: str | Path, *, downscale: float = 1.0, masks: str | Path 
         segment_missing: without a masks folder, make masks with the built-in segmenter
             (warning that quality depends on masks); False leaves ``mask`` None.
         background: RGB behind transparent image pixels.
-        read_masks: False reads no masks at all (colour-only training): ``mask`` stays None
+        read_masks: False reads no masks at all (color-only training): ``mask`` stays None
             and ``masks`` / ``segment_missing`` are ignored.
 
     Returns:

@@ -2,7 +2,7 @@
 
 Images: any format Pillow reads; 8-bit channels are divided by 255, 16-bit grey by 65535.
 Transparent images (RGBA, LA, palette with transparency) are composited over a background
-colour, as Blender-style datasets expect. Masks: one integer instance id per pixel, from
+color, as Blender-style datasets expect. Masks: one integer instance id per pixel, from
 8/16/32-bit grey (alpha ignored) or palette PNGs (the palette index is the id) or RGB(A)
 images (the id is ``r << 16 | g << 8 | b``, alpha ignored), as SAM exporters write them.
 """

@@ -1,7 +1,7 @@
 """The three CSGaussian training stages end to end: views + points -> a .csgs bitstream.
 
 1. Stage 1 (:mod:`.color_stage`) fits anchors for rate and quality, checkpointing as it goes.
-2. The anchors are encoded once (colour only) to learn each anchor's colour step q_f and the
+2. The anchors are encoded once (color only) to learn each anchor's color step q_f and the
    reconstruction a decoder will see.
 3. Stage 2 fits per-anchor semantic features s to the views' instance masks on that
    reconstruction (:mod:`.semantic_stage`: quantization noise Q = 1, quality-aware weights
@@ -90,7 +90,7 @@ class TrainResult:
     """What :func:`train_scene` returns.
 
     Attributes:
-        data: the .csgs bytes (colour layer, and the semantic layer when the views had masks).
+        data: the .csgs bytes (color layer, and the semantic layer when the views had masks).
         encode: the final encode's report (``reconstruction`` is what a decoder returns).
         color_state: stage 1's final state (model, history).
         semantic: stage 3's (or stage 2's) result, None without masks.
@@ -150,12 +150,12 @@ def train_scene(views: list[TrainingView], points: np.ndarray, settings: TrainSe
         _check_resumable(state.settings, settings.color, checkpoint)
     else:
         state = initial_state(views, points, settings.color)
-    report("stage 1: colour", None)
+    report("stage 1: color", None)
     began = time.perf_counter()
     every = settings.checkpoint_every if checkpoint is not None else state.settings.iterations
     while state.step < state.settings.iterations:
         stop = min(state.step + max(every, 1), state.settings.iterations)
-        train_color_stage(views, state, progress=lambda p: report("stage 1: colour", p),
+        train_color_stage(views, state, progress=lambda p: report("stage 1: color", p),
                           stop_at=stop)
         if checkpoint is not None:
             save_checkpoint(state, checkpoint)
@@ -169,7 +169,7 @@ def train_scene(views: list[TrainingView], points: np.ndarray, settings: TrainSe
     began = time.perf_counter()
     color = AnchorEncoder(quality, semantic="none",
                           fit=settings.encoder_fit).encode_with_report(anchors)
-    seconds["colour_encode"] = time.perf_counter() - began
+    seconds["color_encode"] = time.perf_counter() - began
 
     semantic = None
     with_masks = sum(v.mask is not None for v in views)

@@ -11,9 +11,9 @@ quality-aware weights of stage 2.
   cheaper), and the probability to at least 2^-30, which keeps bits finite and gradients
   bounded for values far in the tail.
 * :func:`quality_aware_weights`: w = 1 if 1 - norm(q_f) >= T else 1 - norm(q_f), T = 0.65,
-  where q_f is each anchor's colour quantization step from stage 1 and norm is min-max
+  where q_f is each anchor's color quantization step from stage 1 and norm is min-max
   normalisation over the anchors: norm(q) = (q - min q) / (max q - min q), 0 for every
-  anchor when all steps are equal. Anchors with coarse colour (large q_f, poorly
+  anchor when all steps are equal. Anchors with coarse color (large q_f, poorly
   reconstructed) get smaller semantic features, so they weigh less in the rendered map.
   Given the range [low, high] of steps the codec can assign, norm is instead measured on
   that range, on a log scale: norm(q) = log(q / low) / log(high / low), clipped to [0, 1].
@@ -91,7 +91,7 @@ def quality_aware_weights(color_steps: torch.Tensor | np.ndarray,
     """Per-anchor weights of the rendered semantic feature (module notes).
 
     Args:
-        color_steps: (N,) positive colour quantization steps q_f, one per anchor.
+        color_steps: (N,) positive color quantization steps q_f, one per anchor.
         threshold: T.
         step_range: (low, high) steps the codec can assign (0 < low < high): normalise on
             that range, log scale; None: min-max over the anchors.

@@ -2,7 +2,7 @@
 
 The fallback that makes instance masks when a dataset comes without any. It is far weaker than
 a learned segmenter (SAM and the like): it splits textured objects and merges objects of
-similar colour, and stage-2 semantic quality follows the masks.
+similar color, and stage-2 semantic quality follows the masks.
 
 Method: the image (scaled to 0..255) is smoothed with a Gaussian (``sigma``), every pixel is
 joined to its 8 neighbours by an edge weighted with the RGB distance, and edges are visited in
@@ -104,11 +104,11 @@ def _grid_edges(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
 
 def segment_image(image: np.ndarray, *, scale: float = 300.0, sigma: float = 0.8,
                   min_size: int | None = None) -> np.ndarray:
-    """Segment an RGB image into regions of similar colour (see the module notes).
+    """Segment an RGB image into regions of similar color (see the module notes).
 
     Args:
         image: (H, W, 3) float RGB in [0, 1].
-        scale: the k of Felzenszwalb & Huttenlocher on 0..255 colours; larger gives fewer,
+        scale: the k of Felzenszwalb & Huttenlocher on 0..255 colors; larger gives fewer,
             larger segments.
         sigma: Gaussian pre-smoothing in pixels (0 for none).
         min_size: smallest segment in pixels; default 0.1% of the image (at least 8).

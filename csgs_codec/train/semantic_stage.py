@@ -1,6 +1,6 @@
 """Stages 2 and 3: learn per-anchor semantic features from 2D instance masks, geometry fixed.
 
-With the geometry and colours frozen (as in stages 2 and 3), each pixel's rendered feature is
+With the geometry and colors frozen (as in stages 2 and 3), each pixel's rendered feature is
 linear in the per-Gaussian features: F_p = sum_i alpha_i T_i(p) v_i. So each view is rendered
 once into a sparse contribution matrix C (pixels x groups, a group being an anchor whose
 Gaussians share one feature, or a single Gaussian), and every training step is a sparse
@@ -168,7 +168,7 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
     Args:
         views: prepared views (:func:`contribution_matrix` and a mask each).
         group_count: G, the number of groups (anchors).
-        color_steps: (G,) stage-1 colour quantization step q_f per group for the
+        color_steps: (G,) stage-1 color quantization step q_f per group for the
             quality-aware weights; None weighs every group 1.
         dim: feature width D.
         iterations: Adam steps, each over every view.
@@ -188,7 +188,7 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
         device: torch device to train on ("cpu", "cuda", ...).
         initial_features: (G, D) features to start from (stage 3 continues stage 2's);
             default random (``initial_scale``).
-        step_range: the codec's (low, high) colour steps for the quality-aware weights (see
+        step_range: the codec's (low, high) color steps for the quality-aware weights (see
             :func:`quality_aware_weights`); None normalises min-max over the groups.
 
     Returns:

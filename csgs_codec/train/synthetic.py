@@ -1,7 +1,7 @@
 """Seeded synthetic training data: scenes of labelled objects rendered with ground truth.
 
-A scene is K objects, each a thin ellipsoidal shell of Gaussians of one base colour (hues spread
-around the colour wheel, a little per-Gaussian jitter), placed around a circle in the z = 0
+A scene is K objects, each a thin ellipsoidal shell of Gaussians of one base color (hues spread
+around the color wheel, a little per-Gaussian jitter), placed around a circle in the z = 0
 plane so that no two overlap; Gaussian labels are 1..K. Views are orbit cameras (+z up) around
 it, rendered with the project's rasterizer into images and instance masks. A pixel's mask id is
 the object with the largest accumulated weight (sum of alpha * T over its Gaussians, rendered as
@@ -96,21 +96,21 @@ def synthetic_scene(seed: int = 0, *, objects: int = 3, gaussians_per_object: in
         depth = 1.0 - SHELL_THICKNESS * rng.uniform(size=(gaussians_per_object, 1))
         positions = centre + directions * depth * radii
         rgb = np.array(colorsys.hsv_to_rgb((hue_offset + k / objects) % 1.0, 0.8, 0.9))
-        colours = np.clip(rgb + rng.normal(0, 0.03, size=(gaussians_per_object, 3)), 0, 1)
+        colors = np.clip(rgb + rng.normal(0, 0.03, size=(gaussians_per_object, 3)), 0, 1)
         # Sigma about half the spacing sqrt(4 pi r^2 / n) of n Gaussians on the shell.
         log_scale = np.log(1.8 * float(radii.min()) / math.sqrt(gaussians_per_object))
         scales = log_scale + rng.normal(0, 0.15, size=(gaussians_per_object, 3))
         rotations = rng.standard_normal((gaussians_per_object, 4))
         rotations /= np.linalg.norm(rotations, axis=1, keepdims=True)
-        parts.append((positions, colours, scales, rotations,
+        parts.append((positions, colors, scales, rotations,
                       rng.uniform(2.0, 4.0, size=gaussians_per_object),
                       np.full(gaussians_per_object, k + 1)))
-    positions, colours, scales, rotations, opacity, labels = (
+    positions, colors, scales, rotations, opacity, labels = (
         np.concatenate(column) for column in zip(*parts))
     n = len(positions)
     return GaussianScene(
         positions=positions.astype(np.float32),
-        sh_dc=((colours - 0.5) / SH_C0).astype(np.float32),
+        sh_dc=((colors - 0.5) / SH_C0).astype(np.float32),
         sh_rest=np.zeros((n, 0, 3), np.float32),
         opacity=opacity.astype(np.float32),
         scales=scales.astype(np.float32),

@@ -16,7 +16,7 @@ class TrainingView:
 
     Attributes:
         image: (H, W, 3) float32 RGB in [0, 1], the stored pixel values divided by 255 (no
-            gamma decoding: 3DGS trainers fit the rendered colour to these values directly).
+            gamma decoding: 3DGS trainers fit the rendered color to these values directly).
         camera: the pinhole camera, ``camera.width == W`` and ``camera.height == H``.
         mask: (H, W) int32 instance ids (any integers; equal ids mean one instance), or None.
         name: identifier, usually the image file name.

@@ -2,21 +2,21 @@
  * The viewer's Web Worker: reads a .csgs layer by layer and decodes it with the JavaScript
  * receiver (../js/), reporting progress.
  *
- * Order: header and TOC, then the bytes up to the end of the colour layer (one HTTP Range
+ * Order: header and TOC, then the bytes up to the end of the color layer (one HTTP Range
  * request, or a slice of a picked file), decoded and posted at once so the page can draw;
  * then, when asked, the semantic layer's bytes, decoded and posted after.
  *
  * Messages in: {kind: 'open', url | file, layers: ['color'] | ['color', 'semantic']}.
  * Messages out (each with the open request's id):
  *   {kind: 'progress', stage, fraction, text}
- *   {kind: 'toc', fileEnd, colourEnd, hasSemantic}
- *   {kind: 'colour', scene, bytesRead, decodeMs}   arrays transferred
+ *   {kind: 'toc', fileEnd, colorEnd, hasSemantic}
+ *   {kind: 'color', scene, bytesRead, decodeMs}   arrays transferred
  *   {kind: 'semantic', semantic, channels, names, labels, bytesRead, decodeMs}
  *   {kind: 'error', stage, message, chunk, offset}   the receiver's errors name both
  *   {kind: 'done'}
  */
 
-import { channelPriors } from '../js/colour_prior.mjs';
+import { channelPriors } from '../js/color_prior.mjs';
 import { readToc } from '../js/container.mjs';
 import { FormatError } from '../js/errors.mjs';
 import { decodeTask, finishScene, makeTargets, prepareScene } from '../js/scene.mjs';
@@ -119,11 +119,11 @@ function taskWeight(entries, code) {
 }
 
 /**
- * Decode the base and colour layers of ``bytes`` (a prefix of the file is enough), calling
+ * Decode the base and color layers of ``bytes`` (a prefix of the file is enough), calling
  * ``report(fraction)`` after each stream. The task order and the hyperprior's cell check are
  * those of scene.mjs's decodePrepared, which has no progress hook.
  */
-function decodeColour(bytes, tables, report) {
+function decodeColor(bytes, tables, report) {
   const prep = prepareScene(bytes, { layers: [], tables });
   const out = makeTargets(prep.header);
   const modelled = prep.modelled.size > 0;
@@ -140,7 +140,7 @@ function decodeColour(bytes, tables, report) {
         const cellLimit = 2 ** prep.prior.net.posBits;
         for (const values of [cells.x, cells.y, cells.z]) {
           for (let i = 0; i < values.length; i++) {
-            if (values[i] >= cellLimit) throw new FormatError('the colour hyperprior needs smaller cells', { chunk: 'CHYP' });
+            if (values[i] >= cellLimit) throw new FormatError('the color hyperprior needs smaller cells', { chunk: 'CHYP' });
           }
         }
         priors = channelPriors(prep.prior, cells, prep.header.count, prep.codes, prep.sine);
@@ -167,9 +167,9 @@ async function open(request, post) {
   const source = request.file ? new FileSource(request.file) : new UrlSource(request.url);
   const wanted = new Set(request.layers || ['color', 'semantic']);
   const progress = (stage, fraction, text) => post({ kind: 'progress', stage, fraction, text });
-  let stage = 'colour';
+  let stage = 'color';
   try {
-    progress('colour', 0, 'reading the header');
+    progress('color', 0, 'reading the header');
     const tablesReady = loadTables();
     let prefix = await source.read(0, HEADER_SIZE);
     if (prefix.length >= HEADER_SIZE) {
@@ -178,34 +178,34 @@ async function open(request, post) {
     }
     const toc = readToc(prefix); // names what is wrong with a short or damaged header or TOC
     const entries = toc.entries;
-    const colourEnd = entries.filter((e) => e.layer <= 1).reduce((m, e) => Math.max(m, e.end), toc.tocEnd);
+    const colorEnd = entries.filter((e) => e.layer <= 1).reduce((m, e) => Math.max(m, e.end), toc.tocEnd);
     const fileEnd = entries.length ? entries[entries.length - 1].end : toc.tocEnd;
     const hasSemantic = entries.some((e) => e.layer === 2);
-    post({ kind: 'toc', fileEnd, colourEnd, hasSemantic, chunks: entries.length });
+    post({ kind: 'toc', fileEnd, colorEnd, hasSemantic, chunks: entries.length });
     if (source.size !== null && source.size > fileEnd) {
       throw new FormatError(`${source.size - fileEnd} bytes follow the last chunk`, { offset: fileEnd });
     }
-    const need = colourEnd - prefix.length;
-    const body = await source.read(prefix.length, colourEnd,
-      (n) => progress('colour', 0.5 * n / Math.max(need, 1), `downloading the colour layer: ${n.toLocaleString()} of ${need.toLocaleString()} bytes`));
-    const colourBytes = concat([prefix, body]);
+    const need = colorEnd - prefix.length;
+    const body = await source.read(prefix.length, colorEnd,
+      (n) => progress('color', 0.5 * n / Math.max(need, 1), `downloading the color layer: ${n.toLocaleString()} of ${need.toLocaleString()} bytes`));
+    const colorBytes = concat([prefix, body]);
     const tables = await tablesReady;
-    progress('colour', 0.5, 'decoding the colour layer');
+    progress('color', 0.5, 'decoding the color layer');
     const t0 = performance.now();
-    const scene = decodeColour(colourBytes, tables, (f) => progress('colour', 0.5 + 0.5 * f, 'decoding the colour layer'));
+    const scene = decodeColor(colorBytes, tables, (f) => progress('color', 0.5 + 0.5 * f, 'decoding the color layer'));
     const decodeMs = performance.now() - t0;
     const arrays = [scene.positions, scene.sh_dc, scene.sh_rest, scene.opacity, scene.scales, scene.rotations];
-    post({ kind: 'colour', scene: { ...scene, fileEnd, colourEnd }, bytesRead: colourBytes.length, decodeMs },
+    post({ kind: 'color', scene: { ...scene, fileEnd, colorEnd }, bytesRead: colorBytes.length, decodeMs },
       arrays.map((a) => a.buffer));
     if (!wanted.has('semantic') || !hasSemantic) {
       post({ kind: 'done' });
       return;
     }
     stage = 'semantic';
-    const more = fileEnd - colourEnd;
-    const rest = await source.read(colourEnd, fileEnd,
+    const more = fileEnd - colorEnd;
+    const rest = await source.read(colorEnd, fileEnd,
       (n) => progress('semantic', 0.5 * n / Math.max(more, 1), `downloading the semantic layer: ${n.toLocaleString()} of ${more.toLocaleString()} bytes`));
-    const whole = concat([colourBytes, rest]);
+    const whole = concat([colorBytes, rest]);
     progress('semantic', 0.5, 'decoding the semantic layer');
     const t1 = performance.now();
     const prep = prepareScene(whole, { layers: ['semantic'], tables });

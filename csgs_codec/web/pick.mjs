@@ -1,7 +1,7 @@
 /**
  * Click selection with the rule of `csgs select` (csgs_codec/semantic/selection.py, "cosine"
  * mode): the semantic features are alpha-composited at the clicked pixel exactly as the
- * project rasterizer composites colour (EWA projection with the 0.3 px^2 low-pass, alpha
+ * project rasterizer composites color (EWA projection with the 0.3 px^2 low-pass, alpha
  * clamped to 0.99, contributions below 1/255 skipped, front to back by camera depth, stopping
  * before transmittance falls below 1e-4), divided by the pixel's accumulated opacity and
  * normalised; every Gaussian whose unit feature has cosine >= threshold with it is selected.

@@ -9,8 +9,8 @@ Routes:
   package under those folders (the page, the receiver's modules, the frozen tables);
 * ``/config.json``: the scene's URL, file name and the layers the page should read;
 * ``/scene.csgs``: the scene file, answering single-range HTTP Range requests (206 with
-  Content-Range, 416 past the end), so a page showing the colour layer fetches only the
-  header, TOC and base and colour chunks.
+  Content-Range, 416 past the end), so a page showing the color layer fetches only the
+  header, TOC and base and color chunks.
 
 The server counts the scene bytes it sends (:attr:`ViewerServer.scene_bytes_sent`), which is
 how ``benchmarks/web_viewer.py`` measures what the page fetches.

@@ -1,16 +1,16 @@
 /**
  * Rendering through the vendored PlayCanvas engine (vendor/playcanvas): decoded arrays become
  * a GSplatData with the standard 3DGS PLY property names, drawn by the engine's splat
- * renderer (sorted in its own worker). Colours are written linear, without tone mapping or
+ * renderer (sorted in its own worker). Colors are written linear, without tone mapping or
  * gamma, as the project rasterizer outputs them; the background is black.
  */
 
 import * as pc from './vendor/playcanvas/playcanvas.min.mjs';
 
 const SH_C0 = 0.28209479177387814;
-/** Highlight: Gaussians outside the selection keep this share of their opacity and colour. */
+/** Highlight: Gaussians outside the selection keep this share of their opacity and color. */
 const DIM_OPACITY = 0.12;
-const DIM_COLOUR = 0.35;
+const DIM_COLOR = 0.35;
 
 function floatProperty(name, storage) {
   return { type: 'float', name, storage, byteSize: 4 };
@@ -28,7 +28,7 @@ function splatData(scene) {
   ['x', 'y', 'z'].forEach((name, k) => properties.push(floatProperty(name, column(scene.positions, 3, k))));
   [0, 1, 2].forEach((k) => properties.push(floatProperty(`f_dc_${k}`, column(scene.sh_dc, 3, k))));
   const rest = n ? scene.sh_rest.length / (3 * n) : 0;
-  // PLY order: f_rest_{c * R + k} is coefficient k of colour channel c.
+  // PLY order: f_rest_{c * R + k} is coefficient k of color channel c.
   for (let c = 0; c < 3; c++) {
     for (let k = 0; k < rest; k++) properties.push(floatProperty(`f_rest_${c * rest + k}`, column(scene.sh_rest, 3 * rest, 3 * k + c)));
   }
@@ -152,7 +152,7 @@ export class SplatView {
     };
   }
 
-  /** Dim everything outside ``mask`` (Uint8Array, 1 = selected); null restores the colours. */
+  /** Dim everything outside ``mask`` (Uint8Array, 1 = selected); null restores the colors. */
   highlight(mask) {
     if (!this.data) return;
     const dc = [0, 1, 2].map((k) => this.data.getProp(`f_dc_${k}`));
@@ -163,7 +163,7 @@ export class SplatView {
         for (let k = 0; k < 3; k++) dc[k][i] = dc0[k][i];
         op[i] = op0[i];
       } else {
-        for (let k = 0; k < 3; k++) dc[k][i] = (DIM_COLOUR * (0.5 + SH_C0 * dc0[k][i]) - 0.5) / SH_C0;
+        for (let k = 0; k < 3; k++) dc[k][i] = (DIM_COLOR * (0.5 + SH_C0 * dc0[k][i]) - 0.5) / SH_C0;
         const alpha = DIM_OPACITY / (1 + Math.exp(-op0[i]));
         op[i] = Math.log(alpha / (1 - alpha));
       }

@@ -1,5 +1,5 @@
 /**
- * The viewer page: starts the decode worker, draws the colour layer as soon as it arrives,
+ * The viewer page: starts the decode worker, draws the color layer as soon as it arrives,
  * reads the semantic layer after it, and selects the object under a click.
  *
  * URL parameters: ``size=WxH`` a fixed drawing-buffer size (tests and screenshots; otherwise
@@ -24,9 +24,9 @@ if (fixedSize) document.body.classList.add('fixed-size');
 
 const state = {
   phase: 'starting', name: null, layers: ['color', 'semantic'], count: 0, fileEnd: null,
-  colourEnd: null, hasSemantic: null, colourShown: false, semanticReady: false, firstFrameMs: null,
-  colourMs: null, semanticMs: null, colourDecodeMs: null, semanticDecodeMs: null,
-  colourBytesRead: null, semanticBytesRead: null, error: null, selection: null,
+  colorEnd: null, hasSemantic: null, colorShown: false, semanticReady: false, firstFrameMs: null,
+  colorMs: null, semanticMs: null, colorDecodeMs: null, semanticDecodeMs: null,
+  colorBytesRead: null, semanticBytesRead: null, error: null, selection: null,
 };
 const view = new SplatView($('canvas'), fixedSize);
 const rig = new CameraRig();
@@ -91,21 +91,21 @@ function setMessage(text, kind = 'info') {
 function showStatus() {
   if (state.error) {
     const { text, place } = describeError(state.error);
-    setMessage(state.error.stage === 'semantic' && state.colourShown
-      ? `The colour layer is shown, but the semantic layer could not be read: ${text}${place}`
+    setMessage(state.error.stage === 'semantic' && state.colorShown
+      ? `The color layer is shown, but the semantic layer could not be read: ${text}${place}`
       : `Cannot show this file: ${text}${place}`, 'error');
     return;
   }
-  if (!state.colourShown) return;
+  if (!state.colorShown) return;
   const count = `${state.count.toLocaleString()} Gaussians`;
   if (state.semanticReady) {
     setMessage(`${count}, ${semantic.channels} semantic channels: click an object to select it`);
   } else if (!state.layers.includes('semantic')) {
-    setMessage(`${count} (colour layer only, as asked: no selection)`);
+    setMessage(`${count} (color layer only, as asked: no selection)`);
   } else if (state.phase === 'done') {
     setMessage(`${count}; the file has no semantic features to select by`);
   } else {
-    setMessage(`${count} (colour layer); reading the semantic layer`);
+    setMessage(`${count} (color layer); reading the semantic layer`);
   }
 }
 
@@ -118,9 +118,9 @@ function describeError(error) {
 function open(source, name, layers) {
   requestId += 1;
   Object.assign(state, {
-    phase: 'loading', name, layers, count: 0, fileEnd: null, colourEnd: null, hasSemantic: null,
-    colourShown: false, semanticReady: false,
-    firstFrameMs: null, colourMs: null, semanticMs: null, error: null, selection: null,
+    phase: 'loading', name, layers, count: 0, fileEnd: null, colorEnd: null, hasSemantic: null,
+    colorShown: false, semanticReady: false,
+    firstFrameMs: null, colorMs: null, semanticMs: null, error: null, selection: null,
   });
   scene = null;
   semantic = null;
@@ -139,19 +139,19 @@ worker.onmessage = async (event) => {
     const span = message.stage === 'semantic' ? 0.2 : 0.8;
     setProgress(base + span * message.fraction, message.text);
   } else if (message.kind === 'toc') {
-    Object.assign(state, { fileEnd: message.fileEnd, colourEnd: message.colourEnd, hasSemantic: message.hasSemantic });
-  } else if (message.kind === 'colour') {
+    Object.assign(state, { fileEnd: message.fileEnd, colorEnd: message.colorEnd, hasSemantic: message.hasSemantic });
+  } else if (message.kind === 'color') {
     scene = message.scene;
     Object.assign(state, {
-      phase: 'colour', count: scene.count, colourMs: performance.now(),
-      colourDecodeMs: message.decodeMs, colourBytesRead: message.bytesRead,
+      phase: 'color', count: scene.count, colorMs: performance.now(),
+      colorDecodeMs: message.decodeMs, colorBytesRead: message.bytesRead,
     });
     const { width, height } = view.size;
     view.show(scene);
     rig.frame(scene.positions, scene.opacity, width, height);
     await frameDrawn();
     state.firstFrameMs = performance.now();
-    state.colourShown = true;
+    state.colorShown = true;
     showStatus();
   } else if (message.kind === 'semantic') {
     semantic = message.semantic ? { features: message.semantic, channels: message.channels, names: message.names } : null;

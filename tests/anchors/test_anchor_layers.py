@@ -1,4 +1,4 @@
-"""A colour-only decode of an anchor file never reads a byte of the semantic layer."""
+"""A color-only decode of an anchor file never reads a byte of the semantic layer."""
 
 from __future__ import annotations
 
@@ -8,19 +8,19 @@ from tests.anchors.helpers import encoded
 from tests.format.samples import GuardedFile
 
 
-def test_colour_only_decode_reads_no_semantic_bytes():
+def test_color_only_decode_reads_no_semantic_bytes():
     data = encoded().data
-    colour_end = read_layers(data, layers="color").layer_end("color")
-    assert colour_end < len(data)
-    guarded = GuardedFile(data, [(colour_end, len(data))])
-    colour = AnchorDecoder().decode(guarded, layers="color")
-    assert max(offset + n for offset, n in guarded.reads) <= colour_end
+    color_end = read_layers(data, layers="color").layer_end("color")
+    assert color_end < len(data)
+    guarded = GuardedFile(data, [(color_end, len(data))])
+    color = AnchorDecoder().decode(guarded, layers="color")
+    assert max(offset + n for offset, n in guarded.reads) <= color_end
     full = AnchorDecoder().decode(data, layers="color,semantic")
-    assert colour.features.tobytes() == full.features.tobytes()
+    assert color.features.tobytes() == full.features.tobytes()
 
 
-def test_a_stream_cut_after_the_colour_layer_decodes_its_colour():
+def test_a_stream_cut_after_the_color_layer_decodes_its_color():
     data = encoded().data
-    colour_end = read_layers(data, layers="color").layer_end("color")
-    cut = AnchorDecoder().decode(data[:colour_end], layers="color")
+    color_end = read_layers(data, layers="color").layer_end("color")
+    cut = AnchorDecoder().decode(data[:color_end], layers="color")
     assert cut.equals(AnchorDecoder().decode(data, layers="color"))

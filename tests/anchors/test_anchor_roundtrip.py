@@ -78,13 +78,13 @@ def test_mlp_weights_decode_as_the_encoder_reconstructs_them_within_half_a_step(
             assert np.abs(arr - ref).max() <= step * 0.53, (name, key)
 
 
-def test_colour_decode_equals_the_full_decode_without_semantics():
+def test_color_decode_equals_the_full_decode_without_semantics():
     data = encoded().data
-    colour = AnchorDecoder().decode(data, layers="color")
+    color = AnchorDecoder().decode(data, layers="color")
     full = AnchorDecoder().decode(data, layers="color,semantic")
-    assert colour.semantic is None and colour.labels is None
+    assert color.semantic is None and color.labels is None
     for name in ("positions", "features", "offsets", "scaling", "offset_mask"):
-        assert getattr(colour, name).tobytes() == getattr(full, name).tobytes(), name
+        assert getattr(color, name).tobytes() == getattr(full, name).tobytes(), name
 
 
 def test_semantic_none_writes_no_semantic_layer():

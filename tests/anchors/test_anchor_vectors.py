@@ -17,8 +17,8 @@ VECTORS = sorted((VECTORS_DIR / "anchors").glob("*.json"))
 
 
 def test_the_anchor_vector_set_is_present():
-    assert {p.stem for p in VECTORS} >= {"anchors_semantic_q5", "anchors_colour_q8",
-                                         "anchors_colour_q8_mlp_float16",
+    assert {p.stem for p in VECTORS} >= {"anchors_semantic_q5", "anchors_color_q8",
+                                         "anchors_color_q8_mlp_float16",
                                          "anchors_missing_features"}
 
 

@@ -6,13 +6,13 @@ from csgs_codec.codec import anchor_encoder as ae
 from csgs_codec.model.anchor_hyperprior import FitSettings
 from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene
 
-COLOUR = ("AHYP", "ACRM", "AFEA", "AOFF", "ASCL")
+COLOR = ("AHYP", "ACRM", "AFEA", "AOFF", "ASCL")
 SEMANTIC = ("SHYP", "ASEM")
 QUICK = FitSettings(hidden=16, carm_hidden=8, steps=30, batch=256)
 
 
 def _layer_bytes(chunks: dict[str, int]) -> tuple[int, int]:
-    return sum(chunks[c] for c in COLOUR), sum(chunks[c] for c in SEMANTIC)
+    return sum(chunks[c] for c in COLOR), sum(chunks[c] for c in SEMANTIC)
 
 
 def test_small_scenes_try_each_narrow_width_below_the_configured_one():

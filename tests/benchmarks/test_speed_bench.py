@@ -109,7 +109,7 @@ def test_upsampled_copies_move_by_a_fraction_of_their_scale(sample):
     small = subset_of_size(sample, 300, seed=0)
     big = upsampled_to(small, 900, seed=2, jitter_fraction=0.5)
     copies = big.subset(np.arange(300, 900))
-    # Each copy keeps its source's scales and colour, so find its source by those.
+    # Each copy keeps its source's scales and color, so find its source by those.
     keys = {np.concatenate([s, c]).tobytes(): p for s, c, p in
             zip(small.scales, small.sh_dc, small.positions.astype(np.float64))}
     moves, spreads = [], []

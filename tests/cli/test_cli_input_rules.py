@@ -4,7 +4,7 @@ Rules: one log-scale of 1e15 is refused (exit 2) naming the file, the PLY proper
 instead of coarsening every other scale; ``--sanitize --quiet`` still says how many Gaussians it
 dropped; ``info`` on a file that is neither format says so; ``--layers`` takes the layer names
 in any order and shows one choice per layer set; ``layers=''`` in the API is an error, not
-"colour"; errors name the PLY property ("f_dc_0"), not the attribute ("sh_dc").
+"color"; errors name the PLY property ("f_dc_0"), not the attribute ("sh_dc").
 """
 
 from __future__ import annotations
@@ -94,7 +94,7 @@ def test_an_empty_or_unknown_layers_option_is_a_usage_error(tmp_path, capsys, ba
     assert "--layers" in capsys.readouterr().err
 
 
-def test_empty_layers_in_the_api_is_an_error_not_colour():
+def test_empty_layers_in_the_api_is_an_error_not_color():
     data = Encoder(hyperprior=False).encode(random_scene(30))
     with pytest.raises(InputError, match="no layer given") as err:
         Decoder().decode(data, layers="")

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from csgs_codec.codec.colour_prior_choice import PriorFitPolicy
-from csgs_codec.model.colour_hyperprior import ColourFitSettings
+from csgs_codec.codec.color_prior_choice import PriorFitPolicy
+from csgs_codec.model.color_hyperprior import ColorFitSettings
 from csgs_codec.scene import GaussianScene
 
-#: A colour hyperprior fit of 100 steps (the default runs 1,500): for tests that need a file
+#: A color hyperprior fit of 100 steps (the default runs 1,500): for tests that need a file
 #: with the prior but not its full saving. It changes bytes only, never the decoded scene.
-SHORT_PRIOR_FIT = PriorFitPolicy(ColourFitSettings(steps=100, batch=512))
+SHORT_PRIOR_FIT = PriorFitPolicy(ColorFitSettings(steps=100, batch=512))
 
 
 def random_scene(n: int, *, sh_degree: int = 1, seed: int = 0, semantic: int = 0,

@@ -36,7 +36,7 @@ def test_every_shared_scene_round_trips_exactly(path):
 @pytest.mark.parametrize("quality", [2, 8])
 def test_errors_stay_within_the_preset_bounds(quality):
     scene = read_ply(SAMPLE)
-    # The colour hyperprior changes the rate only (tests/codec/test_colour_prior.py).
+    # The color hyperprior changes the rate only (tests/codec/test_color_prior.py).
     result, decoded = round_trip(scene, quality=quality, hyperprior=False)
     p = preset(quality)
     ref = scene.subset(result.order)
@@ -99,29 +99,29 @@ def test_semantic_layer_round_trips_and_is_optional():
     assert np.abs(decoded.semantic - ref.semantic).max() <= bound
     layers = {e.layer.label for e in read_layers(result.data, layers={"semantic"}).toc}
     assert "semantic" in layers
-    colour_only = Decoder().decode(result.data, layers="color")
-    assert colour_only.semantic is None and colour_only.labels is None
+    color_only = Decoder().decode(result.data, layers="color")
+    assert color_only.semantic is None and color_only.labels is None
     without = Encoder(semantic="none").encode(scene)
     assert len(without) < len(result.data)
     assert {e.layer.label for e in read_layers(without, layers={"color"}).toc} == {"base",
                                                                                    "color"}
 
 
-def test_colour_only_decode_never_reads_semantic_bytes(tmp_path):
+def test_color_only_decode_never_reads_semantic_bytes(tmp_path):
     scene = random_scene(1000, semantic=6, labels=True)
     data = Encoder().encode(scene)
-    colour_end = read_layers(data, layers={"color"}).layer_end("color")
+    color_end = read_layers(data, layers={"color"}).layer_end("color")
 
     class Guarded:
-        """A file object that fails on any read past the colour layer's end."""
+        """A file object that fails on any read past the color layer's end."""
 
         def __init__(self, raw):
             self.raw, self.pos = raw, 0
 
         def read(self, n=-1):
             end = len(self.raw) if n < 0 else self.pos + n
-            if end > colour_end:
-                raise AssertionError(f"read up to byte {end} past the colour layer {colour_end}")
+            if end > color_end:
+                raise AssertionError(f"read up to byte {end} past the color layer {color_end}")
             out = self.raw[self.pos:end]
             self.pos = end
             return out
@@ -138,7 +138,7 @@ def test_colour_only_decode_never_reads_semantic_bytes(tmp_path):
     assert guarded.positions.tobytes() == full.positions.tobytes()
     assert guarded.sh_dc.tobytes() == full.sh_dc.tobytes()
     assert guarded.rotations.tobytes() == full.rotations.tobytes()
-    cut = Decoder().decode(data[:colour_end], layers="color")
+    cut = Decoder().decode(data[:color_end], layers="color")
     assert cut.scales.tobytes() == full.scales.tobytes()
 
 

@@ -39,7 +39,7 @@ def test_fast_anchor_encode_decodes_as_reconstructed_by_the_normal_decoder(
                                       getattr(fast_anchor_result.reconstruction, name))
 
 
-def test_fast_anchor_colour_layer_alone_decodes_as_reconstructed(fast_anchor_result):
+def test_fast_anchor_color_layer_alone_decodes_as_reconstructed(fast_anchor_result):
     decoded = AnchorDecoder().decode(fast_anchor_result.data, layers="color")
     np.testing.assert_array_equal(decoded.features, fast_anchor_result.reconstruction.features)
     assert decoded.semantic is None

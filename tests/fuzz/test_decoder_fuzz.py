@@ -108,12 +108,12 @@ def test_crc_repair_lets_a_payload_edit_reach_the_chunk_decoder(seeds):
     assert outcomes["repaired"].stage == "payload"
 
 
-def test_damage_in_the_semantic_layer_never_changes_a_colour_read(seeds):
+def test_damage_in_the_semantic_layer_never_changes_a_color_read(seeds):
     import random
 
     rng = random.Random(5)
     for seed in [s for s in seeds if s.name in ("semantic200_q8", "vector:semantic_small")]:
-        colour = Decoder().decode(seed.data, layers="color")
+        color = Decoder().decode(seed.data, layers="color")
         semantic = [i for i, c in enumerate(seed.chunks) if c.type in (b"SEMF", b"SEML")]
         for _ in range(50):
             chunks = list(seed.chunks)
@@ -121,7 +121,7 @@ def test_damage_in_the_semantic_layer_never_changes_a_colour_read(seeds):
             edit = PAYLOAD_EDITS[rng.choice(sorted(PAYLOAD_EDITS))]
             chunks[i] = dataclasses.replace(chunks[i], payload=edit(rng, chunks[i].payload))
             data = repair_crcs(build(chunks))
-            assert Decoder().decode(data, layers="color").equals(colour)
+            assert Decoder().decode(data, layers="color").equals(color)
             assert not run_decoder(data, trace=False).crashed
 
 

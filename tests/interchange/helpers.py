@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from csgs_codec.interchange.binary import dc_to_colour, logit_to_alpha
+from csgs_codec.interchange.binary import dc_to_color, logit_to_alpha
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.scene.ply_reader import read_vertex_columns
 
@@ -61,9 +61,9 @@ def rotation_error(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return 1.0 - np.abs(np.sum(a.astype(np.float64) * b, axis=1))
 
 
-def colours(scene: GaussianScene) -> np.ndarray:
-    """Diffuse colour 0.5 + SH_C0 f_dc (unclamped)."""
-    return dc_to_colour(scene.sh_dc)
+def colors(scene: GaussianScene) -> np.ndarray:
+    """Diffuse color 0.5 + SH_C0 f_dc (unclamped)."""
+    return dc_to_color(scene.sh_dc)
 
 
 def alphas(scene: GaussianScene) -> np.ndarray:

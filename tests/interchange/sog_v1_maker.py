@@ -64,11 +64,11 @@ def write_sog_v1(scene: GaussianScene, folder: Path) -> None:
                        (252 + largest)[:, None]]).astype(np.uint8)
     meta["quats"] = {"shape": [n, 4], "dtype": "uint8", "encoding": "quaternion_packed",
                      "files": [_texture(quats, folder, "quats.webp")]}
-    colour = np.hstack([scene.sh_dc, scene.opacity[:, None]]).astype(np.float64)
-    c_lo, c_hi = colour.min(axis=0), colour.max(axis=0)
+    color = np.hstack([scene.sh_dc, scene.opacity[:, None]]).astype(np.float64)
+    c_lo, c_hi = color.min(axis=0), color.max(axis=0)
     meta["sh0"] = {"shape": [n, 1, 4], "dtype": "float32", "mins": c_lo.tolist(),
                    "maxs": c_hi.tolist(),
-                   "files": [_texture(_byte(colour, c_lo, c_hi), folder, "sh0.webp")]}
+                   "files": [_texture(_byte(color, c_lo, c_hi), folder, "sh0.webp")]}
     if scene.sh_rest.shape[1]:
         rest = scene.sh_rest[:, :3, :].astype(np.float64)  # degree 1: 3 coefficients
         r_lo, r_hi = float(rest.min()), float(rest.max())

@@ -17,7 +17,7 @@ from tests.conftest import SAMPLE
 from tests.interchange.helpers import (
     DATA,
     alphas,
-    colours,
+    colors,
     oracle_scene_arrays,
     rotation_error,
     splat_transform,
@@ -65,11 +65,11 @@ def test_splat_transform_reads_csgs_writers_output(name, suffix, donut, tmp_path
     # ... and what splat-transform reads is the scene within the format's precision.
     assert np.abs(theirs["positions"] - scene.positions).max() <= (
         2 ** -13 + 1e-6 if suffix == ".spz" else 0)
-    decoded_colour = 0.5 + SH_C0 * theirs["sh_dc"]
+    decoded_color = 0.5 + SH_C0 * theirs["sh_dc"]
     limit = (0.5 / (0.15 * 255) * SH_C0 if suffix == ".spz" else 0.5 / 255) + 1e-6
     reach = 127.5 / (0.15 * 255) * SH_C0 if suffix == ".spz" else 0.5
-    want = np.clip(colours(scene), 0.5 - reach, 0.5 + reach)
-    assert np.abs(decoded_colour - want).max() <= limit
+    want = np.clip(colors(scene), 0.5 - reach, 0.5 + reach)
+    assert np.abs(decoded_color - want).max() <= limit
     decoded_alpha = 1 / (1 + np.exp(-theirs["opacity"]))
     assert np.abs(decoded_alpha - alphas(scene)).max() <= 0.5 / 255 + 1e-6
     assert rotation_error(theirs["rotations"], scene.rotations).max() < 1e-4

@@ -11,7 +11,7 @@ from csgs_codec.scene_files import read_scene
 from tests.interchange.helpers import (
     DATA,
     alphas,
-    colours,
+    colors,
     matched,
     oracle_columns,
     oracle_scene_arrays,
@@ -63,25 +63,25 @@ def test_reader_agrees_with_splat_transform(name):
 
 
 SH3, SH0 = "brush_sh3.ply", "donut_sh0.ply"
-SPZ_COLOUR = 0.5 / (0.15 * 255) * 0.28209479177387814  # half a colour step, colour units
-SPZ_REACH = 127.5 / (0.15 * 255) * 0.28209479177387814  # colour reach around 0.5
-#: fixture -> (source, max position error as a share of the scene's extent, colour, alpha,
+SPZ_COLOR = 0.5 / (0.15 * 255) * 0.28209479177387814  # half a color step, color units
+SPZ_REACH = 127.5 / (0.15 * 255) * 0.28209479177387814  # color reach around 0.5
+#: fixture -> (source, max position error as a share of the scene's extent, color, alpha,
 #: log-scale (None: checked as float16 linear scale), rotation 1 - |dot|, SH error)
 PRECISION = {
-    # 11/10/11-bit positions and log-scales per 256-Gaussian chunk; 8-bit colour, alpha, SH
+    # 11/10/11-bit positions and log-scales per 256-Gaussian chunk; 8-bit color, alpha, SH
     "brush_sh3.compressed.ply": (SH3, 1 / 1023, 1 / 255, 1 / 255, 2 ** -6, 1e-5, 8 / 256),
     "donut_sh0.compressed.ply": (SH0, 1 / 1023, 1 / 255, 1 / 255, 2 ** -6, 1e-5, 0),
     # 16-bit log positions; codebooks; SH palette (k-means: bounded loosely)
     "brush_sh3.sog": (SH3, 2 ** -12, 2 / 255, 1 / 255, 2 ** -5, 1e-3, 0.25),
     "donut_sh0_sog": (SH0, 2 ** -12, 2 / 255, 1 / 255, 2 ** -5, 1e-3, 0),
     "brush_sh1_sog_v1": (SH3, 2 ** -12, 1 / 255, 1 / 255, 2 ** -5, 1e-3, 2 / 255),
-    # 12 fractional bits (2^-13 abs.); colour step 1 / (0.15 * 255) of f_dc; log-scale step
+    # 12 fractional bits (2^-13 abs.); color step 1 / (0.15 * 255) of f_dc; log-scale step
     # 1/16; SH to 5 bits (degree 1) and 4 bits (2-3) of 8: up to 8.5/128
-    "brush_sh3.v2.spz": (SH3, 2 ** -17, SPZ_COLOUR, 1 / 255, 1 / 32, 1e-2, 8.5 / 128),
-    "brush_sh3.v3.spz": (SH3, 2 ** -17, SPZ_COLOUR, 1 / 255, 1 / 32, 1e-5, 8.5 / 128),
-    "brush_sh3.v4.spz": (SH3, 2 ** -17, SPZ_COLOUR, 1 / 255, 1 / 32, 1e-5, 8.5 / 128),
-    "donut_sh0.v4.spz": (SH0, 2 ** -10, SPZ_COLOUR, 1 / 255, 1 / 32, 1e-5, 0),
-    # level 0 floats; 1-2 u16 bucket offsets and float16; colour and alpha truncated to u8
+    "brush_sh3.v2.spz": (SH3, 2 ** -17, SPZ_COLOR, 1 / 255, 1 / 32, 1e-2, 8.5 / 128),
+    "brush_sh3.v3.spz": (SH3, 2 ** -17, SPZ_COLOR, 1 / 255, 1 / 32, 1e-5, 8.5 / 128),
+    "brush_sh3.v4.spz": (SH3, 2 ** -17, SPZ_COLOR, 1 / 255, 1 / 32, 1e-5, 8.5 / 128),
+    "donut_sh0.v4.spz": (SH0, 2 ** -10, SPZ_COLOR, 1 / 255, 1 / 32, 1e-5, 0),
+    # level 0 floats; 1-2 u16 bucket offsets and float16; color and alpha truncated to u8
     "brush_sh3.l0.ksplat": (SH3, 1e-7, 1 / 255, 1 / 255, 1e-6, 1e-6, 1e-6),
     "brush_sh3.l1.ksplat": (SH3, 2 ** -18, 1 / 255, 1 / 255, None, 1e-6, 2 ** -11),
     "brush_sh3.l2.ksplat": (SH3, 2 ** -18, 1 / 255, 1 / 255, None, 1e-6, 3 / 255),
@@ -90,7 +90,7 @@ PRECISION = {
     "brush_sh3.splat": (SH3, 1e-7, 1 / 255, 1 / 255, 1e-6, 1e-4, 0),
     "donut_sh0.splat": (SH0, 1e-7, 1 / 255, 1 / 255, 1e-6, 1e-4, 0),
 }
-#: What each format can represent: (colour range, log-scale range), None where unlimited.
+#: What each format can represent: (color range, log-scale range), None where unlimited.
 RANGES = {"spz": ((0.5 - SPZ_REACH, 0.5 + SPZ_REACH), (-10.0, 5.9375)),
           "ksplat": ((0.0, 1.0), None), "splat": ((0.0, 1.0), None),
           "compressed-ply": (None, None), "sog": (None, None)}
@@ -98,18 +98,18 @@ RANGES = {"spz": ((0.5 - SPZ_REACH, 0.5 + SPZ_REACH), (-10.0, 5.9375)),
 
 @pytest.mark.parametrize("name", sorted(PRECISION))
 def test_reader_values_match_the_source_scene_within_the_formats_precision(name):
-    source_name, pos_share, colour_tol, alpha_tol, scale_tol, rot_tol, sh_tol = PRECISION[name]
+    source_name, pos_share, color_tol, alpha_tol, scale_tol, rot_tol, sh_tol = PRECISION[name]
     scene, info = read_scene(DATA / name)
     original = matched(read_scene(DATA / source_name)[0], scene)
     extent = float(np.ptp(original.positions, axis=0).max())
     assert np.abs(scene.positions - original.positions).max() <= pos_share * extent
-    colour_range, scale_range = RANGES[info.format]
-    want = colours(original)
-    if colour_range is not None:
-        want = np.clip(want, *colour_range)
-    # A Gaussian stored with alpha 0 is invisible: SOG does not keep its colour.
+    color_range, scale_range = RANGES[info.format]
+    want = colors(original)
+    if color_range is not None:
+        want = np.clip(want, *color_range)
+    # A Gaussian stored with alpha 0 is invisible: SOG does not keep its color.
     visible = alphas(scene) > 1e-5
-    assert np.abs(colours(scene) - want)[visible].max() <= colour_tol + 1e-6
+    assert np.abs(colors(scene) - want)[visible].max() <= color_tol + 1e-6
     assert np.abs(alphas(scene) - alphas(original)).max() <= alpha_tol + 1e-6
     want_scales = original.scales.astype(np.float64)
     if scale_range is not None:

@@ -16,7 +16,7 @@ from csgs_codec.interchange.gltf import glb_bytes, parse_glb
 from csgs_codec.interchange.splat import RECORD, parse_splat, splat_bytes
 from csgs_codec.interchange.spz import parse_spz, spz_bytes
 from csgs_codec.scene_files import read_scene
-from tests.interchange.helpers import DATA, alphas, colours, rotation_error
+from tests.interchange.helpers import DATA, alphas, colors, rotation_error
 
 SH_C0 = 0.28209479177387814
 
@@ -32,14 +32,14 @@ def test_splat_round_trip_keeps_values_within_one_8_bit_step(brush):
     assert (source.format, len(scene), scene.sh_degree_stored) == ("splat", 200, 0)
     np.testing.assert_array_equal(scene.positions, brush.positions)
     np.testing.assert_allclose(scene.scales, brush.scales, atol=1e-6)
-    assert np.abs(colours(scene) - np.clip(colours(brush), 0, 1)).max() <= 0.5 / 255 + 1e-9
+    assert np.abs(colors(scene) - np.clip(colors(brush), 0, 1)).max() <= 0.5 / 255 + 1e-9
     assert np.abs(alphas(scene) - alphas(brush)).max() <= 0.5 / 255 + 1e-9
     assert rotation_error(scene.rotations, brush.rotations).max() < 1e-4
 
 
 def test_splat_records_equal_antimatter15s_converter_up_to_its_truncation(brush):
     """brush_sh3.splat was written by antimatter15's convert.py (sorted by size and
-    opacity, colour and rotation truncated where csgs rounds)."""
+    opacity, color and rotation truncated where csgs rounds)."""
     theirs = np.frombuffer((DATA / "brush_sh3.splat").read_bytes(), RECORD)
     ours = np.frombuffer(splat_bytes(brush), RECORD)
     order = [int(np.flatnonzero((ours["position"] == p).all(axis=1))[0])
@@ -60,8 +60,8 @@ def test_spz_round_trip_within_spz_precision(brush, version):
     assert source.details["fractional_bits"] == 12
     assert np.abs(scene.positions - brush.positions).max() <= 2 ** -13 + 1e-6
     reach = 127.5 / (0.15 * 255) * SH_C0
-    want = np.clip(colours(brush), 0.5 - reach, 0.5 + reach)
-    assert np.abs(colours(scene) - want).max() <= 0.5 / (0.15 * 255) * SH_C0 + 1e-6
+    want = np.clip(colors(brush), 0.5 - reach, 0.5 + reach)
+    assert np.abs(colors(scene) - want).max() <= 0.5 / (0.15 * 255) * SH_C0 + 1e-6
     assert np.abs(alphas(scene) - alphas(brush)).max() <= 0.5 / 255 + 1e-6
     assert np.abs(scene.scales - np.clip(brush.scales, -10, 5.9375)).max() <= 1 / 32 + 1e-6
     assert rotation_error(scene.rotations, brush.rotations).max() < 1e-5

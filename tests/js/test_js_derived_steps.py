@@ -1,5 +1,5 @@
 """The JavaScript receiver decodes rotation channels with derived steps (mode 6, FORMAT §12.8)
-to the Python decoder's arrays, on one and two threads, with and without the colour
+to the Python decoder's arrays, on one and two threads, with and without the color
 hyperprior, and rejects a bad class table where Python does. Skipped without ``node``."""
 
 from __future__ import annotations

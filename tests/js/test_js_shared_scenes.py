@@ -2,7 +2,7 @@
 and 9 with its default settings, to the Python decoder's arrays (issue #18's acceptance).
 
 The default suite runs the two small SH-3 captures (real_sh3/, 4.7k and 8.2k Gaussians:
-every SH band, the colour hyperprior on the larger one); ``-m slow`` adds the five shared
+every SH band, the color hyperprior on the larger one); ``-m slow`` adds the five shared
 scenes (up to 248k Gaussians). Skipped when node or ../shared is absent.
 """
 

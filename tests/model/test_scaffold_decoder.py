@@ -70,7 +70,7 @@ def test_opacity_is_the_tanh_head_output_as_a_logit():
     np.testing.assert_allclose(1 / (1 + np.exp(-g.opacity)), [0.5, 0.25], rtol=1e-5)
 
 
-def test_colour_is_written_as_sh_dc():
+def test_color_is_written_as_sh_dc():
     g = ScaffoldDecoder(one_anchor_scene()).to_gaussians(camera_at([0, 0, -5]))
     np.testing.assert_allclose(g.sh_dc, np.full((2, 3), 0.25 / SH_C0), rtol=1e-5)
     assert g.sh_rest.shape == (2, 0, 3)
@@ -166,7 +166,7 @@ def test_appearance_index_selects_the_embedding_row():
 
     scene = synthetic_anchor_scene(n_objects=1, anchors_per_object=20, seed=13)
     scene.mlps = synthetic_mlps(50, 10, seed=13, appearance=(4, 8))
-    scene.mlps.appearance *= 20  # large enough to change colours visibly
+    scene.mlps.appearance *= 20  # large enough to change colors visibly
     cam = camera_at([0, 0, -3])
     a = ScaffoldDecoder(scene, appearance_index=0).to_gaussians(cam)
     b = ScaffoldDecoder(scene, appearance_index=3).to_gaussians(cam)

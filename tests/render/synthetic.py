@@ -30,7 +30,7 @@ def scene_from(positions, *, colors=None, log_scale=-2.0, opacity_logit=4.0, lab
 
 
 def blob_scene(count: int = 400, seed: int = 0, **options) -> GaussianScene:
-    """``count`` Gaussians spread in a unit ball at the origin, random mid-range colours."""
+    """``count`` Gaussians spread in a unit ball at the origin, random mid-range colors."""
     rng = np.random.default_rng(seed)
     directions = rng.normal(size=(count, 3))
     radii = rng.uniform(0, 1, size=(count, 1)) ** (1 / 3)

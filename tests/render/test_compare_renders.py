@@ -1,4 +1,4 @@
-"""`csgs compare`: identical scenes score infinite PSNR and SSIM 1; a known colour shift scores
+"""`csgs compare`: identical scenes score infinite PSNR and SSIM 1; a known color shift scores
 the PSNR it must."""
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from csgs_codec.scene.ply_io import write_ply
 from tests.conftest import SAMPLE
 from tests.render.synthetic import SH_C0, blob_scene
 
-SHIFT = 0.05  # rendered colour shift of a fully opaque pixel
+SHIFT = 0.05  # rendered color shift of a fully opaque pixel
 
 
 def compare_json(capsys, *argv) -> dict:
@@ -50,8 +50,8 @@ def test_compare_sample_with_itself(capsys):
     assert all(0.02 < v["foreground_fraction"] < 0.9 for v in facts["views"])
 
 
-def test_colour_shift_gives_psnr_of_shift_times_opacity():
-    # The renderer is linear in colour: shifting every Gaussian's colour by s shifts each
+def test_color_shift_gives_psnr_of_shift_times_opacity():
+    # The renderer is linear in color: shifting every Gaussian's color by s shifts each
     # pixel by s * alpha, so MSE = s^2 mean(alpha^2) over pixels (and channels).
     from csgs_codec.render.rasterizer import render
 
@@ -69,7 +69,7 @@ def test_colour_shift_gives_psnr_of_shift_times_opacity():
         assert view.ssim < 1.0
 
 
-def test_colour_shift_on_opaque_frame_gives_minus_twenty_log_shift(tmp_path, capsys):
+def test_color_shift_on_opaque_frame_gives_minus_twenty_log_shift(tmp_path, capsys):
     # Large opaque Gaussians filling the whole frame: every pixel moves by exactly SHIFT,
     # so PSNR = -20 log10(SHIFT) = 26.02 dB.
     rng = np.random.default_rng(4)
@@ -84,7 +84,7 @@ def test_colour_shift_on_opaque_frame_gives_minus_twenty_log_shift(tmp_path, cap
     assert view.foreground_psnr == pytest.approx(-20 * math.log10(SHIFT), abs=0.1)
 
 
-def test_compare_cli_reports_colour_shift_and_attribute_error(tmp_path, capsys):
+def test_compare_cli_reports_color_shift_and_attribute_error(tmp_path, capsys):
     scene = blob_scene()
     write_ply(scene, tmp_path / "a.ply")
     write_ply(shifted(scene), tmp_path / "b.ply")

@@ -29,7 +29,7 @@ def _logit(p: float) -> float:
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_single_gaussian_peak_is_opacity_times_colour(backend):
+def test_single_gaussian_peak_is_opacity_times_color(backend):
     cam = camera_at_origin(focal=FOCAL)
     scene = gaussians([0, 0, DEPTH], [1.0, 0.5, 0.25], math.log(SIGMA), _logit(0.5))
     out = render(scene, cam, backend=backend)
@@ -72,7 +72,7 @@ def test_two_gaussians_composite_front_to_back_in_depth_order(backend):
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_features_are_composited_with_the_colour_weights(backend):
+def test_features_are_composited_with_the_color_weights(backend):
     cam = camera_at_origin(focal=FOCAL)
     scene = gaussians([[0, 0, 2.0], [0, 0, 3.0]], [RED, GREEN], math.log(SIGMA), _logit(0.5))
     feats = np.array([[1.0, 0.0], [0.0, 2.0]], np.float32)

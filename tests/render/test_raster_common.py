@@ -30,7 +30,7 @@ def look_at_camera(eye: np.ndarray, target: np.ndarray, up: np.ndarray, width: i
 
 
 def gaussians(positions, colors, log_scale, opacity_logit) -> GaussianScene:
-    """Isotropic, degree-0 Gaussians with the given RGB colours (colour = 0.5 + C0 * dc)."""
+    """Isotropic, degree-0 Gaussians with the given RGB colors (color = 0.5 + C0 * dc)."""
     pos = np.asarray(positions, np.float32).reshape(-1, 3)
     n = len(pos)
     col = np.asarray(colors, np.float32).reshape(n, 3)

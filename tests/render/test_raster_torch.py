@@ -51,7 +51,7 @@ def test_gradients_pass_full_gradcheck_in_float64():
     assert _gradcheck_all_inputs(fast_mode=False)
 
 
-def test_gradients_flow_through_colours_given_directly():
+def test_gradients_flow_through_colors_given_directly():
     cam = camera_at_origin(width=9, height=7, focal=20.0)
     means, log_scales, quats, logits, _, _ = _tiny_inputs()
     colors = torch.tensor([[0.9, 0.2, 0.1], [0.1, 0.8, 0.3], [0.2, 0.3, 0.7]],

@@ -1,4 +1,4 @@
-"""Real spherical harmonics and the 3DGS colour rule (csgs_codec.render.sh)."""
+"""Real spherical harmonics and the 3DGS color rule (csgs_codec.render.sh)."""
 
 from __future__ import annotations
 
@@ -40,20 +40,20 @@ def test_sh_basis_counts_follow_the_degree():
     assert [sh_basis(d, k).shape[-1] for k in range(4)] == [1, 4, 9, 16]
 
 
-def test_degree_zero_colour_is_half_plus_c0_times_dc():
+def test_degree_zero_color_is_half_plus_c0_times_dc():
     sh = torch.tensor([[[1.0, -0.5, 0.25]]])
     color = sh_to_color(sh, torch.tensor([[0.3, -2.0, 5.0]]))
     assert torch.allclose(color, 0.5 + SH_C0 * sh[:, 0], atol=1e-7)
 
 
-def test_colour_is_clamped_at_zero_not_at_one():
+def test_color_is_clamped_at_zero_not_at_one():
     sh = torch.tensor([[[-10.0, 10.0, 0.0]]])
     color = sh_to_color(sh, torch.tensor([[0.0, 0.0, 1.0]]))
     assert color[0, 0] == 0.0
     assert color[0, 1] > 1.0
 
 
-def test_colour_depends_on_view_direction_through_band_one():
+def test_color_depends_on_view_direction_through_band_one():
     sh = torch.zeros(1, 4, 3)
     sh[0, 2] = 1.0  # the z-linear function: C1 * z
     up = sh_to_color(sh, torch.tensor([[0.0, 0.0, 2.0]]))

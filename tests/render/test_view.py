@@ -50,9 +50,9 @@ def test_screenshot_in_points_mode(tmp_path):
 
 
 @needs_gl
-def test_screenshot_colours_by_label(tmp_path):
+def test_screenshot_colors_by_label(tmp_path):
     scene = blob_scene(count=300, labels=np.zeros(300))
-    scene.sh_dc[:] = -10  # DC colour black: anything visible comes from the label colour
+    scene.sh_dc[:] = -10  # DC color black: anything visible comes from the label color
     path = tmp_path / "labelled.ply"
     write_ply(scene, path)
     out = tmp_path / "labels.png"
@@ -66,7 +66,7 @@ def test_screenshot_colours_by_label(tmp_path):
     np.testing.assert_allclose(brightest / brightest.max(), hue / hue.max(), atol=0.15)
 
 
-def test_label_colours_are_distinct():
+def test_label_colors_are_distinct():
     colors = label_colors(np.arange(12))
     distances = np.linalg.norm(colors[:, None] - colors[None], axis=2)
     assert distances[~np.eye(12, dtype=bool)].min() > 0.05

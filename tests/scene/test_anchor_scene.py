@@ -182,10 +182,10 @@ def test_non_finite_value_names_property_and_anchor():
 def test_semantic_names_must_read_back_as_semantic():
     scene = tiny_scene()
     scene.semantic = np.zeros((3, 1), np.float32)
-    scene.semantic_names = ("colour_hint",)
+    scene.semantic_names = ("color_hint",)
     with pytest.raises(InputError) as err:
         anchor_ply_bytes(scene)
-    assert err.value.property == "colour_hint"
+    assert err.value.property == "color_hint"
 
 
 def test_ascii_anchor_ply_reads_like_binary():

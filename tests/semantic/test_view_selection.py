@@ -1,4 +1,4 @@
-"""`csgs view --select X,Y | --select-mask M.npy`: the selection keeps its colour, the rest
+"""`csgs view --select X,Y | --select-mask M.npy`: the selection keeps its color, the rest
 is drawn dim."""
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ def labelled(tmp_path_factory):
     return scene, path
 
 
-def test_highlight_keeps_selected_colours_and_dims_the_rest():
+def test_highlight_keeps_selected_colors_and_dims_the_rest():
     colors = np.array([[0.9, 0.3, 0.3], [0.6, 0.6, 0.6]], np.float32)
     out = highlight_selection(colors, np.array([True, False]))
     np.testing.assert_allclose(out[0], colors[0])

@@ -1,4 +1,4 @@
-"""The colour codec's documented error bounds, as checks on a decoded scene.
+"""The color codec's documented error bounds, as checks on a decoded scene.
 
 Bounds (spec/FORMAT.md §12.4, §12.8, §16.3.1; csgs_codec/codec/presets.py), for the steps an
 encode used (the preset's; a rate-controlled encoder's plan where its report has one):

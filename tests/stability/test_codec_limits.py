@@ -1,4 +1,4 @@
-"""Values at the edge of what the colour codec can code: refused by name, or round-tripped.
+"""Values at the edge of what the color codec can code: refused by name, or round-tripped.
 
 Rules: float attribute values up to 2^52 in magnitude round-trip; a value too large for the
 codec's value grid (|value| around 2^53 and beyond; log-scales or SH coefficients no trained

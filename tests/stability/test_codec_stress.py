@@ -1,4 +1,4 @@
-"""Stress scenes through the colour codec: exact decode, no NaN, error within the bounds.
+"""Stress scenes through the color codec: exact decode, no NaN, error within the bounds.
 
 Each stress scene (tests/stability/stress_scenes.py) is encoded at quality 1, 5 and 9 (the
 plain scene at every quality 1..9; the rest of the matrix is `slow`). The rules: the decode

@@ -62,7 +62,7 @@ def test_numba_matches_torch_on_a_stress_scene(name):
     for camera in _cameras(scene):
         ref = render(scene, camera, backend="torch")
         fast = render(scene, camera, backend="numba")
-        # Colours of +-65504 SH coefficients are huge: compare relative to the brightest pixel.
+        # Colors of +-65504 SH coefficients are huge: compare relative to the brightest pixel.
         scale = max(1.0, float(np.abs(ref.image).max()))
         np.testing.assert_allclose(fast.image / scale, ref.image / scale, rtol=0, atol=1e-4)
         np.testing.assert_allclose(fast.alpha, ref.alpha, rtol=0, atol=1e-4)

@@ -29,9 +29,9 @@ def test_the_file_decodes_to_the_encoders_reconstruction(result):
     decoded = AnchorDecoder().decode(result.data, layers="color,semantic")
     assert decoded.equals(result.encode.reconstruction)
     assert decoded.semantic is not None and decoded.semantic.shape[1] == 6
-    colour_only = AnchorDecoder().decode(result.data, layers="color")
-    assert colour_only.semantic is None
-    np.testing.assert_array_equal(colour_only.features, decoded.features)
+    color_only = AnchorDecoder().decode(result.data, layers="color")
+    assert color_only.semantic is None
+    np.testing.assert_array_equal(color_only.features, decoded.features)
 
 
 def test_the_stages_each_did_their_work(result):
@@ -39,7 +39,7 @@ def test_the_stages_each_did_their_work(result):
     assert result.semantic is not None
     losses = result.semantic.losses
     assert losses[-1] < losses[0]
-    assert set(result.seconds) == {"stage1", "colour_encode", "stages2_3", "encode"}
+    assert set(result.seconds) == {"stage1", "color_encode", "stages2_3", "encode"}
 
 
 def test_training_gives_the_same_bytes_twice(result):
@@ -71,7 +71,7 @@ def test_an_interrupted_run_resumes_to_the_same_file(result, tmp_path):
     assert resumed.data == result.data
 
 
-def test_views_without_masks_give_a_colour_only_file():
+def test_views_without_masks_give_a_color_only_file():
     data = tiny_dataset()
     views = [type(v)(v.image, v.camera, None, v.name) for v in data.views]
     out = train_scene(views, data.scene.positions, tiny_train_settings(

@@ -59,14 +59,14 @@ def test_background_pixels_are_where_the_render_is_mostly_transparent(dataset):
     assert np.all(view.mask[alpha > 0.55] != BACKGROUND_ID)
 
 
-def test_mask_id_is_the_object_whose_colour_the_pixel_shows(dataset):
+def test_mask_id_is_the_object_whose_color_the_pixel_shows(dataset):
     scene = dataset.scene
-    colour = 0.5 + 0.28209479177387814 * scene.sh_dc
-    object_colours = np.stack([colour[scene.labels == k].mean(axis=0) for k in (1, 2, 3)])
+    color = 0.5 + 0.28209479177387814 * scene.sh_dc
+    object_colors = np.stack([color[scene.labels == k].mean(axis=0) for k in (1, 2, 3)])
     view = dataset.views[1]
     solid = render(scene, view.camera).alpha > 0.95
     nearest = np.argmin(np.linalg.norm(view.image[solid][:, None] / view.image[solid].max(
-        axis=1, keepdims=True)[:, None] - object_colours / object_colours.max(
+        axis=1, keepdims=True)[:, None] - object_colors / object_colors.max(
         axis=1, keepdims=True), axis=2), axis=1) + 1
     assert np.mean(nearest == view.mask[solid]) > 0.95
 

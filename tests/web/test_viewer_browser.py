@@ -1,7 +1,7 @@
 """The browser viewer in a real browser (headless Chromium from Debian, software WebGL): the
 page decodes a .csgs in its worker and draws it like the project rasterizer, a click selects
-an object as `csgs select` does, a file cut inside the semantic layer shows the colour layer
-and says what is missing, ``--layers color`` reads only the colour layer's bytes, the file
+an object as `csgs select` does, a file cut inside the semantic layer shows the color layer
+and says what is missing, ``--layers color`` reads only the color layer's bytes, the file
 picker opens a file, the default view is render/orbit.py's view 0 and the orbit, fly and zoom
 controls move it, anchor scenes are reported as not supported, and invalid files are refused
 at the chunk and byte offset the Python decoder names.
@@ -9,7 +9,7 @@ at the chunk and byte offset the Python decoder names.
 Render agreement: on samples/donut.ply (quality 5, 45,624 Gaussians, 4 orbit views at
 400x300) the page's canvas measured 29.9-30.2 dB PSNR against the numba rasterizer's render
 of the same decoded scene and camera (8-bit images; the engine cuts each splat at 2*sqrt(2)
-standard deviations where the rasterizer goes down to alpha 1/255, and keeps colours as
+standard deviations where the rasterizer goes down to alpha 1/255, and keeps colors as
 half floats). The bound is :data:`MIN_RENDER_PSNR` = 27 dB, 3 dB below that.
 
 Skipped, with the reason, where chromium, chromium-driver or selenium are missing;
@@ -49,8 +49,8 @@ SCREENSHOT_ENV = "CSGS_WRITE_SCREENSHOTS"
 SCREENSHOT = REPO / "docs" / "images" / "web_viewer.png"
 
 
-def _colour_end(path: Path) -> int:
-    """Bytes from the file's start to the end of its colour layer."""
+def _color_end(path: Path) -> int:
+    """Bytes from the file's start to the end of its color layer."""
     toc = read_toc(open_source(path.read_bytes()))
     return max(entry.end for entry in toc.entries if int(entry.layer) <= 1)
 
@@ -61,7 +61,7 @@ def _open(browser, server: ViewerServer, size=SIZE, query: str = "") -> None:
 
 @pytest.fixture(scope="module")
 def donut(tmp_path_factory):
-    """(path, decoded colour layer) of samples/donut.ply at quality 5."""
+    """(path, decoded color layer) of samples/donut.ply at quality 5."""
     path = tmp_path_factory.mktemp("donut") / "donut.csgs"
     data = Encoder(quality=5, hyperprior=False).encode(read_ply(SAMPLE))
     path.write_bytes(data)
@@ -81,7 +81,7 @@ def test_page_draws_the_sample_like_the_project_rasterizer(browser, donut):
     path, scene = donut
     with ViewerServer(path) as server:
         _open(browser, server)
-        state = wait_for_state(browser, lambda s: s["colourShown"] or s["error"])
+        state = wait_for_state(browser, lambda s: s["colorShown"] or s["error"])
         assert state["error"] is None
         assert state["count"] == len(scene)
         assert state["firstFrameMs"] > 0
@@ -147,17 +147,17 @@ def _save_page_screenshot(browser, path: Path) -> None:
         image.crop(tuple(int(v) for v in box)).save(path, optimize=True)
 
 
-def test_truncated_file_shows_the_colour_layer_and_says_what_is_missing(browser, objects,
+def test_truncated_file_shows_the_color_layer_and_says_what_is_missing(browser, objects,
                                                                           tmp_path):
     path, scene = objects
     data = path.read_bytes()
-    colour_end = _colour_end(path)
-    cut = colour_end + (len(data) - colour_end) // 2
+    color_end = _color_end(path)
+    cut = color_end + (len(data) - color_end) // 2
     truncated = tmp_path / "cut.csgs"
     truncated.write_bytes(data[:cut])
     with ViewerServer(truncated) as server:
         _open(browser, server, CLICK_SIZE)
-        state = wait_for_state(browser, lambda s: s["phase"] == "error" and s["colourShown"])
+        state = wait_for_state(browser, lambda s: s["phase"] == "error" and s["colorShown"])
     assert state["count"] == len(scene)
     assert state["error"]["stage"] == "semantic"
     assert state["error"]["chunk"] in ("SEMF", "SEML")
@@ -165,25 +165,25 @@ def test_truncated_file_shows_the_colour_layer_and_says_what_is_missing(browser,
     from selenium.webdriver.common.by import By
 
     message = browser.find_element(By.ID, "message").text
-    assert "colour layer is shown" in message and "truncated" in message
+    assert "color layer is shown" in message and "truncated" in message
     assert f"chunk {state['error']['chunk']}, byte offset {cut}" in message
     page = show_camera(browser, overview_camera(scene.positions, width=CLICK_SIZE[0],
                                                 height=CLICK_SIZE[1]))
     assert (page.max(axis=2) > 0.1).mean() > 0.02  # the objects are drawn
 
 
-def test_colour_only_reads_only_the_colour_layer(browser, objects):
+def test_color_only_reads_only_the_color_layer(browser, objects):
     path, scene = objects
-    colour_end = _colour_end(path)
-    assert colour_end < path.stat().st_size
+    color_end = _color_end(path)
+    assert color_end < path.stat().st_size
     with ViewerServer(path, layers=("color",)) as server:
         _open(browser, server, CLICK_SIZE)
-        state = wait_for_state(browser, lambda s: (s["phase"] == "done" and s["colourShown"])
+        state = wait_for_state(browser, lambda s: (s["phase"] == "done" and s["colorShown"])
                                or s["error"])
         sent = server.scene_bytes_sent
-    assert state["error"] is None and state["colourShown"] and not state["semanticReady"]
+    assert state["error"] is None and state["colorShown"] and not state["semanticReady"]
     assert state["count"] == len(scene)
-    assert sent == colour_end
+    assert sent == color_end
 
 
 def test_file_picker_opens_a_file(browser, objects):
@@ -209,7 +209,7 @@ def test_default_view_is_the_orbit_view_and_the_controls_move_it(browser, donut)
     centre = np.mean(robust_bounds(scene), axis=0)
     with ViewerServer(path) as server:
         _open(browser, server)
-        wait_for_state(browser, lambda s: s["colourShown"] or s["error"])
+        wait_for_state(browser, lambda s: s["colorShown"] or s["error"])
         camera = browser.execute_script("return window.csgsViewer.camera()")
         w2c = np.array(camera["world_to_camera"]).reshape(4, 4)
         assert np.allclose(w2c, expected.world_to_camera, atol=1e-5)
@@ -245,7 +245,7 @@ def test_anchor_scenes_are_reported_as_not_supported(browser):
     with ViewerServer(vector) as server:
         _open(browser, server)
         state = wait_for_state(browser, lambda s: s["phase"] == "error")
-    assert not state["colourShown"]
+    assert not state["colorShown"]
     message = browser.find_element(By.ID, "message").text
     assert "Cannot show this file" in message and "not implemented" in message
 
@@ -274,7 +274,7 @@ def test_an_empty_scene_opens_with_nothing_to_draw(browser, tmp_path):
     path.write_bytes(Encoder(quality=5).encode(empty))
     with ViewerServer(path) as server:
         _open(browser, server)
-        state = wait_for_state(browser, lambda s: (s["phase"] == "done" and s["colourShown"])
+        state = wait_for_state(browser, lambda s: (s["phase"] == "done" and s["colorShown"])
                                or s["error"])
         assert state["error"] is None and state["count"] == 0
         camera = orbit_cameras(labelled_blob_scene(1, 10), 1, width=SIZE[0], height=SIZE[1])[0]

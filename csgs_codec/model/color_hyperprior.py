@@ -1,8 +1,8 @@
-"""Fit the colour layer's INR hyperprior for a standard 3DGS scene (torch; encoder only).
+"""Fit the color layer's INR hyperprior for a standard 3DGS scene (torch; encoder only).
 
-The colour streams are quantized with the uniform steps of the quality preset, so this network
+The color streams are quantized with the uniform steps of the quality preset, so this network
 changes the rate only, never the reconstruction. For every Gaussian it reads the positional
-embedding of the Gaussian's integer grid cell and predicts, for every channel of every colour
+embedding of the Gaussian's integer grid cell and predicts, for every channel of every color
 stream, a mean (units of 1/64 of a quantization step) and a scale-table index of the channel's
 *base residual* b: the quantization index, or what is left of it after the channel-wise
 prediction from the channels before it (csgs_codec/codec/float_stream.py). The coded symbol
@@ -45,8 +45,8 @@ WEIGHT_BITS = (8, 8, 10)
 
 
 @dataclass(frozen=True)
-class ColourFitSettings:
-    """Training settings of the colour hyperprior (defaults: about 10 s on one core)."""
+class ColorFitSettings:
+    """Training settings of the color hyperprior (defaults: about 10 s on one core)."""
 
     hidden: int = 32
     steps: int = 1500
@@ -61,8 +61,8 @@ class ColourFitSettings:
     training_rows: int = 1 << 18
 
 
-class ColourPriorFit:
-    """A colour hyperprior fit that can run in parts, with an export between them (the
+class ColorPriorFit:
+    """A color hyperprior fit that can run in parts, with an export between them (the
     encoder looks at a short trial before paying for the whole fit). Training to step k in
     one call or in several gives the same network.
 
@@ -72,16 +72,16 @@ class ColourPriorFit:
         residuals: (N, T) int64 base residuals of the T modelled channels (in steps).
         settings: training settings.
         mean_bits, mean_limit: the format's mean outputs are in units of 2^-mean_bits steps
-            and clamped to +-mean_limit (csgs_codec/codec/colour_prior.py).
+            and clamped to +-mean_limit (csgs_codec/codec/color_prior.py).
 
     The exported network has 2T outputs: T mean indices, then T scale-table indices in
     [0, 63].
     """
 
     def __init__(self, cells: np.ndarray, pos_bits: int, residuals: np.ndarray,
-                 settings: ColourFitSettings | None = None, *, mean_bits: int,
+                 settings: ColorFitSettings | None = None, *, mean_bits: int,
                  mean_limit: int) -> None:
-        self.settings = s = settings or ColourFitSettings()
+        self.settings = s = settings or ColorFitSettings()
         self.cells, self.pos_bits = cells, pos_bits
         self.num_freqs = num_freqs_for(pos_bits)
         rows = _every_kth(len(cells), s.training_rows)
@@ -129,10 +129,10 @@ class ColourPriorFit:
                                          out[:, t:] * INDEX_UNIT, 1.0, 0.0)
                 loss = bits.sum(dim=1).mean()
                 if not torch.isfinite(loss):
-                    raise ModelError(f"the colour hyperprior fit diverged at step {step}")
+                    raise ModelError(f"the color hyperprior fit diverged at step {step}")
                 loss.backward()
                 if not math.isfinite(clip_gradients(self.optimizer.params, GRAD_CLIP_NORM)):
-                    raise ModelError(f"the colour hyperprior fit diverged at step {step}")
+                    raise ModelError(f"the color hyperprior fit diverged at step {step}")
                 self.optimizer.step()
                 self.steps_done = step + 1
                 if on_step is not None and (self.steps_done % 50 == 0

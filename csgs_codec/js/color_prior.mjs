@@ -1,5 +1,5 @@
 /**
- * The colour hyperprior chunk CHYP (spec/FORMAT.md §12.19): a channel mask over the colour
+ * The color hyperprior chunk CHYP (spec/FORMAT.md §12.19): a channel mask over the color
  * streams and an integer network whose outputs give each modelled channel a per-Gaussian
  * mean (in steps) and scale-table index.
  */
@@ -11,16 +11,16 @@ import { forwardIntNet, parseIntNet } from './intnet.mjs';
 export const STREAM_CHANNELS = { SHDC: 3, SHBA: 9, SHBB: 15, SHBC: 21, OPAC: 1, SCAL: 3, ROTN: 3 };
 
 /**
- * Parse a CHYP payload for the colour streams ``codes`` and a grid of ``posBits``.
+ * Parse a CHYP payload for the color streams ``codes`` and a grid of ``posBits``.
  * @returns {{mask: Uint8Array, net: object}}
  */
-export function parseColourPrior(bytes, baseOffset, codes, posBits, family) {
+export function parseColorPrior(bytes, baseOffset, codes, posBits, family) {
   const r = new ByteReader(bytes, baseOffset, 'CHYP');
   const version = r.u8('version');
-  if (version !== 1) throw r.error(`colour hyperprior version ${version} is not 1`, baseOffset);
+  if (version !== 1) throw r.error(`color hyperprior version ${version} is not 1`, baseOffset);
   const total = codes.reduce((sum, code) => sum + STREAM_CHANNELS[code], 0);
   const count = r.varint('channel_count', 65536);
-  if (count !== total) throw r.error(`the mask covers ${count} channels, the colour streams have ${total}`);
+  if (count !== total) throw r.error(`the mask covers ${count} channels, the color streams have ${total}`);
   const packed = r.raw(Math.ceil(total / 8), 'channel_mask');
   const mask = new Uint8Array(total);
   for (let i = 0; i < 8 * packed.length; i++) {

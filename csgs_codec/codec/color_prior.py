@@ -1,8 +1,8 @@
-"""The colour layer's INR hyperprior (FORMAT §12.19): the CHYP payload and the per-channel
+"""The color layer's INR hyperprior (FORMAT §12.19): the CHYP payload and the per-channel
 priors its network gives the float streams. Numpy only; the fit is in
-:mod:`csgs_codec.model.colour_hyperprior`.
+:mod:`csgs_codec.model.color_hyperprior`.
 
-The colour float streams, in order (dc, rest1.., opacity, scale, rot), have T channels in
+The color float streams, in order (dc, rest1.., opacity, scale, rot), have T channels in
 all; a channel mask says which of them the network models. With M modelled channels the
 network has 2M outputs per Gaussian: M mean indices (units of 1/64 step) then M scale-table
 indices. The network reads the Gaussian's integer grid cell (the geometry's cell; far
@@ -34,11 +34,11 @@ SCALE_MAX = SCALE_COUNT - 1
 
 
 @dataclass(frozen=True)
-class ColourPrior:
-    """A fitted colour hyperprior.
+class ColorPrior:
+    """A fitted color hyperprior.
 
     Attributes:
-        mask: (T,) bool, which channels of the colour streams (in stream order) it models.
+        mask: (T,) bool, which channels of the color streams (in stream order) it models.
         net: the integer network, 2 * mask.sum() outputs.
     """
 
@@ -47,11 +47,11 @@ class ColourPrior:
 
 
 def stream_layout(names: list[str]) -> list[tuple[str, int]]:
-    """(stream, channel) of every channel of the colour streams ``names``, in order."""
+    """(stream, channel) of every channel of the color streams ``names``, in order."""
     return [(name, c) for name in names for c in range(STREAM_CHANNELS[name])]
 
 
-def modelled_streams(prior: ColourPrior, names: list[str]) -> set[str]:
+def modelled_streams(prior: ColorPrior, names: list[str]) -> set[str]:
     """The streams among ``names`` with at least one channel the prior models."""
     return {name for (name, _), on in zip(stream_layout(names), prior.mask) if on}
 
@@ -63,7 +63,7 @@ def prior_cells(cells: np.ndarray, far_count: int) -> np.ndarray:
                            np.zeros((far_count, 3), np.int64)])
 
 
-def channel_priors(prior: ColourPrior, cells: np.ndarray, names: list[str]
+def channel_priors(prior: ColorPrior, cells: np.ndarray, names: list[str]
                    ) -> dict[str, dict[int, ChannelPrior]]:
     """Run the network on ``cells`` (N, 3): stream -> channel -> :class:`ChannelPrior`."""
     out = prior.net.forward(cells)
@@ -80,7 +80,7 @@ def channel_priors(prior: ColourPrior, cells: np.ndarray, names: list[str]
     return result
 
 
-def keep_outputs(prior: ColourPrior, keep: np.ndarray) -> ColourPrior:
+def keep_outputs(prior: ColorPrior, keep: np.ndarray) -> ColorPrior:
     """The prior restricted to the modelled channels where ``keep`` (M,) is true: the network's
     last layer loses the other channels' rows, so the kept outputs are unchanged."""
     keep = np.asarray(keep, bool)
@@ -92,10 +92,10 @@ def keep_outputs(prior: ColourPrior, keep: np.ndarray) -> ColourPrior:
                  prior.net.out_hi[rows])
     mask = prior.mask.copy()
     mask[np.flatnonzero(mask)[~keep]] = False
-    return ColourPrior(mask, net)
+    return ColorPrior(mask, net)
 
 
-def prior_to_bytes(prior: ColourPrior) -> bytes:
+def prior_to_bytes(prior: ColorPrior) -> bytes:
     """The CHYP payload: u8 version, varint T, the mask (ceil(T / 8) bytes, channel i in bit
     i mod 8 of byte i // 8), then the network payload (FORMAT §16.4)."""
     out = ByteWriter()
@@ -107,8 +107,8 @@ def prior_to_bytes(prior: ColourPrior) -> bytes:
 
 
 def prior_from_bytes(data: bytes, *, base_offset: int, names: list[str],
-                     pos_bits: int) -> ColourPrior:
-    """Parse a CHYP payload for the colour streams ``names`` and a grid of ``pos_bits``.
+                     pos_bits: int) -> ColorPrior:
+    """Parse a CHYP payload for the color streams ``names`` and a grid of ``pos_bits``.
 
     Raises:
         FormatError: unknown version, a channel count or mask that does not fit the streams,
@@ -117,12 +117,12 @@ def prior_from_bytes(data: bytes, *, base_offset: int, names: list[str],
     r = ByteReader(data, base_offset=base_offset, chunk="CHYP")
     version = r.fixed("u8", "version")
     if version != CHYP_VERSION:
-        raise r.error(f"colour hyperprior version {version} is not {CHYP_VERSION}",
+        raise r.error(f"color hyperprior version {version} is not {CHYP_VERSION}",
                       at=base_offset)
     total = len(stream_layout(names))
     count = r.varint("channel_count", maximum=1 << 16)
     if count != total:
-        raise r.error(f"the mask covers {count} channels, the colour streams have {total}")
+        raise r.error(f"the mask covers {count} channels, the color streams have {total}")
     packed = np.frombuffer(r.raw((total + 7) // 8, "channel_mask"), np.uint8)
     bits = np.unpackbits(packed, bitorder="little").astype(bool)
     if bits[total:].any():
@@ -142,4 +142,4 @@ def prior_from_bytes(data: bytes, *, base_offset: int, names: list[str],
     if net.pos_bits != pos_bits:
         raise FormatError(f"network pos_bits {net.pos_bits} differs from the grid's "
                           f"{pos_bits}", chunk="CHYP", offset=r.offset)
-    return ColourPrior(mask, net)
+    return ColorPrior(mask, net)

@@ -1,4 +1,4 @@
-"""Encoder side of the colour hyperprior: fit it on the planned streams and keep it only for
+"""Encoder side of the color hyperprior: fit it on the planned streams and keep it only for
 the channels, and only when, it makes the file smaller (the network's bytes counted)."""
 
 from __future__ import annotations
@@ -8,10 +8,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from csgs_codec.codec.colour_prior import (
+from csgs_codec.codec.color_prior import (
     MEAN_BITS,
     MEAN_LIMIT,
-    ColourPrior,
+    ColorPrior,
     channel_priors,
     keep_outputs,
     prior_to_bytes,
@@ -29,7 +29,7 @@ from csgs_codec.errors import CsgsWarning, ModelError
 #: Scenes with fewer Gaussians skip the fit: its network (about 3 KB) would cost more than
 #: the 1-3 bits per Gaussian it saves on the scenes measured (benchmarks/rd.py).
 MIN_GAUSSIANS = 8192
-#: The prior must save at least this share of the colour layer's bits: below it, the network
+#: The prior must save at least this share of the color layer's bits: below it, the network
 #: evaluation at decode (about 0.3-0.5 s per 250k Gaussians on one core) is not worth it.
 MIN_SAVING_SHARE = 0.02
 #: Steps of the trial fit, and the share of the required saving the trial must show for the
@@ -40,11 +40,11 @@ TRIAL_SHARE = 0.5
 
 @dataclass(frozen=True)
 class PriorFitPolicy:
-    """How the encoder fits the colour hyperprior and when it keeps it.
+    """How the encoder fits the color hyperprior and when it keeps it.
 
     Attributes:
         settings: the fit's training settings (a
-            :class:`~csgs_codec.model.colour_hyperprior.ColourFitSettings`); None: its
+            :class:`~csgs_codec.model.color_hyperprior.ColorFitSettings`); None: its
             defaults (1,500 steps, about 10 s on one core).
         min_gaussians: scenes (tiles) with fewer Gaussians skip the fit.
         keep_when_larger: keep the prior for every channel it codes smaller even when the
@@ -72,7 +72,7 @@ class PriorChoice:
 
 def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int,
                  on_step=None, policy: PriorFitPolicy = DEFAULT_PRIOR_FIT) -> PriorChoice:
-    """Fit the colour hyperprior on ``plans`` (stream -> plan, in stream order) and keep it
+    """Fit the color hyperprior on ``plans`` (stream -> plan, in stream order) and keep it
     where it pays.
 
     The fit first runs ``TRIAL_STEPS`` steps; when the exported trial network saves less
@@ -81,7 +81,7 @@ def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int,
     have been left out).
 
     Args:
-        cells: (N, 3) int64 network inputs (:func:`~csgs_codec.codec.colour_prior.prior_cells`).
+        cells: (N, 3) int64 network inputs (:func:`~csgs_codec.codec.color_prior.prior_cells`).
         pos_bits: the grid's bits per axis.
         on_step: optional ``on_step(done, total)`` told of the fit's training steps.
         policy: the fit's settings and when the prior is kept.
@@ -93,24 +93,24 @@ def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int,
                       for s, c in layout], bool)
     if len(cells) < policy.min_gaussians or not coded.any():
         return PriorChoice()
-    from csgs_codec.model.colour_hyperprior import ColourPriorFit
+    from csgs_codec.model.color_hyperprior import ColorPriorFit
 
     bases = np.column_stack([plans[s].channels[c].base
                              for (s, c), on in zip(layout, coded) if on])
     needed = MIN_SAVING_SHARE * sum(plans[s].channels[c].cost for s, c in layout)
     try:
-        fit = ColourPriorFit(cells, pos_bits, bases, policy.settings, mean_bits=MEAN_BITS,
+        fit = ColorPriorFit(cells, pos_bits, bases, policy.settings, mean_bits=MEAN_BITS,
                              mean_limit=MEAN_LIMIT)
         total = fit.settings.steps
         if total > TRIAL_STEPS and not policy.keep_when_larger:
             fit.train(TRIAL_STEPS, on_step)
-            trial_saving, _ = _evaluate(ColourPrior(coded, fit.export()), plans, cells)
+            trial_saving, _ = _evaluate(ColorPrior(coded, fit.export()), plans, cells)
             if trial_saving < TRIAL_SHARE * needed:
                 return PriorChoice()
         fit.train(total, on_step)
-        prior = ColourPrior(coded, fit.export())
+        prior = ColorPrior(coded, fit.export())
     except ModelError as err:
-        warnings.warn(f"the colour hyperprior was not used ({err.message}); the file decodes "
+        warnings.warn(f"the color hyperprior was not used ({err.message}); the file decodes "
                       "exactly but is larger", CsgsWarning, stacklevel=3)
         return PriorChoice()
     saving, choice = _evaluate(prior, plans, cells)
@@ -119,7 +119,7 @@ def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int,
     return choice
 
 
-def _evaluate(prior: ColourPrior, plans: dict[str, StreamPlan], cells: np.ndarray
+def _evaluate(prior: ColorPrior, plans: dict[str, StreamPlan], cells: np.ndarray
               ) -> tuple[float, PriorChoice]:
     """(bits saved net of the CHYP payload, the choice) when ``prior`` codes the channels
     where it codes smaller; the saving is -inf when it codes none smaller."""

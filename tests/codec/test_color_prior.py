@@ -1,4 +1,4 @@
-"""The colour hyperprior (CHYP, channel mode 5): rate only, exact decode, clear errors."""
+"""The color hyperprior (CHYP, channel mode 5): rate only, exact decode, clear errors."""
 
 from __future__ import annotations
 
@@ -9,24 +9,24 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from csgs_codec.codec.colour_prior import (
-    ColourPrior,
+from csgs_codec.codec.color_prior import (
+    ColorPrior,
     keep_outputs,
     prior_from_bytes,
     prior_to_bytes,
 )
-from csgs_codec.codec.colour_prior_choice import PriorFitPolicy
+from csgs_codec.codec.color_prior_choice import PriorFitPolicy
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
 from csgs_codec.codec.payloads import SceneHeader
 from csgs_codec.errors import FormatError
 from csgs_codec.format import Chunk, read_layers, write_container
-from csgs_codec.model.colour_hyperprior import ColourFitSettings
+from csgs_codec.model.color_hyperprior import ColorFitSettings
 from csgs_codec.scene.ply_io import read_ply
 from tests.codec.helpers import random_scene
 from tests.conftest import SAMPLE
 
-SHORT_FIT = ColourFitSettings(steps=150, batch=512)
+SHORT_FIT = ColorFitSettings(steps=150, batch=512)
 NAMES = ["dc", "opacity", "scale", "rot"]
 
 
@@ -60,7 +60,7 @@ def rebuilt(data: bytes, replace_with: dict[str, bytes] | None = None,
 
 
 def chyp_prior(data: bytes):
-    """(CHYP payload, its parsed ColourPrior, the grid bits) of an encoded file."""
+    """(CHYP payload, its parsed ColorPrior, the grid bits) of an encoded file."""
     chunks = {c.type: c.payload for c in chunks_of(data)}
     bits = max(SceneHeader.from_bytes(chunks["SCNE"], 0).grid_bits, 1)
     payload = chunks["CHYP"]
@@ -87,7 +87,7 @@ def test_prior_decodes_identically_with_one_and_two_threads(small_pair):
 
 
 def test_prior_makes_a_real_scene_smaller(donut):
-    policy = PriorFitPolicy(ColourFitSettings(steps=300))
+    policy = PriorFitPolicy(ColorFitSettings(steps=300))
     with_prior = Encoder(quality=5, prior_fit=policy).encode_with_report(donut)
     without = Encoder(quality=5, hyperprior=False).encode(donut)
     assert "CHYP" in with_prior.stream_bytes
@@ -113,7 +113,7 @@ def test_keep_outputs_leaves_the_kept_outputs_unchanged(small_pair):
 
 
 def test_a_mode_5_channel_without_chyp_names_its_chunk(small_pair):
-    with pytest.raises(FormatError, match="colour hyperprior") as info:
+    with pytest.raises(FormatError, match="color hyperprior") as info:
         Decoder().decode(rebuilt(small_pair[0].data, drop="CHYP"))
     assert info.value.chunk in ("SHDC", "OPAC", "SCAL", "ROTN")
 
@@ -137,7 +137,7 @@ def test_scale_outputs_outside_the_table_family_are_refused(small_pair):
     payload, prior, bits = chyp_prior(small_pair[0].data)
     hi = prior.net.out_hi.copy()
     hi[-1] = 64
-    bad = ColourPrior(prior.mask, replace(prior.net, out_hi=hi))
+    bad = ColorPrior(prior.mask, replace(prior.net, out_hi=hi))
     with pytest.raises(FormatError, match="scale"):
         prior_from_bytes(prior_to_bytes(bad), base_offset=0, names=NAMES, pos_bits=bits)
     with pytest.raises(FormatError, match="pos_bits"):
@@ -160,7 +160,7 @@ def test_damaged_chyp_only_raises_format_error(small_pair):
 
 def test_fit_progress_counts_the_training_steps(donut):
     calls = []
-    policy = PriorFitPolicy(ColourFitSettings(steps=120, batch=256), min_gaussians=0)
+    policy = PriorFitPolicy(ColorFitSettings(steps=120, batch=256), min_gaussians=0)
     Encoder(quality=4, prior_fit=policy,
             fit_progress=lambda done, total: calls.append((done, total))
             ).encode(donut.subset(np.arange(2000)))
@@ -168,18 +168,18 @@ def test_fit_progress_counts_the_training_steps(donut):
 
 
 def test_a_fit_run_in_parts_equals_one_run(donut):
-    from csgs_codec.codec.colour_prior import MEAN_BITS, MEAN_LIMIT
+    from csgs_codec.codec.color_prior import MEAN_BITS, MEAN_LIMIT
     from csgs_codec.entropy.intnet_bytes import intnet_to_bytes
-    from csgs_codec.model.colour_hyperprior import ColourPriorFit
+    from csgs_codec.model.color_hyperprior import ColorPriorFit
 
     rng = np.random.default_rng(4)
     cells = rng.integers(0, 1 << 10, (3000, 3))
     residuals = np.column_stack([cells[:, 0] // 64 + rng.integers(-2, 3, 3000),
                                  rng.integers(-5, 6, 3000)])
-    settings = ColourFitSettings(steps=80, batch=256)
+    settings = ColorFitSettings(steps=80, batch=256)
 
     def fit():
-        return ColourPriorFit(cells, 10, residuals, settings, mean_bits=MEAN_BITS,
+        return ColorPriorFit(cells, 10, residuals, settings, mean_bits=MEAN_BITS,
                               mean_limit=MEAN_LIMIT)
 
     whole, parts = fit(), fit()
@@ -192,7 +192,7 @@ def test_a_fit_run_in_parts_equals_one_run(donut):
 def test_a_trial_that_saves_little_stops_the_fit():
     calls = []
     scene = random_scene(6000, sh_degree=0, seed=5)  # attributes independent of position
-    policy = PriorFitPolicy(ColourFitSettings(steps=600, batch=256), min_gaussians=0)
+    policy = PriorFitPolicy(ColorFitSettings(steps=600, batch=256), min_gaussians=0)
     result = Encoder(quality=5, prior_fit=policy,
                      fit_progress=lambda done, total: calls.append(done)
                      ).encode_with_report(scene)
@@ -203,13 +203,13 @@ def test_a_trial_that_saves_little_stops_the_fit():
 def test_the_default_encoder_runs_the_full_fit_and_keeps_the_prior(donut):
     """The encoder as users run it (no test settings): the whole 1,500-step fit on the
     sample, the prior kept, and the file decodes to the reconstruction."""
-    from csgs_codec.codec.colour_prior_choice import DEFAULT_PRIOR_FIT
+    from csgs_codec.codec.color_prior_choice import DEFAULT_PRIOR_FIT
 
     steps = []
     encoder = Encoder(fit_progress=lambda done, total: steps.append((done, total)))
     assert encoder.prior_fit is DEFAULT_PRIOR_FIT and DEFAULT_PRIOR_FIT.settings is None
     result = encoder.encode_with_report(donut)
-    assert steps[-1] == (ColourFitSettings().steps, ColourFitSettings().steps)
+    assert steps[-1] == (ColorFitSettings().steps, ColorFitSettings().steps)
     assert "CHYP" in result.stream_bytes
     _assert_same_scene(Decoder().decode(result.data), result.reconstruction)
 

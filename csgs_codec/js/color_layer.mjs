@@ -1,12 +1,12 @@
 /**
- * The colour layer of a standard scene: the float streams SHDC, SHB*, OPAC, SCAL and ROTN
+ * The color layer of a standard scene: the float streams SHDC, SHB*, OPAC, SCAL and ROTN
  * (§12.8-§12.15) written into interleaved output arrays, and the rotations (§12.4).
  */
 
 import { ByteReader } from './bytes.mjs';
 import { decodeCategorical } from './categorical.mjs';
 import { single } from './chunks.mjs';
-import { STREAM_CHANNELS } from './colour_prior.mjs';
+import { STREAM_CHANNELS } from './color_prior.mjs';
 import { FormatError } from './errors.mjs';
 import { readFloatStream } from './float_stream.mjs';
 
@@ -25,7 +25,7 @@ function checkTarget(target, channels, n, chunk) {
   }
 }
 
-/** One colour stream, its values written into ``target`` (and for ROTN the dropped-component
+/** One color stream, its values written into ``target`` (and for ROTN the dropped-component
  * indices returned); ``logScales`` (ROTN) returns the decoded SCAL values mode 6 reads. */
 export function decodeStream(container, header, code, priors, family, target, logScales = null) {
   const [data, offset] = single(container, code);
