@@ -83,6 +83,8 @@ def _check_header(raw: Bytes, version: int, n: int, sh_degree: int, offset: int 
 
 
 def _gunzip_exactly(raw: Bytes, size: int, decompressor, what: str, consumed: bytes) -> bytes:
+    if size == 0:  # zlib reads max_length 0 as "no limit": an empty block takes nothing
+        return b""
     out = decompressor.decompress(consumed, size)
     if len(out) < size:
         raise raw.error(f"the gzip stream ends after {len(out)} bytes of {what}, {size} "

@@ -161,3 +161,20 @@ def test_glb_from_splat_transform_reads_back_the_scene_it_was_made_from():
     np.testing.assert_allclose(scene.scales, original.scales, atol=1e-6)
     # float32 opacity in [0, 1]: the logit keeps about 1e-4 at |logit| ~ 10
     np.testing.assert_allclose(alphas(scene), alphas(original), atol=1e-7)
+
+
+def test_spz_of_sh_degree_0_with_bytes_after_its_blocks_is_refused():
+    """A legacy SPZ whose header says SH degree 0 has an empty SH block; zlib reads a read
+    limit of 0 as "no limit", so the reader once took every byte after the blocks as SH
+    coefficients and failed with a ValueError (found by the interchange fuzz test)."""
+    import gzip
+
+    from csgs_codec.errors import InputError
+    from csgs_codec.interchange.spz import parse_spz, spz_bytes
+    from tests.codec.helpers import random_scene
+
+    body = gzip.decompress(spz_bytes(random_scene(50, sh_degree=0), version=3))
+    with pytest.raises(InputError, match="bytes follow the attribute blocks"):
+        parse_spz(gzip.compress(body + bytes(600), mtime=0), "junk.spz")
+    scene, _ = parse_spz(gzip.compress(body, mtime=0), "plain.spz")
+    assert len(scene) == 50 and scene.sh_rest.shape[1] == 0
