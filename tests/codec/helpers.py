@@ -14,15 +14,17 @@ SHORT_PRIOR_FIT = PriorFitPolicy(ColorFitSettings(steps=100, batch=512))
 
 
 def random_scene(n: int, *, sh_degree: int = 1, seed: int = 0, semantic: int = 0,
-                 labels: bool = False) -> GaussianScene:
-    """A random but plausible scene: positions in a unit cube, typical attribute ranges."""
+                 labels: bool = False, spread: float = 1.0) -> GaussianScene:
+    """The tests' one random scene: anisotropic Gaussians uniformly in a cube of side
+    ``2 * spread`` around the origin, attributes in typical trained ranges (log-scales
+    around log(0.018 * spread)); ``semantic`` feature channels and ``labels`` on request."""
     rng = np.random.default_rng(seed)
     bands = {0: 0, 1: 3, 2: 8, 3: 15}[sh_degree]
     f = lambda *shape, s=1.0: (rng.normal(size=shape) * s).astype(np.float32)  # noqa: E731
     scene = GaussianScene(
-        positions=rng.uniform(-1, 1, size=(n, 3)).astype(np.float32),
+        positions=(rng.uniform(-1, 1, size=(n, 3)) * spread).astype(np.float32),
         sh_dc=f(n, 3), sh_rest=f(n, bands, 3, s=0.1), opacity=f(n, s=3.0),
-        scales=(f(n, 3, s=0.5) - 4).astype(np.float32), rotations=f(n, 4))
+        scales=(f(n, 3, s=0.5) - 4 + np.log(spread)).astype(np.float32), rotations=f(n, 4))
     if semantic:
         scene.semantic = f(n, semantic)
         scene.semantic_names = tuple(f"ins_feat_{i}" for i in range(semantic))

@@ -44,20 +44,6 @@ def gaussians(positions, colors, log_scale, opacity_logit) -> GaussianScene:
     )
 
 
-def random_scene(count: int, sh_degree: int, seed: int, spread: float = 1.0) -> GaussianScene:
-    """Random anisotropic Gaussians in a cube of side ``2 * spread`` around the origin."""
-    rng = np.random.default_rng(seed)
-    rest = {0: 0, 1: 3, 2: 8, 3: 15}[sh_degree]
-    return GaussianScene(
-        positions=rng.uniform(-spread, spread, (count, 3)).astype(np.float32),
-        sh_dc=rng.normal(0, 1, (count, 3)).astype(np.float32),
-        sh_rest=rng.normal(0, 0.3, (count, rest, 3)).astype(np.float32),
-        opacity=rng.normal(0, 2, count).astype(np.float32),
-        scales=(rng.normal(np.log(0.03 * spread), 0.6, (count, 3))).astype(np.float32),
-        rotations=rng.normal(0, 1, (count, 4)).astype(np.float32),
-    )
-
-
 def orbit_view(scene: GaussianScene, up: np.ndarray, width: int, height: int,
                azimuth_deg: float = 0.0, distance: float = 1.5) -> Camera:
     """A camera on a circle around the scene's robust centre, slightly above it."""

@@ -10,8 +10,9 @@ from csgs_codec.render import rasterizer
 from csgs_codec.render.rasterize_numba import numba_available
 from csgs_codec.render.rasterizer import render
 from csgs_codec.scene.ply_io import read_ply
+from tests.codec.helpers import random_scene
 from tests.conftest import shared_path
-from tests.render.test_raster_common import look_at_camera, orbit_view, random_scene
+from tests.render.test_raster_common import look_at_camera, orbit_view
 
 needs_numba = pytest.mark.skipif(not numba_available(), reason="numba not installed")
 TOLERANCE = 1e-4
@@ -35,7 +36,7 @@ def _assert_backends_agree(scene, camera, **kwargs):
 @needs_numba
 @pytest.mark.parametrize("sh_degree", [0, 3])
 def test_numba_matches_torch_on_random_scenes(sh_degree):
-    scene = random_scene(1500, sh_degree, seed=sh_degree)
+    scene = random_scene(1500, sh_degree=sh_degree, seed=sh_degree)
     cam = look_at_camera(np.array([0.3, -0.8, -3.0]), np.zeros(3), np.array([0.0, -1.0, 0.0]),
                          96, 72)
     feats = np.random.default_rng(1).normal(size=(len(scene), 3)).astype(np.float32)
@@ -44,7 +45,7 @@ def test_numba_matches_torch_on_random_scenes(sh_degree):
 
 @needs_numba
 def test_numba_matches_torch_with_the_camera_inside_the_scene():
-    scene = random_scene(1500, 1, seed=11, spread=2.0)
+    scene = random_scene(1500, sh_degree=1, seed=11, spread=2.0)
     cam = look_at_camera(np.array([0.0, 0.0, 0.0]), np.array([0.0, 0.2, 1.0]),
                          np.array([0.0, -1.0, 0.0]), 80, 60, fov_deg=90)
     _assert_backends_agree(scene, cam)
@@ -71,7 +72,7 @@ def test_numba_result_does_not_depend_on_the_tile_size():
     from csgs_codec.render.rasterize_torch import prepare_gaussians
     from csgs_codec.render.rasterizer import scene_tensors
 
-    scene = random_scene(800, 1, seed=21)
+    scene = random_scene(800, sh_degree=1, seed=21)
     cam = look_at_camera(np.array([0.3, -0.8, -3.0]), np.zeros(3), np.array([0.0, -1.0, 0.0]),
                          70, 50)
     t = scene_tensors(scene)
@@ -85,7 +86,7 @@ def test_numba_result_does_not_depend_on_the_tile_size():
 
 def test_numba_request_without_numba_falls_back_to_torch_with_a_warning(monkeypatch):
     monkeypatch.setattr(rasterizer, "numba_available", lambda: False)
-    scene = random_scene(50, 0, seed=2)
+    scene = random_scene(50, sh_degree=0, seed=2)
     cam = look_at_camera(np.array([0.0, 0.0, -3.0]), np.zeros(3), np.array([0.0, -1.0, 0.0]),
                          16, 12)
     with pytest.warns(CsgsWarning, match="numba is not installed"):

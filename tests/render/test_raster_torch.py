@@ -10,7 +10,8 @@ from csgs_codec.errors import InputError
 from csgs_codec.render import composite_torch
 from csgs_codec.render.rasterize_torch import rasterize_gaussians
 from csgs_codec.render.rasterizer import scene_tensors
-from tests.render.test_raster_common import camera_at_origin, look_at_camera, random_scene
+from tests.codec.helpers import random_scene
+from tests.render.test_raster_common import camera_at_origin, look_at_camera
 
 
 def _tiny_inputs(dtype=torch.float64):
@@ -64,7 +65,7 @@ def test_gradients_flow_through_colors_given_directly():
 
 
 def test_checkpointing_changes_neither_image_nor_gradients(monkeypatch):
-    scene = random_scene(300, 1, seed=5)
+    scene = random_scene(300, sh_degree=1, seed=5)
     cam = look_at_camera(np.array([0.0, -0.5, -3.0]), np.zeros(3), np.array([0.0, -1.0, 0.0]),
                          48, 40)
     results = []
@@ -83,7 +84,7 @@ def test_checkpointing_changes_neither_image_nor_gradients(monkeypatch):
 
 
 def test_row_bands_do_not_change_the_image(monkeypatch):
-    scene = random_scene(400, 2, seed=9)
+    scene = random_scene(400, sh_degree=2, seed=9)
     cam = look_at_camera(np.array([0.2, -0.4, -3.0]), np.zeros(3), np.array([0.0, -1.0, 0.0]),
                          64, 48)
     t = scene_tensors(scene)
@@ -96,7 +97,7 @@ def test_row_bands_do_not_change_the_image(monkeypatch):
 
 
 def test_depth_chunks_do_not_change_the_image(monkeypatch):
-    scene = random_scene(600, 1, seed=12)
+    scene = random_scene(600, sh_degree=1, seed=12)
     cam = look_at_camera(np.array([0.1, -0.3, -2.5]), np.zeros(3), np.array([0.0, -1.0, 0.0]),
                          64, 48)
     t = scene_tensors(scene)
