@@ -12,6 +12,7 @@ import pytest
 
 from csgs_codec.errors import CsgsWarning, InputError, UnsupportedError
 from csgs_codec.render.cameras_io import load_cameras, resize_camera
+from tests.colmap_model import ColmapCamera, ColmapImage, write_colmap_model
 from tests.conftest import REPO
 from tests.render.synthetic import project
 
@@ -86,17 +87,14 @@ def test_colmap_text_loads_from_either_file_and_sparse_zero(tmp_path):
 
 
 def write_colmap_binary(folder, *, truncate: int = 0, model_id: int = 1) -> None:
-    folder.mkdir(parents=True, exist_ok=True)
-    cameras = struct.pack("<Q", 2)
-    cameras += struct.pack("<iiQQ4d", 1, model_id, 640, 480, 500, 510, 320, 240)
-    cameras += struct.pack("<iiQQ3d", 2, 0, 320, 240, 250, 160, 120)  # SIMPLE_PINHOLE
-    images = struct.pack("<Q", 2)
-    images += struct.pack("<i7di", 1, 0.5, 0.5, 0.5, -0.5, 0, 0, 4, 1) + b"view_a.png\0"
-    images += struct.pack("<Q", 2) + struct.pack("<ddq", 1.5, 2.5, -1) * 2
-    images += struct.pack("<i7di", 2, 0, 1, 0, 0, 0, 0, 3, 2) + b"view_b.png\0"
-    images += struct.pack("<Q", 0)
-    (folder / "cameras.bin").write_bytes(cameras)
-    (folder / "images.bin").write_bytes(images[:len(images) - truncate])
+    """Two views: a PINHOLE (or ``model_id``) camera with two 2D points and a
+    SIMPLE_PINHOLE one."""
+    cameras = [ColmapCamera(1, model_id, 640, 480, (500, 510, 320, 240)),
+               ColmapCamera(2, "SIMPLE_PINHOLE", 320, 240, (250, 160, 120))]
+    images = [ColmapImage(1, (0.5, 0.5, 0.5, -0.5), (0, 0, 4), 1, "view_a.png",
+                          [(1.5, 2.5, -1)] * 2),
+              ColmapImage(2, (0, 1, 0, 0), (0, 0, 3), 2, "view_b.png")]
+    write_colmap_model(folder, cameras, images, binary=True, truncate=truncate)
 
 
 def test_colmap_binary_model_gives_known_projections(tmp_path):

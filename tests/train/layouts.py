@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import json
-import struct
 from pathlib import Path
 
 import numpy as np
 
 from csgs_codec.render.image_io import save_png
 from csgs_codec.train.views import TrainingView
+from tests.colmap_model import ColmapCamera, ColmapImage, write_colmap_model
 
 
 def rotation_to_quaternion(rotation: np.ndarray) -> np.ndarray:
@@ -59,29 +59,12 @@ def write_colmap(views: list[TrainingView], root: Path, *, binary: bool) -> Path
     names = [f"view_{i:03d}.png" for i in range(len(views))]
     save_images(views, root / "images", names)
     model = root / "sparse" / "0"
-    model.mkdir(parents=True)
-    records = []
-    for i, (view, name) in enumerate(zip(views, names)):
+    cameras, images = [], []
+    for i, (view, name) in enumerate(zip(views, names), start=1):
         c = view.camera
         w2c = c.world_to_camera
-        records.append((i + 1, c, rotation_to_quaternion(w2c[:3, :3]), w2c[:3, 3], name))
-    if binary:
-        cams = struct.pack("<Q", len(records))
-        imgs = struct.pack("<Q", len(records))
-        for cam_id, c, q, t, name in records:
-            cams += struct.pack("<iiQQ4d", cam_id, 1, c.width, c.height, c.fx, c.fy, c.cx, c.cy)
-            imgs += struct.pack("<i7di", cam_id, *q, *t, cam_id) + name.encode() + b"\0"
-            imgs += struct.pack("<Q", 0)
-        (model / "cameras.bin").write_bytes(cams)
-        (model / "images.bin").write_bytes(imgs)
-    else:
-        cam_lines = [f"{i} PINHOLE {c.width} {c.height} {c.fx!r} {c.fy!r} {c.cx!r} {c.cy!r}"
-                     for i, c, _, _, _ in records]
-        img_lines = []
-        for i, _, q, t, name in records:
-            img_lines.append(" ".join([str(i), *map(repr, q.tolist()), *map(repr, t.tolist()),
-                                       str(i), name]))
-            img_lines.append("")
-        (model / "cameras.txt").write_text("\n".join(cam_lines) + "\n")
-        (model / "images.txt").write_text("\n".join(img_lines) + "\n")
+        cameras.append(ColmapCamera(i, "PINHOLE", c.width, c.height, (c.fx, c.fy, c.cx, c.cy)))
+        images.append(ColmapImage(i, tuple(rotation_to_quaternion(w2c[:3, :3]).tolist()),
+                                  tuple(w2c[:3, 3].tolist()), i, name))
+    write_colmap_model(model, cameras, images, binary=binary)
     return root
