@@ -61,8 +61,8 @@ from csgs_codec.entropy.residual import (  # noqa: E402
     to_grid,
 )
 from csgs_codec.entropy.table_choice import table_costs  # noqa: E402
-from csgs_codec.render.comparison import to_unit_range  # noqa: E402
-from csgs_codec.render.metrics import foreground_mask  # noqa: E402
+from csgs_codec.metrics.comparison import to_unit_range  # noqa: E402
+from csgs_codec.metrics.image import foreground_mask  # noqa: E402
 from csgs_codec.render.rasterizer import render  # noqa: E402
 from csgs_codec.scene.ply_io import read_ply  # noqa: E402
 

@@ -71,7 +71,7 @@ def csgs_rows(name: str, original, references, cameras, qualities, backend: str,
               repeats: int, fast: bool = False) -> list[dict]:
     """Encode, decode, check and score ``original`` at every quality; one row each
     (``fast``: with the fast encoder mode)."""
-    from csgs_codec.render.comparison import score_view
+    from csgs_codec.metrics.comparison import score_view
 
     rows = []
     for q in qualities:
@@ -201,8 +201,8 @@ def main() -> int:
     parser.add_argument("--table", default=None, help="Markdown table (also printed to stderr)")
     args = parser.parse_args()
 
-    from csgs_codec.render.comparison import render_references
-    from csgs_codec.render.orbit import orbit_cameras
+    from csgs_codec.metrics.comparison import render_references
+    from csgs_codec.scene.orbit import orbit_cameras
 
     rd_path = Path(args.rd)
     rd = load_rd(rd_path)

@@ -33,9 +33,9 @@ from train import LAYER_CHUNKS  # noqa: E402  (benchmarks/train.py)
 
 from csgs_codec import read_ply  # noqa: E402
 from csgs_codec.codec.anchor_decoder import AnchorDecoder  # noqa: E402
-from csgs_codec.render.camera import Camera  # noqa: E402
-from csgs_codec.render.orbit import orbit_cameras  # noqa: E402
 from csgs_codec.render.rasterizer import render  # noqa: E402
+from csgs_codec.scene.camera import Camera  # noqa: E402
+from csgs_codec.scene.orbit import orbit_cameras  # noqa: E402
 from csgs_codec.train.color_stage import ColorStageSettings  # noqa: E402
 from csgs_codec.train.defaults import RATE_WEIGHT_PRESETS  # noqa: E402
 from csgs_codec.train.evaluation import image_click_miou, score_views, split_views  # noqa: E402

@@ -40,8 +40,8 @@ def parse_size(text: str) -> tuple[int, int]:
 
 def cameras_from_args(args, scene) -> list:
     """The cameras ``args`` ask for: loaded from --cameras, else an orbit around ``scene``."""
-    from csgs_codec.render.cameras_io import load_cameras, resize_camera
-    from csgs_codec.render.orbit import orbit_cameras
+    from csgs_codec.scene.cameras_io import load_cameras, resize_camera
+    from csgs_codec.scene.orbit import orbit_cameras
 
     size = parse_size(args.size) if args.size else None
     if args.cameras:

@@ -28,7 +28,7 @@ def run(args) -> int:
     """Compare the two scenes and print the report."""
     from csgs_cli.scene_input import load_scene
     from csgs_cli.view_options import cameras_from_args, progress
-    from csgs_codec.render.comparison import compare_scenes
+    from csgs_codec.metrics.comparison import compare_scenes
 
     reference = load_scene(args.reference, command=NAME)
     candidate = load_scene(args.candidate, command=NAME)

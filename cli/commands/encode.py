@@ -107,7 +107,7 @@ def run(args) -> int:
         cameras_path = cameras_path or str(inria[1])
     cameras = None
     if cameras_path is not None:
-        from csgs_codec.render.cameras_io import load_cameras
+        from csgs_codec.scene.cameras_io import load_cameras
 
         cameras = load_cameras(cameras_path)
     view_pruning = (cameras is not None if args.view_pruning is None

@@ -110,7 +110,7 @@ def camera_from_view(spec: str, scene, *, size: str | None = None, up: str | Non
             camera file.
     """
     from csgs_cli.view_options import parse_size
-    from csgs_codec.render.cameras_io import load_cameras, resize_camera
+    from csgs_codec.scene.cameras_io import load_cameras, resize_camera
 
     wanted = parse_size(size) if size else None
     orbit = re.fullmatch(r"orbit:(\d{1,6})", spec.strip())
@@ -140,8 +140,8 @@ def write_mask(mask, path: str | Path) -> None:
 
 
 def _orbit_camera(scene, index: int, views: int, size: tuple[int, int], up: str | None):
-    from csgs_codec.render.orbit import orbit_cameras
     from csgs_codec.scene.gaussian_scene import GaussianScene
+    from csgs_codec.scene.orbit import orbit_cameras
 
     if views < 1:
         raise InputError(f"--orbit needs at least 1 view, got {views}", property="--orbit")

@@ -88,7 +88,7 @@ def _downscale_for(data: str, resolution: int | None) -> float:
     if resolution < 16:
         raise InputError(f"--resolution must be at least 16 pixels, got {resolution}",
                          property="resolution")
-    from csgs_codec.render.cameras_io import load_cameras
+    from csgs_codec.scene.cameras_io import load_cameras
     from csgs_codec.train.datasets import find_camera_file
 
     cameras = load_cameras(find_camera_file(Path(data)))

@@ -68,8 +68,8 @@ class RenderProbe:
 
     def __init__(self, original: GaussianScene, *, views: int = PROBE_VIEWS,
                  size: tuple[int, int] = PROBE_SIZE, backend: str = "auto") -> None:
-        from csgs_codec.render.comparison import render_references
-        from csgs_codec.render.orbit import orbit_cameras
+        from csgs_codec.metrics.comparison import render_references
+        from csgs_codec.scene.orbit import orbit_cameras
 
         self.backend = backend
         self.cameras = orbit_cameras(original, views, width=size[0], height=size[1])
@@ -78,7 +78,7 @@ class RenderProbe:
     def psnr(self, candidate: GaussianScene) -> float:
         """Mean foreground PSNR (dB) of ``candidate`` over the views that have foreground;
         inf when every view renders identically."""
-        from csgs_codec.render.comparison import score_view
+        from csgs_codec.metrics.comparison import score_view
 
         scores = [score_view(ref, candidate, cam, backend=self.backend).foreground_psnr
                   for ref, cam in zip(self.references, self.cameras)]
@@ -89,8 +89,8 @@ class RenderProbe:
         """Mean over the views with foreground of ``candidate``'s foreground mean squared
         error against the original, in squared 8-bit levels ((255 x error)^2); 0 when no
         view has foreground."""
-        from csgs_codec.render.comparison import to_unit_range
-        from csgs_codec.render.metrics import foreground_mask
+        from csgs_codec.metrics.comparison import to_unit_range
+        from csgs_codec.metrics.image import foreground_mask
         from csgs_codec.render.rasterizer import render
 
         errors = []

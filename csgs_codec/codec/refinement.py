@@ -26,9 +26,9 @@ import torch
 from csgs_codec.codec.float_stream import MODE_CONSTANT, StreamPlan
 from csgs_codec.codec.streams import SceneStreams
 from csgs_codec.entropy.residual import step_size
-from csgs_codec.render.camera import Camera
 from csgs_codec.render.rasterize_torch import rasterize_gaussians
 from csgs_codec.scene.attribute_forms import SQRT2
+from csgs_codec.scene.camera import Camera
 
 
 @dataclass(frozen=True)
@@ -187,7 +187,7 @@ def _quaternions(axis: torch.Tensor, rest: torch.Tensor) -> torch.Tensor:
 
 def _scaled(camera: Camera, width: int) -> Camera:
     """``camera`` rendered ``width`` pixels wide (intrinsics scaled, near plane kept)."""
-    from csgs_codec.render.cameras_io import resize_camera
+    from csgs_codec.scene.cameras_io import resize_camera
 
     if camera.width <= width:
         return camera

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from csgs_codec.render.camera import Camera
+from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.gaussian_scene import GaussianScene
 
 #: Default budget: pruning may add this fraction of the quantization's squared error.

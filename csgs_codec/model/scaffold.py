@@ -19,8 +19,8 @@ from torch import nn
 from torch.nn import functional
 
 from csgs_codec.errors import ModelError
-from csgs_codec.render.camera import Camera
 from csgs_codec.scene.anchor_scene import AnchorScene, MLPWeights, ScaffoldMLPWeights
+from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.gaussian_scene import GaussianScene
 
 #: Degree-0 spherical harmonic constant: rgb = 0.5 + C0 * sh_dc.

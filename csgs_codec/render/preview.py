@@ -4,7 +4,7 @@ Each Gaussian is drawn with its DC color (0.5 + C0 * sh_dc, clipped), or with a 
 integer label when the scene has labels, or with its first three semantic channels mapped to
 RGB when it has semantic features but no labels. Ellipsoids span ``sigma_scale`` standard
 deviations along each axis of the Gaussian. The view is the first orbit camera
-(:func:`~csgs_codec.render.orbit.orbit_cameras`), so it is upright by the same rule as the
+(:func:`~csgs_codec.scene.orbit.orbit_cameras`), so it is upright by the same rule as the
 renders. Works offscreen (EGL or OSMesa builds of VTK) for screenshots.
 """
 
@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.errors import InputError, UnsupportedError
-from csgs_codec.render.orbit import orbit_cameras
 from csgs_codec.scene.gaussian_scene import GaussianScene
+from csgs_codec.scene.orbit import orbit_cameras
 
 #: Real spherical-harmonic constant of band 0: color = 0.5 + SH_C0 * sh_dc.
 SH_C0 = 0.28209479177387814
@@ -93,7 +93,7 @@ def highlight_selection(colors: np.ndarray, selection: np.ndarray) -> np.ndarray
 
 def preview_camera(scene: GaussianScene, window_size: tuple[int, int] = (800, 600),
                    up: str | np.ndarray | None = None):
-    """The :class:`~csgs_codec.render.camera.Camera` the preview looks from (the first orbit
+    """The :class:`~csgs_codec.scene.camera.Camera` the preview looks from (the first orbit
     view at ``window_size``); pixel (x, y) of a screenshot is pixel (x, y) of its render."""
     width, height = window_size
     return orbit_cameras(scene, 1, width=width, height=height, up=up)[0]
@@ -152,7 +152,7 @@ def preview_plotter(scene: GaussianScene, *, mode: str = "ellipsoids", color_by:
         color_by: see :func:`gaussian_colors`.
         window_size: (width, height) pixels.
         off_screen: render without a window (for screenshots).
-        up: up direction for the view (see :func:`~csgs_codec.render.orbit.parse_up`).
+        up: up direction for the view (see :func:`~csgs_codec.scene.orbit.parse_up`).
         max_gaussians: draw at most this many (an even stride through the visible ones).
         selection: optional (N,) bool mask; the rest are drawn dim grey
             (:func:`highlight_selection`).

@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 import torch
 
-from csgs_codec.render.camera import DEFAULT_NEAR_PLANE, Camera
+from csgs_codec.scene.camera import DEFAULT_NEAR_PLANE, Camera
 
 #: Variance in pixels^2 added to every projected covariance (the 3DGS anti-aliasing low-pass).
 LOW_PASS_VARIANCE = 0.3

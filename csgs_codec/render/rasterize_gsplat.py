@@ -12,10 +12,10 @@ import numpy as np
 import torch
 
 from csgs_codec.errors import UnsupportedError
-from csgs_codec.render.camera import Camera
 from csgs_codec.render.projection import DEFAULT_NEAR_PLANE, LOW_PASS_VARIANCE
 from csgs_codec.render.render_output import RenderOutput
 from csgs_codec.render.sh import sh_to_color
+from csgs_codec.scene.camera import Camera
 
 
 def gsplat_available() -> bool:

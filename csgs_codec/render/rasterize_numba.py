@@ -13,10 +13,10 @@ import numpy as np
 import torch
 
 from csgs_codec.errors import UnsupportedError
-from csgs_codec.render.camera import Camera
 from csgs_codec.render.rasterize_torch import PreparedGaussians
 from csgs_codec.render.render_output import RenderOutput
 from csgs_codec.render.tiles import depth_order, tile_rectangles
+from csgs_codec.scene.camera import Camera
 
 #: Tile side in pixels of the numba kernels (speed only: the result does not depend on it).
 TILE_SIZE = 8

@@ -12,7 +12,6 @@ from typing import NamedTuple
 import torch
 
 from csgs_codec.errors import InputError
-from csgs_codec.render.camera import Camera
 from csgs_codec.render.composite_torch import composite
 from csgs_codec.render.projection import (
     DEFAULT_NEAR_PLANE,
@@ -21,6 +20,7 @@ from csgs_codec.render.projection import (
 )
 from csgs_codec.render.sh import sh_to_color
 from csgs_codec.render.tiles import depth_order
+from csgs_codec.scene.camera import Camera
 
 
 class RasterTensors(NamedTuple):

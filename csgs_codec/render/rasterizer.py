@@ -18,11 +18,11 @@ import numpy as np
 import torch
 
 from csgs_codec.errors import CsgsWarning, InputError
-from csgs_codec.render.camera import Camera
 from csgs_codec.render.rasterize_gsplat import gsplat_available, rasterize_gsplat
 from csgs_codec.render.rasterize_numba import numba_available, rasterize_numba
 from csgs_codec.render.rasterize_torch import prepare_gaussians, rasterize_gaussians
 from csgs_codec.render.render_output import RenderOutput
+from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.gaussian_scene import GaussianScene
 
 #: Backend names :func:`render` accepts.

@@ -24,16 +24,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from csgs_codec.errors import InputError
-from csgs_codec.render.camera import DEFAULT_NEAR_PLANE, Camera
-from csgs_codec.render.cameras_io import resize_camera
-from csgs_codec.render.orbit import (
+from csgs_codec.scene.camera import DEFAULT_NEAR_PLANE, Camera
+from csgs_codec.scene.cameras_io import resize_camera
+from csgs_codec.scene.gaussian_scene import GaussianScene
+from csgs_codec.scene.orbit import (
     NEAR_PLANE_PER_DISTANCE,
     guess_up_axis,
     look_at,
     parse_up,
     robust_bounds,
 )
-from csgs_codec.scene.gaussian_scene import GaussianScene
 
 #: Distances of the default distribution's shells, as multiples of the framing distance.
 DEFAULT_DISTANCES = (0.65, 1.0, 1.5)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from csgs_codec.errors import InputError
-from csgs_codec.render.camera import Camera
 from csgs_codec.scene.anchor_scene import AnchorScene
+from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.semantic.selection import (
     DEFAULT_THRESHOLD,

@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from csgs_codec.errors import InputError
-from csgs_codec.render.camera import Camera
 from csgs_codec.scene.anchor_scene import AnchorScene
+from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.semantic.clustering import spherical_kmeans, unit_rows
 

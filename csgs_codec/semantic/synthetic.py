@@ -7,9 +7,9 @@ import math
 
 import numpy as np
 
-from csgs_codec.render.camera import Camera
-from csgs_codec.render.orbit import look_at
+from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.gaussian_scene import SH_REST_COUNTS, GaussianScene
+from csgs_codec.scene.orbit import look_at
 
 #: Degree-0 spherical harmonic constant: rgb = 0.5 + C0 * sh_dc.
 SH_C0 = 0.28209479177387814

@@ -28,7 +28,7 @@ import numpy as np
 import torch
 
 from csgs_codec.model.scaffold import NeuralGaussians
-from csgs_codec.render.camera import Camera
+from csgs_codec.scene.camera import Camera
 from csgs_codec.train.anchor_model import AnchorModel
 
 

@@ -20,9 +20,9 @@ from torch import nn
 
 from csgs_codec.errors import InputError
 from csgs_codec.model.scaffold import NeuralGaussians, ScaffoldMLPs, neural_gaussians
-from csgs_codec.render.camera import Camera
 from csgs_codec.render.rasterize_torch import RasterTensors, rasterize_gaussians
 from csgs_codec.scene.anchor_scene import AnchorScene
+from csgs_codec.scene.camera import Camera
 
 #: A slot is kept when its mask probability exceeds this (HAC's rule).
 MASK_THRESHOLD = 0.01

@@ -30,7 +30,7 @@ import torch
 
 from csgs_codec.codec.presets import ANCHOR_BASE_STEPS, MULTIPLIERS
 from csgs_codec.errors import InputError, ModelError
-from csgs_codec.render.metrics import psnr
+from csgs_codec.metrics.image import psnr
 from csgs_codec.train import defaults
 from csgs_codec.train.anchor_growth import (
     GrowthStats,

@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.errors import CsgsWarning, InputError
-from csgs_codec.render.camera import Camera
-from csgs_codec.render.cameras_io import load_cameras, resize_camera
-from csgs_codec.render.colmap_io import is_colmap_path
+from csgs_codec.scene.camera import Camera
+from csgs_codec.scene.cameras_io import load_cameras, resize_camera
+from csgs_codec.scene.colmap_io import is_colmap_path
 from csgs_codec.train.image_files import (
     find_image,
     read_image,

@@ -7,8 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from csgs_codec.errors import InputError
+from csgs_codec.metrics.image import psnr, ssim
 from csgs_codec.model.scaffold import ScaffoldDecoder
-from csgs_codec.render.metrics import psnr, ssim
 from csgs_codec.render.rasterizer import render
 from csgs_codec.scene.anchor_scene import AnchorScene
 from csgs_codec.semantic.evaluation import click_object_ious, mask_iou, mean_iou

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.errors import InputError
-from csgs_codec.render.camera import Camera
+from csgs_codec.scene.camera import Camera
 from csgs_codec.train.datasets import find_camera_file
 
 #: File name of the ground-truth scene a synthetic dataset carries.

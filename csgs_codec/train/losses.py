@@ -4,7 +4,7 @@ Photometric (stage 1):
 
 * :func:`l1_loss`: mean absolute difference.
 * :func:`ssim`: structural similarity with the definition of
-  :func:`csgs_codec.render.metrics.ssim` (11x11 Gaussian window, sigma 1.5, C1 = 0.01^2,
+  :func:`csgs_codec.metrics.image.ssim` (11x11 Gaussian window, sigma 1.5, C1 = 0.01^2,
   C2 = 0.03^2, "valid" windows only, averaged over windows and channels; an image smaller than
   the window is one window), computed with a separable Gaussian filter so it is differentiable.
 * :func:`photometric_loss`: (1 - lambda) L1 + lambda (1 - SSIM), lambda = 0.2 as in 3DGS.
@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import torch
 
 from csgs_codec.errors import InputError
-from csgs_codec.render.ssim import ssim
+from csgs_codec.metrics.ssim import ssim
 from csgs_codec.train import defaults
 
 #: Weight of the (1 - SSIM) term in :func:`photometric_loss` (3DGS's lambda_dssim).

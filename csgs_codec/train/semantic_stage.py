@@ -24,8 +24,8 @@ import numpy as np
 import torch
 
 from csgs_codec.errors import InputError
-from csgs_codec.render.camera import Camera
 from csgs_codec.render.rasterizer import render
+from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.train.feature_prior import FactorizedGaussianPrior
 from csgs_codec.train.losses import (

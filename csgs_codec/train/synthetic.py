@@ -21,12 +21,12 @@ import numpy as np
 
 from csgs_codec.atomic_write import write_atomically
 from csgs_codec.errors import InputError
-from csgs_codec.render.camera import Camera
-from csgs_codec.render.cameras_io import OPENGL_TO_OPENCV
 from csgs_codec.render.image_io import png_bytes
-from csgs_codec.render.orbit import orbit_cameras
 from csgs_codec.render.rasterizer import render
+from csgs_codec.scene.camera import Camera
+from csgs_codec.scene.cameras_io import OPENGL_TO_OPENCV
 from csgs_codec.scene.gaussian_scene import GaussianScene
+from csgs_codec.scene.orbit import orbit_cameras
 from csgs_codec.train.views import TrainingView
 
 #: Degree-0 spherical harmonic constant: rgb = 0.5 + C0 * sh_dc.

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csgs_codec.errors import InputError
-from csgs_codec.render.camera import Camera
+from csgs_codec.scene.camera import Camera
 
 
 @dataclass

@@ -1,9 +1,9 @@
 /**
- * The viewer's camera, kept in the project's convention (csgs_codec/render/camera.py: OpenCV
+ * The viewer's camera, kept in the project's convention (csgs_codec/scene/camera.py: OpenCV
  * pinhole, x right, y down, z forward, world_to_camera 4x4, pixel centres at integer + 0.5),
  * so a click is resolved with the same camera the Python rasterizer would use.
  *
- * Framing and up axis follow csgs_codec/render/orbit.py: the default view is that module's
+ * Framing and up axis follow csgs_codec/scene/orbit.py: the default view is that module's
  * orbit view 0 (elevation 20 degrees, vertical field of view 40 degrees, robust extent filling
  * 0.7 of the smaller side). Orbit: drag to turn around the target, wheel to zoom, right-drag
  * or shift-drag to pan; fly: W/S forward and back, A/D sideways, Q/E down and up.

@@ -11,7 +11,7 @@ from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
 from csgs_codec.codec.float_stream import plan_float_stream
 from csgs_codec.errors import InputError
-from csgs_codec.render.comparison import score_views
+from csgs_codec.metrics.comparison import score_views
 from csgs_codec.render.view_distribution import default_distribution
 from csgs_codec.scene.ply_io import read_ply, write_ply
 from tests.conftest import SAMPLE
@@ -121,7 +121,7 @@ def _moved_back(camera, factor: float):
     the depth of the world origin, looking the same way."""
     from dataclasses import replace
 
-    from csgs_codec.render.cameras_io import resize_camera
+    from csgs_codec.scene.cameras_io import resize_camera
 
     pose = camera.world_to_camera.copy()
     pose[2, 3] *= factor

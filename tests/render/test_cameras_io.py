@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from csgs_codec.errors import CsgsWarning, InputError, UnsupportedError
-from csgs_codec.render.cameras_io import load_cameras, resize_camera
+from csgs_codec.scene.cameras_io import load_cameras, resize_camera
 from tests.colmap_model import ColmapCamera, ColmapImage, write_colmap_model
 from tests.conftest import REPO
 from tests.render.synthetic import project

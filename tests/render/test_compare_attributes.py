@@ -5,7 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from csgs_codec.render.attribute_errors import attribute_errors, match_gaussians, nearest_neighbours
+from csgs_codec.metrics.attribute_errors import (
+    attribute_errors,
+    match_gaussians,
+    nearest_neighbours,
+)
 from tests.render.synthetic import blob_scene
 
 

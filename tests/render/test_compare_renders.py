@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from csgs_cli.main import main
-from csgs_codec.render.camera import Camera
-from csgs_codec.render.comparison import compare_scenes
-from csgs_codec.render.orbit import look_at, orbit_cameras
+from csgs_codec.metrics.comparison import compare_scenes
+from csgs_codec.scene.camera import Camera
+from csgs_codec.scene.orbit import look_at, orbit_cameras
 from csgs_codec.scene.ply_io import write_ply
 from tests.conftest import SAMPLE
 from tests.render.synthetic import SH_C0, blob_scene

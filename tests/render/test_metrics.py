@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from csgs_codec.errors import InputError
-from csgs_codec.render.metrics import foreground_mask, foreground_psnr, psnr, ssim
-from csgs_codec.render.ssim import SSIM_C1, SSIM_C2
+from csgs_codec.metrics.image import foreground_mask, foreground_psnr, psnr, ssim
+from csgs_codec.metrics.ssim import SSIM_C1, SSIM_C2
 
 
 def noise_image(shape=(40, 50, 3), seed=0):

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from csgs_codec.errors import InputError
-from csgs_codec.render.orbit import guess_up_axis, orbit_cameras, parse_up, robust_bounds
 from csgs_codec.scene.gaussian_scene import GaussianScene
+from csgs_codec.scene.orbit import guess_up_axis, orbit_cameras, parse_up, robust_bounds
 from tests.conftest import shared_path
 from tests.render.synthetic import blob_scene, project, scene_from
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from csgs_codec.render.camera import Camera
 from csgs_codec.render.sh import SH_C0
+from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.gaussian_scene import GaussianScene
 
 

@@ -5,8 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from csgs_codec.render.camera import Camera
-from csgs_codec.render.orbit import look_at
 from csgs_codec.render.rasterizer import render
 from csgs_codec.render.sensitivity import blend_sensitivity
 from csgs_codec.render.view_distribution import (
@@ -16,6 +14,8 @@ from csgs_codec.render.view_distribution import (
     default_distribution,
     sphere_directions,
 )
+from csgs_codec.scene.camera import Camera
+from csgs_codec.scene.orbit import look_at
 from tests.render.synthetic import blob_scene, scene_from
 
 pytest.importorskip("numba")

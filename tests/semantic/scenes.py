@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from csgs_codec.render.camera import Camera
+from csgs_codec.scene.camera import Camera
 from csgs_codec.semantic.synthetic import labelled_blob_scene, overview_camera
 
 OBJECTS = 5

@@ -8,7 +8,7 @@ import torch
 
 from csgs_codec.errors import InputError
 from csgs_codec.model.scaffold import ScaffoldDecoder
-from csgs_codec.render.camera import Camera
+from csgs_codec.scene.camera import Camera
 from csgs_codec.train.anchor_growth import GrowthStats, grow_and_prune, view_counts
 from csgs_codec.train.anchor_model import MASK_THRESHOLD, AnchorGrid, AnchorModel, grid_for_points
 from csgs_codec.train.anchor_rate import AnchorRateModel

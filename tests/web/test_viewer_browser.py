@@ -2,7 +2,7 @@
 page decodes a .csgs in its worker and draws it like the project rasterizer, a click selects
 an object as `csgs select` does, a file cut inside the semantic layer shows the color layer
 and says what is missing, ``--layers color`` reads only the color layer's bytes, the file
-picker opens a file, the default view is render/orbit.py's view 0 and the orbit, fly and zoom
+picker opens a file, the default view is scene/orbit.py's view 0 and the orbit, fly and zoom
 controls move it, anchor scenes are reported as not supported, and invalid files are refused
 at the chunk and byte offset the Python decoder names.
 
@@ -29,8 +29,8 @@ import pytest
 from csgs_codec import Decoder, Encoder, read_ply
 from csgs_codec.format.source import open_source
 from csgs_codec.format.toc import read_toc
-from csgs_codec.render.orbit import orbit_cameras, robust_bounds
 from csgs_codec.render.rasterizer import render
+from csgs_codec.scene.orbit import orbit_cameras, robust_bounds
 from csgs_codec.semantic.evaluation import mask_iou, object_click_points
 from csgs_codec.semantic.selection import select_at_click
 from csgs_codec.semantic.synthetic import labelled_blob_scene, overview_camera

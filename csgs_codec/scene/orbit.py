@@ -23,7 +23,7 @@ import math
 import numpy as np
 
 from csgs_codec.errors import InputError
-from csgs_codec.render.camera import DEFAULT_NEAR_PLANE, Camera
+from csgs_codec.scene.camera import DEFAULT_NEAR_PLANE, Camera
 from csgs_codec.scene.gaussian_scene import GaussianScene
 
 #: Gaussians at or below this opacity are ignored when measuring the scene.

@@ -4,7 +4,7 @@ Wang et al.'s definition as 3DGS uses it: an 11x11 Gaussian window (sigma 1.5), 
 filtering (no padding), C1 = 0.01^2 and C2 = 0.03^2 for images in [0, 1], the mean of the
 per-pixel map over pixels and channels; an image smaller than the window is scored as one
 window over the whole image. Training takes it as a loss term
-(:func:`csgs_codec.train.losses.photometric_loss`); :func:`csgs_codec.render.metrics.ssim`
+(:func:`csgs_codec.train.losses.photometric_loss`); :func:`csgs_codec.metrics.image.ssim`
 evaluates it on numpy images.
 """
 

@@ -1,6 +1,6 @@
 """Loading cameras from the files trainers write: INRIA cameras.json, transforms.json, COLMAP.
 
-Every loader returns a list of :class:`~csgs_codec.render.camera.Camera` in the OpenCV
+Every loader returns a list of :class:`~csgs_codec.scene.camera.Camera` in the OpenCV
 convention (x right, y down, z forward) with ``world_to_camera`` as a (4, 4) float64 matrix.
 Every malformed file raises :class:`InputError` naming the file and the field at fault.
 
@@ -29,8 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.errors import CsgsWarning, InputError
-from csgs_codec.render.camera import MAX_CAMERA_FILE_BYTES, MAX_IMAGE_SIDE, Camera
-from csgs_codec.render.colmap_io import is_colmap_path, load_colmap_cameras
+from csgs_codec.scene.camera import MAX_CAMERA_FILE_BYTES, MAX_IMAGE_SIDE, Camera
+from csgs_codec.scene.colmap_io import is_colmap_path, load_colmap_cameras
 
 #: OpenGL camera axes (x right, y up, z back) to OpenCV (x right, y down, z forward).
 OPENGL_TO_OPENCV = np.diag([1.0, -1.0, -1.0, 1.0])

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.errors import CsgsWarning, InputError, UnsupportedError
-from csgs_codec.render.camera import MAX_CAMERA_FILE_BYTES, MAX_IMAGE_SIDE, Camera
+from csgs_codec.scene.camera import MAX_CAMERA_FILE_BYTES, MAX_IMAGE_SIDE, Camera
 
 #: model id -> (name, parameter count, focal layout): "f" = one focal, "fxfy" = two.
 COLMAP_MODELS = {

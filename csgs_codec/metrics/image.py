@@ -54,10 +54,10 @@ def foreground_mask(alpha: np.ndarray, threshold: float = FOREGROUND_ALPHA) -> n
 
 def ssim(reference: np.ndarray, candidate: np.ndarray) -> float:
     """Structural similarity of two [0, 1] images (H, W, C) or (H, W); 1.0 when equal
-    (:mod:`csgs_codec.render.ssim`, evaluated in float64 without gradients)."""
+    (:mod:`csgs_codec.metrics.ssim`, evaluated in float64 without gradients)."""
     import torch
 
-    from csgs_codec.render.ssim import ssim as ssim_torch
+    from csgs_codec.metrics.ssim import ssim as ssim_torch
 
     a, b = _pair(reference, candidate)
     with torch.no_grad():

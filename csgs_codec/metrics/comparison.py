@@ -14,8 +14,8 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from csgs_codec.render.camera import Camera
-from csgs_codec.render.metrics import foreground_mask, foreground_psnr, psnr, ssim
+from csgs_codec.metrics.image import foreground_mask, foreground_psnr, psnr, ssim
+from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.gaussian_scene import GaussianScene
 
 
@@ -116,7 +116,7 @@ def compare_scenes(reference: GaussianScene, candidate: GaussianScene,
     report = ComparisonReport(views=score_views(reference, candidate, cameras, backend=backend,
                                                 progress=progress))
     if attributes:
-        from csgs_codec.render.attribute_errors import attribute_errors
+        from csgs_codec.metrics.attribute_errors import attribute_errors
 
         errors, matching = attribute_errors(reference, candidate)
         report.attribute_errors = errors
