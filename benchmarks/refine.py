@@ -7,7 +7,8 @@ of its decode on views the refinement never used (16 orbit views at 20 degrees +
 degrees, 800x600; refinement uses the default sphere of views at 400 pixels wide),
 ``cpu_s`` the encode's CPU time. ``ratio_vs_presets`` divides the bytes by what the plain
 presets 1-9 need for the same held-out PSNR (log-size interpolated; nan outside their range),
-so a refined file below 1 is smaller than any plain encode of its quality.
+so a refined file below 1 is smaller than any plain encode of its quality. ``--stacked``
+adds view pruning and derived rotation steps to each refined encode.
 
     .venv/bin/python benchmarks/refine.py --scenes donut plant --qualities 2 5 \\
         --steps 20 60 --out benchmarks/results/refine_DATE.json
@@ -30,17 +31,22 @@ from csgs_codec.codec.encoder import Encoder  # noqa: E402
 from csgs_codec.scene.ply_io import read_ply  # noqa: E402
 
 
-def measure(scene, held: HeldOut, quality: int, steps: int) -> dict:
-    """One encode's bytes, held-out PSNR of its decode and CPU seconds."""
+def measure(scene, held: HeldOut, quality: int, steps: int, stacked: bool = False) -> dict:
+    """One encode's bytes, held-out PSNR of its decode and CPU seconds; ``stacked`` adds
+    view pruning and derived rotation steps to the refinement."""
     start = time.process_time()
-    data = Encoder(quality=quality, hyperprior=False, refine=steps).encode(scene)
+    data = Encoder(quality=quality, hyperprior=False, refine=steps, view_pruning=stacked,
+                   derived_steps=stacked).encode(scene)
     cpu = time.process_time() - start
-    return {"quality": quality, "refine_steps": steps, "bytes": len(data),
-            "held_out_fg_psnr_db": held.psnr(Decoder().decode(data)), "cpu_s": cpu}
+    return {"quality": quality, "refine_steps": steps, "stacked": stacked,
+            "bytes": len(data), "held_out_fg_psnr_db": held.psnr(Decoder().decode(data)),
+            "cpu_s": cpu}
 
 
-def run_scene(name: str, qualities: list[int], step_counts: list[int]) -> list[dict]:
-    """Rows of one scene: the plain presets 1..9, then each quality refined."""
+def run_scene(name: str, qualities: list[int], step_counts: list[int],
+              stacked: bool = False) -> list[dict]:
+    """Rows of one scene: the plain presets 1..9, then each quality refined (with view
+    pruning and derived steps too when ``stacked``)."""
     scene = read_ply(SCENES / f"{name}.ply")
     held = HeldOut(scene)
     base = {"scene": f"{name}.ply", "gaussians": len(scene),
@@ -51,7 +57,7 @@ def run_scene(name: str, qualities: list[int], step_counts: list[int]) -> list[d
     for quality in qualities:
         plain = presets[quality - 1]
         for steps in step_counts:
-            row = {**base, **measure(scene, held, quality, steps)}
+            row = {**base, **measure(scene, held, quality, steps, stacked)}
             extra_cpu = row["cpu_s"] - plain["cpu_s"]
             row.update({
                 "delta_db": row["held_out_fg_psnr_db"] - plain["held_out_fg_psnr_db"],
@@ -70,11 +76,14 @@ def main() -> None:
     parser.add_argument("--scenes", nargs="+", default=["donut"])
     parser.add_argument("--qualities", nargs="+", type=int, default=[2, 5])
     parser.add_argument("--steps", nargs="+", type=int, default=[20, 60])
+    parser.add_argument("--stacked", action="store_true",
+                        help="refine on top of view pruning and derived rotation steps "
+                             "(the three opt-in distortion-side levers together)")
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
     rows = []
     for name in args.scenes:
-        rows += run_scene(name, args.qualities, sorted(args.steps))
+        rows += run_scene(name, args.qualities, sorted(args.steps), args.stacked)
     emit(document("refine", rows, refinement_views="default sphere, 400 px wide",
                   held_out_views="16 @20deg + 12 @45deg, 800x600",
                   encoder="hyperprior off"), args.out)
