@@ -229,15 +229,21 @@ class Encoder:
         if not self.view_pruning or len(scene) < MIN_PRUNED_SCENE:
             return None
         from csgs_codec.render.sensitivity import blend_sensitivity
+
+        self.progress("view sensitivity")
+        views = self._viewing_distribution(scene)
+        return blend_sensitivity(scene, views.cameras, self.view_progress).weight_sq, views
+
+    def _viewing_distribution(self, scene: GaussianScene):
+        """The ViewDistribution ``scene`` is seen from: the encoder's cameras, or the
+        default sphere of views around it."""
         from csgs_codec.render.view_distribution import (
             camera_distribution,
             default_distribution,
         )
 
-        self.progress("view sensitivity")
-        views = (default_distribution(scene) if self.cameras is None
-                 else camera_distribution(self.cameras, "the given cameras"))
-        return blend_sensitivity(scene, views.cameras, self.view_progress).weight_sq, views
+        return (default_distribution(scene) if self.cameras is None
+                else camera_distribution(self.cameras, "the given cameras"))
 
     def _search(self, scene: GaussianScene, original: GaussianScene) -> EncodeResult:
         """The target-PSNR or lambda search over the step multiplier (rate_control.py),
@@ -265,6 +271,7 @@ class Encoder:
                       if self.fast else {})
             result, report = rc.encode_to_target(encode, scene, self.target_psnr, probe=probe,
                                                  progress=self.progress, **search)
+        kept = self.refine > 0
         if self.refine:
             # Refinement lowers the render error at about the same size; the searched
             # encode stays when the refined one renders worse on the probe views (a target
@@ -274,13 +281,15 @@ class Encoder:
             refined_psnr = probe.psnr(final.reconstruction)
             floor = (self.target_psnr if self.lambda_ is None
                      else probe.psnr(result.reconstruction))
-            if refined_psnr >= floor:
+            kept = refined_psnr >= floor
+            if kept:
                 result = final
                 if self.lambda_ is None:
                     report = replace(report, psnr=refined_psnr)
-        elif self.hyperprior:
+        if self.hyperprior and not kept:
+            # The hyperprior changes the rate only: the search's settings coded with it.
             self.progress("final encode")
-            final = self._encode(scene, scaled_preset(report.multiplier))
+            final = self._encode(scene, scaled_preset(report.multiplier), refine=False)
             if len(final.data) < len(result.data):
                 result = final
         result.rate_control = report
@@ -414,14 +423,9 @@ class Encoder:
         refined values planned on the lattices of ``plans``. ``streams`` is updated in
         place to the refined values."""
         from csgs_codec.codec.refinement import RefineSettings, refine_streams
-        from csgs_codec.render.view_distribution import (
-            camera_distribution,
-            default_distribution,
-        )
 
         self.progress("refinement")
-        views = (default_distribution(ordered) if self.cameras is None
-                 else camera_distribution(self.cameras, "the given cameras"))
+        views = self._viewing_distribution(ordered)
         target = {"log_scales": ordered.scales, "opacity_logits": ordered.opacity,
                   "quats": ordered.rotations}
         target_sh = np.concatenate([ordered.sh_dc[:, None, :], ordered.sh_rest], axis=1)

@@ -122,7 +122,7 @@ def _fit(streams: SceneStreams, plans: dict[str, StreamPlan], names: list[str],
     optimiser = torch.optim.Adam([{"params": [params[s]],
                                    "lr": settings.learning_rate * lattices[s].step_value}
                                   for s in names])
-    decoded_fixed = {s: torch.as_tensor(plans[s].recon) for s in plans}
+    decoded_fixed = {s: torch.as_tensor(plans[s].recon) for s in plans if s not in lattices}
     means = torch.as_tensor(np.ascontiguousarray(positions, np.float32))
     axis = torch.as_tensor(streams.rot_axis.astype(np.int64))
     n = len(positions)

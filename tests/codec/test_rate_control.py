@@ -80,3 +80,40 @@ def test_a_refined_final_encode_still_meets_the_target(small_scene, probe, monke
     assert result.rate_control.psnr >= 34.0
     assert probe.psnr(result.reconstruction) == pytest.approx(result.rate_control.psnr)
     assert Decoder().decode(result.data).equals(result.reconstruction)
+
+
+def test_a_refined_encode_that_misses_the_target_falls_back_to_the_hyperprior_encode(
+        small_scene, probe, monkeypatch):
+    """When the refined final encode renders below the target, the searched settings are
+    coded once more without refinement, with the color hyperprior."""
+    from csgs_codec.codec.color_prior_choice import PriorFitPolicy
+    from csgs_codec.model.color_hyperprior import ColorFitSettings
+
+    refined = []
+
+    class PessimisticAboutRefinement:
+        """The real probe, except that the first score after refinement ran is 0 dB."""
+
+        def psnr(self, candidate):
+            if refined and refined[-1] == "unscored":
+                refined[-1] = "scored"
+                return 0.0
+            return probe.psnr(candidate)
+
+    monkeypatch.setattr("csgs_codec.codec.rate_control.RenderProbe",
+                        lambda scene: PessimisticAboutRefinement())
+    policy = PriorFitPolicy(ColorFitSettings(steps=60, batch=256), min_gaussians=0,
+                            keep_when_larger=True)
+    fits = []
+    result = Encoder(target_psnr=34.0, refine=2, prior_fit=policy,
+                     refine_progress=lambda done, total: done == total and
+                     refined.append("unscored"),
+                     fit_progress=lambda done, total: fits.append(list(refined))
+                     ).encode_with_report(small_scene)
+    assert refined == ["scored"]
+    # the fit ran once, after the refined encode was scored and refused (the search's
+    # trials run without the hyperprior, the refined final encode with it)
+    assert [f for f in fits if f == ["scored"]] and not [f for f in fits if f == []]
+    assert result.rate_control.psnr >= 34.0
+    assert probe.psnr(result.reconstruction) == pytest.approx(result.rate_control.psnr)
+    assert Decoder().decode(result.data).equals(result.reconstruction)

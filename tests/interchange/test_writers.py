@@ -190,3 +190,7 @@ def test_writers_say_what_the_format_drops(brush, tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         write_scene(labelled, tmp_path / "a.ply")  # PLY carries everything
+    back, _ = read_scene(tmp_path / "a.ply")
+    np.testing.assert_array_equal(back.labels, labelled.labels)
+    np.testing.assert_array_equal(back.sh_rest, labelled.sh_rest)
+    assert read_scene(tmp_path / "a.spz")[0].labels is None
