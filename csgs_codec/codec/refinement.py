@@ -26,8 +26,8 @@ import torch
 from csgs_codec.codec.float_stream import MODE_CONSTANT, StreamPlan
 from csgs_codec.codec.streams import SceneStreams
 from csgs_codec.entropy.residual import step_size
+from csgs_codec.render.projection import quaternions_from_smallest_three
 from csgs_codec.render.rasterize_torch import rasterize_gaussians
-from csgs_codec.scene.attribute_forms import SQRT2
 from csgs_codec.scene.camera import Camera
 
 
@@ -148,7 +148,7 @@ def _fit(streams: SceneStreams, plans: dict[str, StreamPlan], names: list[str],
         coefficients = [decoded["dc"].reshape(n, 1, 3)]
         coefficients += [decoded[s].reshape(n, -1, 3) for s in plans if s.startswith("rest")]
         sh_coded = torch.cat(coefficients, dim=1)
-        quats = _quaternions(axis, decoded["rot"])
+        quats = quaternions_from_smallest_three(axis, decoded["rot"])
         loss = 0.0
         for v in rng.choice(len(views), per_step, replace=False):
             image = rasterize_gaussians(means, decoded["scale"], quats,
@@ -171,18 +171,6 @@ def _padded(sh: torch.Tensor, count: int) -> torch.Tensor:
     if sh.shape[1] >= count:
         return sh
     return torch.cat([sh, sh.new_zeros(sh.shape[0], count - sh.shape[1], 3)], dim=1)
-
-
-def _quaternions(axis: torch.Tensor, rest: torch.Tensor) -> torch.Tensor:
-    """(N, 4) quaternions from smallest-three components ``rest`` (N, 3) (times sqrt 2, as
-    coded) and the index of the dropped largest component ``axis`` (N,)."""
-    c = rest / SQRT2
-    big = torch.sqrt(torch.clamp(1 - (c * c).sum(1), min=1e-12))
-    n = rest.shape[0]
-    columns = torch.arange(4)[None, :].expand(n, 4)
-    others = columns[columns != axis[:, None]].reshape(n, 3)
-    out = torch.zeros((n, 4), dtype=rest.dtype).scatter(1, axis[:, None], big[:, None])
-    return out.scatter(1, others, c)
 
 
 def _scaled(camera: Camera, width: int) -> Camera:

@@ -8,6 +8,7 @@ follows the dtype of its inputs (float32 for rendering, float64 for gradient che
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import torch
@@ -66,6 +67,23 @@ def quaternion_to_rotation(quats: torch.Tensor) -> torch.Tensor:
         2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y),
     ]
     return torch.stack(rows, dim=-1).reshape(q.shape[:-1] + (3, 3))
+
+
+def quaternions_from_smallest_three(axis: torch.Tensor, rest: torch.Tensor) -> torch.Tensor:
+    """[N, 4] unit quaternions (w, x, y, z) from their coded form, differentiably.
+
+    Args:
+        axis: [N] int64 index of the dropped largest component.
+        rest: [N, 3] the other three components times sqrt 2, in their order (as
+            :func:`csgs_codec.scene.attribute_forms.quaternion_to_smallest_three` gives them).
+    """
+    c = rest / math.sqrt(2.0)
+    big = torch.sqrt(torch.clamp(1 - (c * c).sum(1), min=1e-12))
+    n = rest.shape[0]
+    columns = torch.arange(4)[None, :].expand(n, 4)
+    others = columns[columns != axis[:, None]].reshape(n, 3)
+    out = torch.zeros((n, 4), dtype=rest.dtype).scatter(1, axis[:, None], big[:, None])
+    return out.scatter(1, others, c)
 
 
 def covariance_3d(log_scales: torch.Tensor, quats: torch.Tensor) -> torch.Tensor:
