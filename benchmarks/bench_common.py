@@ -16,6 +16,16 @@ SCENES = REPO.parent / "shared" / "data" / "scenes"
 FULL_PRECISION = {"donut"}
 
 
+def held_out_views(scene, width: int, height: int) -> list:
+    """16 orbit views at 20 degrees and 12 at 45 degrees elevation: views no encoder setting
+    renders (the default viewing distribution is a sphere of directions at three
+    distances), so render-aware encodes are scored where they did not allocate."""
+    from csgs_codec.scene.orbit import orbit_cameras
+
+    return (orbit_cameras(scene, 16, width=width, height=height, elevation_deg=20)
+            + orbit_cameras(scene, 12, width=width, height=height, elevation_deg=45))
+
+
 def machine() -> dict:
     """CPU count, platform and interpreter of this machine."""
     return {"cpus": os.cpu_count(), "platform": platform.platform(),

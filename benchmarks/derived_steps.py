@@ -44,8 +44,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_common import FULL_PRECISION, SCENES, document, emit  # noqa: E402
-from view_pruning import held_out_views  # noqa: E402
+from bench_common import FULL_PRECISION, SCENES, document, emit, held_out_views  # noqa: E402
 
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
 from csgs_codec.codec.float_stream import _fit_prediction, frac_bits_for, predict  # noqa: E402

@@ -22,19 +22,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_common import FULL_PRECISION, SCENES, document, emit  # noqa: E402
+from bench_common import FULL_PRECISION, SCENES, document, emit, held_out_views  # noqa: E402
 
 from csgs_codec.codec.decoder import Decoder  # noqa: E402
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
 from csgs_codec.metrics.comparison import render_references, score_view  # noqa: E402
-from csgs_codec.scene.orbit import orbit_cameras  # noqa: E402
 from csgs_codec.scene.ply_io import read_ply  # noqa: E402
-
-
-def held_out_views(scene, width: int, height: int) -> list:
-    """16 orbit views at 20 degrees and 12 at 45 degrees: never rendered by the encoder."""
-    return (orbit_cameras(scene, 16, width=width, height=height, elevation_deg=20)
-            + orbit_cameras(scene, 12, width=width, height=height, elevation_deg=45))
 
 
 def mean_fg_psnr(refs, scene, cameras) -> float:
