@@ -25,6 +25,13 @@ in 1/8-octave step indices):
   sensitivity (sum of squared blending weights) over the default sphere of views.
 - ``dc_foot_W``: DC color by footprint (20 classes), s = W.
 - ``rot_aniso_foot_W+dc_foot_W``: both.
+- ``*_j2`` (with ``--j2-cache``, the folder ``precision_bound.py --cache`` fills): offsets
+  from the per-class mean of J2, each value's image sensitivity on the default viewing
+  distribution (csgs_codec/render/jacobian_sensitivity.py), classes from decoded attributes:
+  ``rot_area_shear_opacity_j2`` (16 bins of log area + 2 log sinh(anisotropy) + 2 log
+  opacity), ``dc_area_opacity_j2`` and ``opacity_area_opacity_j2`` (8 x 8 bins of log area
+  and opacity), ``scale_own_value_j2`` (each log-scale by its own value, 16 bins x 4 opacity
+  bins: a companded quantizer, simulated with the uniform decode's value), ``all_j2``.
 
 Ratios: ``ratio_vs_presets`` is the variant's bytes over the bytes the uniform presets 1..9
 need for the same held-out PSNR (log-linear interpolation).
@@ -100,19 +107,22 @@ def plan_cost(values: np.ndarray, step: float, offsets: np.ndarray | None = None
     n, channels = values.shape
     f = frac_bits_for(values)
     base = int(step_index(np.array([step * 2.0 ** f]))[0])
-    steps = np.full(n, base, np.int64)
-    if offsets is not None:
-        steps = np.clip(base + offsets, 0, STEP_COUNT - 1)
+    offsets = np.zeros(n, np.int64) if offsets is None else offsets
     classes = np.zeros(n, np.int64) if classes is None else classes
-    present = np.unique(classes)
-
-    def per_class_tables(r: np.ndarray) -> float:
-        return sum(float(table_costs(r[classes == c]).min()) + 8 for c in present)
+    if offsets.ndim == 1:  # one offset and class per Gaussian, shared by its channels
+        offsets = np.repeat(offsets[:, None], channels, 1)
+        classes = np.repeat(classes[:, None], channels, 1)
 
     recon = np.empty((n, channels), np.float32)
     indices = np.zeros((channels, n), np.int64)
     total = 0.0
     for c in range(channels):
+        steps = np.clip(base + offsets[:, c], 0, STEP_COUNT - 1)
+        present = np.unique(classes[:, c])
+
+        def per_class_tables(r: np.ndarray, c=c, present=present) -> float:
+            return sum(float(table_costs(r[classes[:, c] == k]).min()) + 8 for k in present)
+
         column = values[:, c].astype(np.float32)
         if np.all(column == column[0]):
             recon[:, c] = column[0]
@@ -161,6 +171,52 @@ def class_offsets(sensitivity: np.ndarray, classes: np.ndarray,
     return table[classes], table
 
 
+def joint_bins(features: list[tuple[np.ndarray, int]]) -> np.ndarray:
+    """Class of each row (or value) from the joint quantile bins of ``features``."""
+    which = np.zeros(features[0][0].shape, np.int64)
+    for feature, count in features:
+        edges = np.quantile(feature, np.linspace(0, 1, count + 1)[1:-1])
+        which = which * count + np.searchsorted(edges, feature)
+    return which
+
+
+def j2_variants(rec, j2: dict[str, np.ndarray]) -> dict:
+    """Variants whose classes come from decoded scales and opacity (features of
+    precision_bound.py) and whose offsets follow the per-class mean of J2, the image
+    sensitivity on the default viewing distribution (csgs_codec/render/
+    jacobian_sensitivity.py): ``*_j2``."""
+    log_s = rec.scales.astype(np.float64)
+    big, small = log_s.max(1), log_s.min(1)
+    mid = np.sort(log_s, 1)[:, 1]
+    alpha = 1.0 / (1.0 + np.exp(-rec.opacity.astype(np.float64)))
+    log_alpha = np.log(np.maximum(alpha, 1e-12))
+    area = big + mid
+    shear = np.log(np.maximum(np.sinh(big - small), 1e-6))
+    rot_classes = joint_bins([(area + 2 * shear + 2 * log_alpha, 16)])
+    dc_classes = joint_bins([(area, 8), (log_alpha, 8)])
+    opacity_classes = joint_bins([(area, 8), (alpha, 8)])
+    scale_classes = joint_bins([(log_s, 16), (np.repeat(log_alpha[:, None], 3, 1), 4)])
+
+    def make(sens, classes):
+        def build():
+            if classes.ndim == 1:
+                _, table = class_offsets(sens, classes)
+                return table[classes], classes, table
+            _, table = class_offsets(sens.ravel(), classes.ravel())  # one table, all channels
+            return table[classes], classes, table
+        return build
+
+    rot = make(j2["rotation"].sum(1), rot_classes)
+    dc = make(j2["dc"].sum(1), dc_classes)
+    opacity = make(j2["opacity"].sum(1), opacity_classes)
+    scale = make(j2["scale"], scale_classes)
+    return {"rot_area_shear_opacity_j2": {"rot": rot},
+            "dc_area_opacity_j2": {"dc": dc},
+            "opacity_area_opacity_j2": {"opacity": opacity},
+            "scale_own_value_j2": {"scale": scale},
+            "all_j2": {"rot": rot, "dc": dc, "opacity": opacity, "scale": scale}}
+
+
 def variants(rec, weights: np.ndarray) -> dict:
     """name -> {stream: callable returning (offsets, classes, table)} (see module notes)."""
     spread = rec.scales.max(1) - rec.scales.min(1)
@@ -198,12 +254,19 @@ def size_at_psnr(curve: list[tuple[float, float]], psnr: float) -> float:
     return float(np.exp(np.interp(psnr, xs, [np.log(b) for _, b in points])))
 
 
-def run_scene(name: str, qualities: list[int], names: list[str]) -> list[dict]:
-    """Rows of one scene: the uniform presets 1..9, then each variant at ``qualities``."""
+def run_scene(name: str, qualities: list[int], names: list[str],
+              j2_cache: Path | None = None) -> list[dict]:
+    """Rows of one scene: the uniform presets 1..9, then each variant at ``qualities``
+    (``*_j2`` variants need the allocation-view J2 precision_bound.py keeps in
+    ``j2_cache``)."""
     from csgs_codec.render.sensitivity import blend_sensitivity
     from csgs_codec.render.view_distribution import default_distribution
 
     scene = read_ply(SCENES / f"{name}.ply")
+    j2 = None
+    if j2_cache is not None:
+        data = np.load(j2_cache / f"{name}_400x300.npz")
+        j2 = {k[len("alloc_"):]: data[k] for k in data.files if k.startswith("alloc_")}
     held = HeldOut(scene)
     start = time.perf_counter()
     weights = blend_sensitivity(scene, default_distribution(scene).cameras).weight_sq
@@ -221,7 +284,11 @@ def run_scene(name: str, qualities: list[int], names: list[str]) -> list[dict]:
         result = encodes[quality]
         streams = split_streams(scene.subset(result.order))
         base_psnr = curve[quality - 1][0]
-        for vname, spec in variants(result.reconstruction, weights[result.order]).items():
+        candidates = variants(result.reconstruction, weights[result.order])
+        if j2 is not None:
+            candidates.update(j2_variants(result.reconstruction,
+                                          {k: v[result.order] for k, v in j2.items()}))
+        for vname, spec in candidates.items():
             if vname not in names:
                 continue
             changes, tables = {}, {}
@@ -248,11 +315,14 @@ def main() -> None:
     parser.add_argument("--variants", nargs="+",
                         default=["rot_aniso", "rot_aniso_foot_W", "dc_foot_W",
                                  "rot_aniso_foot_W+dc_foot_W"])
+    parser.add_argument("--j2-cache", default=None,
+                        help="precision_bound.py --cache folder (for the *_j2 variants)")
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
     rows = []
     for name in args.scenes:
-        rows += run_scene(name, args.qualities, args.variants)
+        rows += run_scene(name, args.qualities, args.variants,
+                          None if args.j2_cache is None else Path(args.j2_cache))
     emit(document("derived_steps", rows, held_out_views="16 @20deg + 12 @45deg, 800x600",
                   allocation="default sphere: 16 directions x 3 distances, 800x600"),
          args.out)

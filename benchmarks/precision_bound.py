@@ -19,13 +19,21 @@ plain encode's modelled error (sum J2 D_g^2 / 12, checked against real renders i
   the held-out views (what the encoder could reach without knowing the scoring views, still
   with free side information).
 
+Two structured allocations an encoder could signal are costed the same way: one step class
+per Gaussian shared by all its values (``class_map_*``: a class map, its zeroth-order entropy
+reported as side information), and steps derived from decoded scales and opacity (each
+candidate rule of :func:`rule_features` per group, ``derived_rule_saving_*``; the best rule
+per group summed, and on top of the class map).
+
 Rows give the plain bits per Gaussian and each allocation's bits at equal held-out error, and
-their ratio. ``--rd FILE`` (an rd.py document with plain csgs curves and peers, held-out
-scoring) adds, per peer, the plain ratio at the peer's PSNR times the oracle fraction there:
-the best size ratio any step allocation could give.
+their fractions of the plain bits. ``--rd FILE`` (an rd.py document with plain csgs curves
+and peers, held-out scoring) adds, per peer, the plain ratio at the peer's PSNR times each
+fraction interpolated there: the size ratio each allocation would give against that peer.
+``--rows`` re-reads saved rows instead of measuring.
 
     .venv/bin/python benchmarks/precision_bound.py --scenes donut plant --qualities 5 7 8 9 \\
-        --rd benchmarks/results/rd_DATE.json --out bound.json
+        --cache /tmp/j2 --out bound.json
+    .venv/bin/python benchmarks/precision_bound.py --rows bound.json --rd rd.json --out b.json
 """
 
 from __future__ import annotations
@@ -180,10 +188,17 @@ def bound_rows(name: str, original, qualities: list[int], width: int, height: in
         features = rule_features(result.reconstruction)
         index = dict(zip(groups, per_group))
         rules = {}
+        best: dict[str, tuple[float, str]] = {}
         for rule, (group, feature) in features.items():
             if group in index:
                 ja, jh, r_g, delta2 = index[group]
                 rules[rule] = rule_saving(feature, ja, jh, r_g, delta2) / n_in
+                if rules[rule] > best.get(group, (0.0, ""))[0]:
+                    best[group] = (rules[rule], rule)
+        # The best rule of each group on top of one class per Gaussian.
+        combined = class_allocation(per_group, modelled, [
+            rule_shifts(features[best[g][1]][1], index[g][0]) if g in best else None
+            for g in groups])
         for group, (ja, jh, r_g, delta2) in zip(groups, per_group):
             # The same two allocations within this group alone (the others unchanged).
             sigma2_g = delta2 * 2.0 ** (2 * r_g) / 12.0
@@ -207,6 +222,10 @@ def bound_rows(name: str, original, qualities: list[int], width: int, height: in
                "class_map_classes": classes["classes_used"],
                "groups": groups,
                "derived_rule_saving_bits_per_gaussian": rules,
+               "derived_rules_best_total_bits_per_gaussian": sum(v for v, _ in best.values()),
+               "class_map_with_rules_bits_per_gaussian": (combined["bits"] + other) / n_in,
+               "class_map_with_rules_side_info_bits_per_gaussian":
+                   combined["class_map_bits"] / n_in,
                "first_order_check": {"rendered_sse": recon_sse,
                                      "first_order_sse": first_order,
                                      "modelled_sse": modelled},
@@ -247,26 +266,30 @@ CLASS_SHIFTS = np.arange(-8.0, 4.01, 0.5)
 
 
 def class_allocation(groups: list[tuple[np.ndarray, np.ndarray, float, float]],
-                     target: float) -> dict:
+                     target: float, shifts: list[np.ndarray | None] | None = None) -> dict:
     """One step class per Gaussian shared by all its attributes (what a class map codes):
     each Gaussian picks the shift k of :data:`CLASS_SHIFTS` (every step times 2^-k) that
     minimises rate + lambda x allocation-view error; lambda is set so the held-out error
     equals ``target``. Returns the coded bits and the class map's zeroth-order entropy.
 
     ``groups``: per group, (J2 on the allocation views (N, C), J2 held-out (N, C), bits per
-    value R_g, effective step^2 D_g^2)."""
+    value R_g, effective step^2 D_g^2). ``shifts``: per group, a derived per-value shift
+    (N, C) added to the class's (octaves finer), or None."""
     n = groups[0][0].shape[0]
     rate = np.zeros((n, len(CLASS_SHIFTS)))
     d_alloc = np.zeros_like(rate)
     d_held = np.zeros_like(rate)
-    for j_alloc, j_held, r_g, delta2 in groups:
-        count = j_alloc.shape[1]
-        bits = np.maximum(0.0, r_g + CLASS_SHIFTS)
-        e2 = np.where(r_g + CLASS_SHIFTS > 0, delta2 * 2.0 ** (-2 * CLASS_SHIFTS) / 12.0,
-                      delta2 * 2.0 ** (2 * r_g) / 12.0)
-        rate += count * bits[None, :]
-        d_alloc += j_alloc.sum(1)[:, None] * e2[None, :]
-        d_held += j_held.sum(1)[:, None] * e2[None, :]
+    shifts = shifts or [None] * len(groups)
+    for (j_alloc, j_held, r_g, delta2), extra in zip(groups, shifts):
+        sigma2 = delta2 * 2.0 ** (2 * r_g) / 12.0
+        extra = np.zeros(j_alloc.shape) if extra is None else extra
+        for column, k in enumerate(CLASS_SHIFTS):
+            shift = k + extra
+            coded = r_g + shift > 0
+            e2 = np.where(coded, delta2 * 2.0 ** (-2 * shift) / 12.0, sigma2)
+            rate[:, column] += np.maximum(0.0, r_g + shift).sum(1)
+            d_alloc[:, column] += (j_alloc * e2).sum(1)
+            d_held[:, column] += (j_held * e2).sum(1)
     rows = np.arange(n)
 
     def pick(lam: float) -> np.ndarray:
@@ -327,11 +350,9 @@ def rule_features(ref) -> dict[str, tuple[str, list[tuple[np.ndarray, int]]]]:
     }
 
 
-def rule_saving(features: list[tuple[np.ndarray, int]], j_alloc: np.ndarray,
-                j_held: np.ndarray, r_g: float, delta2: float) -> float:
-    """Bits saved in one group at equal held-out error when each value's step follows its
-    features' joint quantile bin (the bin's step from the mean allocation-view J2 in it,
-    the high-rate optimum), against the group's uniform step."""
+def rule_shifts(features: list[tuple[np.ndarray, int]], j_alloc: np.ndarray) -> np.ndarray:
+    """(N, C) step shift of each value (octaves finer, median 0) from its features' joint
+    quantile bin: half the log2 of the bin's mean allocation-view J2 (high-rate optimum)."""
     which = np.zeros(j_alloc.shape, np.int64)
     bins = 1
     for feature, count in features:
@@ -341,7 +362,14 @@ def rule_saving(features: list[tuple[np.ndarray, int]], j_alloc: np.ndarray,
     mean_j = np.bincount(which.ravel(), weights=j_alloc.ravel(), minlength=bins) / \
         np.maximum(np.bincount(which.ravel(), minlength=bins), 1)
     log_mean = np.log2(np.maximum(mean_j, 1e-300))
-    shift = 0.5 * (log_mean - np.median(log_mean))[which]
+    return 0.5 * (log_mean - np.median(log_mean))[which]
+
+
+def rule_saving(features: list[tuple[np.ndarray, int]], j_alloc: np.ndarray,
+                j_held: np.ndarray, r_g: float, delta2: float) -> float:
+    """Bits saved in one group at equal held-out error when each value's step follows
+    :func:`rule_shifts`, against the group's uniform step."""
+    shift = rule_shifts(features, j_alloc)
     sigma2 = delta2 * 2.0 ** (2 * r_g) / 12.0
     target = float((j_held * delta2 / 12.0).sum())
 
@@ -361,30 +389,44 @@ def rule_saving(features: list[tuple[np.ndarray, int]], j_alloc: np.ndarray,
     return r_g * j_held.size - cost(high)[1]
 
 
+def _fractions(row: dict) -> dict[str, float]:
+    """Each allocation's bits as a fraction of the plain encode's (side information in)."""
+    plain = row["plain_bits_per_gaussian"]
+    return {
+        "oracle_held_out": row["oracle_fraction"],
+        "default_distribution": row["default_distribution_fraction"],
+        "class_map_with_rules": (row["class_map_with_rules_bits_per_gaussian"]
+                                 + row["class_map_with_rules_side_info_bits_per_gaussian"])
+        / plain,
+        "derived_rules": 1.0 - row["derived_rules_best_total_bits_per_gaussian"] / plain,
+    }
+
+
 def peer_bounds(rd_path: str, rows: list[dict]) -> list[dict]:
-    """Per peer row of the rd document: the plain ratio and the oracle's (plain ratio times
-    the oracle fraction interpolated at the peer's PSNR on the plain curve)."""
+    """Per peer row of the rd document: the plain ratio, and per allocation that ratio times
+    the allocation's fraction interpolated at the peer's PSNR on the plain curve."""
     doc = json.loads(Path(rd_path).read_text())
     out = []
     for peer in doc["results"]:
         if peer["codec"] == "csgs":
             continue
         plain = (peer.get("csgs_size_ratio") or {}).get("plain")
-        mine = [r for r in rows if r["scene"] == peer["scene"]]
+        mine = {r["quality"]: _fractions(r) for r in rows if r["scene"] == peer["scene"]}
         curve = sorted((r["foreground_psnr"], int(r["setting"].split()[-1]))
                        for r in doc["results"] if r["codec"] == "csgs"
-                       and r["scene"] == peer["scene"] and r.get("variant") == "plain")
-        if plain is None or not mine or not curve:
+                       and r["scene"] == peer["scene"] and r.get("variant") == "plain"
+                       and int(r["setting"].split()[-1]) in mine)
+        if plain is None or not curve:
             continue
-        fraction = {r["quality"]: r["oracle_fraction"] for r in mine}
-        points = [(p, fraction[q]) for p, q in curve if q in fraction]
-        if not points:
-            continue
-        f = float(np.interp(peer["foreground_psnr"], [p for p, _ in points],
-                            [v for _, v in points]))
+        ratios = {}
+        for name in next(iter(mine.values())):
+            f = float(np.interp(peer["foreground_psnr"], [p for p, _ in curve],
+                                [mine[q][name] for _, q in curve]))
+            ratios[name] = plain * f
         out.append({"scene": peer["scene"], "peer": peer["codec"],
                     "peer_foreground_psnr": peer["foreground_psnr"], "plain_ratio": plain,
-                    "oracle_fraction": f, "oracle_ratio": plain * f})
+                    "stacked_ratio": (peer.get("csgs_size_ratio") or {}).get("stacked"),
+                    "allocation_ratios": ratios})
     return out
 
 
@@ -397,11 +439,16 @@ def main() -> None:
     parser.add_argument("--rd", default=None, help="rd.py document to bound its peer ratios")
     parser.add_argument("--cache", default=None,
                         help="folder to keep the sensitivities in (reused when present)")
+    parser.add_argument("--rows", nargs="+", default=None, metavar="JSON",
+                        help="take the rows of these precision_bound documents instead of "
+                             "measuring (to bound an rd document's peers with --rd)")
     parser.add_argument("--out", default=None)
     args = parser.parse_args()
     width, height = (int(v) for v in args.size.lower().split("x"))
     rows = []
-    for name in args.scenes:
+    for path in args.rows or []:
+        rows += json.loads(Path(path).read_text())["results"]
+    for name in [] if args.rows else args.scenes:
         rows += bound_rows(name, read_ply(SCENES / f"{name}.ply"), args.qualities, width,
                            height, None if args.cache is None else Path(args.cache))
     extra = {"peers": peer_bounds(args.rd, rows)} if args.rd else {}
