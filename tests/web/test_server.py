@@ -43,16 +43,28 @@ def test_byte_range(header, expected):
     assert byte_range(header, len(CONTENT)) == expected
 
 
+def _counter_reaches(server, count: int, timeout: float = 10.0) -> bool:
+    """Whether the server's byte counter reaches ``count`` (exactly) within ``timeout`` s:
+    the handler thread counts a body after writing it, so the client can read the answer
+    before the count is updated."""
+    import time
+
+    deadline = time.monotonic() + timeout
+    while server.scene_bytes_sent < count and time.monotonic() < deadline:
+        time.sleep(0.01)
+    return server.scene_bytes_sent == count
+
+
 def test_range_requests_get_206_with_the_asked_bytes(server):
     status, headers, body = _get(server.url + "scene.csgs", {"Range": "bytes=16-1039"})
     assert status == 206 and body == CONTENT[16:1040]
     assert headers["Content-Range"] == f"bytes 16-1039/{len(CONTENT)}"
-    assert server.scene_bytes_sent == 1024
+    assert _counter_reaches(server, 1024)
     status, headers, body = _get(server.url + "scene.csgs", {"Range": "bytes=20000-"})
     assert status == 416 and body == b"" and headers["Content-Range"] == f"bytes */{len(CONTENT)}"
     status, headers, body = _get(server.url + "scene.csgs")
     assert status == 200 and body == CONTENT and headers["Accept-Ranges"] == "bytes"
-    assert server.scene_bytes_sent == 1024 + len(CONTENT)
+    assert _counter_reaches(server, 1024 + len(CONTENT))
 
 
 def test_serves_the_page_receiver_and_tables_from_the_package(server):
