@@ -165,9 +165,11 @@ def plot(rows: list[dict], path: str) -> None:
             if mine:
                 ax.plot([r["bits_per_gaussian"] for r in mine],
                         [r["foreground_psnr"] for r in mine], "o-", label=f"csgs {variant}")
+        peers = sorted({r["codec"] for r in rows if r["codec"] != "csgs"})
         for r in rows:
             if r["scene"] == scene and r["codec"] != "csgs":
-                ax.plot(r["bits_per_gaussian"], r["foreground_psnr"], "s", label=r["codec"])
+                ax.plot(r["bits_per_gaussian"], r["foreground_psnr"], "s", label=r["codec"],
+                        color=f"C{2 + peers.index(r['codec'])}")  # the same color per peer
         ax.set_title(scene + ("" if scene in FULL_PRECISION else " (re-decoded)"))
         ax.set_xlabel("bits per Gaussian")
         ax.set_ylabel("foreground PSNR (dB)")
