@@ -93,17 +93,24 @@ def coded_errors(original, result) -> dict[str, np.ndarray]:
     return {k: np.asarray(v, np.float64) for k, v in errors.items()}
 
 
+def level_for(error, target: float, low: float, high: float, *, rising: bool = True,
+              steps: int = 200) -> float:
+    """Bisection: the level in [low, high] at which ``error(level)`` (monotone: rising or
+    falling with the level) meets ``target``, on the side where it stays within it."""
+    for _ in range(steps):
+        mid = 0.5 * (low + high)
+        if (error(mid) > target) == rising:
+            high = mid
+        else:
+            low = mid
+    return low if rising else high
+
+
 def water_fill(variance_like: np.ndarray, target: float) -> tuple[float, np.ndarray]:
     """Reverse water-filling: the level theta with sum(min(theta, S)) = ``target`` and each
     value's distortion min(theta, S) (S: the weighted error a value costs at zero rate)."""
-    low, high = 0.0, float(variance_like.max())
-    for _ in range(200):
-        theta = 0.5 * (low + high)
-        if np.minimum(theta, variance_like).sum() > target:
-            high = theta
-        else:
-            low = theta
-    theta = 0.5 * (low + high)
+    theta = level_for(lambda t: np.minimum(t, variance_like).sum(), target, 0.0,
+                      float(variance_like.max()))
     return theta, np.minimum(theta, variance_like)
 
 
@@ -251,14 +258,8 @@ def _transferred_bits(s_alloc, j_alloc, j_held, sigma2, target: float) -> float:
         e2 = np.where(coded, d / np.where(j_alloc > 0, j_alloc, 1.0), sigma2)
         return float((j_held * e2).sum()), rate_bits(s_alloc, d)
 
-    low, high = 0.0, float(s_alloc.max())
-    for _ in range(200):
-        theta = 0.5 * (low + high)
-        if held_error(theta)[0] > target:
-            high = theta
-        else:
-            low = theta
-    return held_error(low)[1]
+    theta = level_for(lambda t: held_error(t)[0], target, 0.0, float(s_alloc.max()))
+    return held_error(theta)[1]
 
 
 #: Step shifts a per-Gaussian class may take (octaves finer when positive).
@@ -379,14 +380,8 @@ def rule_saving(features: list[tuple[np.ndarray, int]], j_alloc: np.ndarray,
         e2 = np.where(coded, delta2 * 2.0 ** (-2 * k) / 12.0, sigma2)
         return float((j_held * e2).sum()), float(np.maximum(0.0, r_g + k).sum())
 
-    low, high = -40.0, 40.0
-    for _ in range(100):
-        mid = 0.5 * (low + high)
-        if cost(mid)[0] > target:
-            low = mid
-        else:
-            high = mid
-    return r_g * j_held.size - cost(high)[1]
+    offset = level_for(lambda o: cost(o)[0], target, -40.0, 40.0, rising=False, steps=100)
+    return r_g * j_held.size - cost(offset)[1]
 
 
 def _fractions(row: dict) -> dict[str, float]:
