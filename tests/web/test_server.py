@@ -150,10 +150,17 @@ def test_view_web_serves_until_interrupted(tmp_path):
 
     scene = tmp_path / "scene.csgs"
     scene.write_bytes(b"\x89CSG\r\n\x1a\n" + bytes(8))
+    def ctrl_c_as_in_a_terminal() -> None:
+        # A shell starts background jobs with SIGINT ignored, and an ignored signal stays
+        # ignored across exec (Python then never raises KeyboardInterrupt): give the
+        # command the default disposition a terminal gives it, wherever the tests run.
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+
     process = subprocess.Popen(
         [sys.executable, "-m", "cli.main", "view", "--web", str(scene), "--no-browser",
          "--layers", "color"], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        text=True, env={**os.environ, "PYTHONPATH": str(REPO)})
+        text=True, env={**os.environ, "PYTHONPATH": str(REPO)},
+        preexec_fn=ctrl_c_as_in_a_terminal)
     try:
         line = process.stdout.readline()
         url = re.search(r"at (http://127\.0\.0\.1:\d+/)", line)[1]
@@ -162,5 +169,10 @@ def test_view_web_serves_until_interrupted(tmp_path):
         assert _get(url + "scene.csgs", {"Range": "bytes=0-7"})[2] == b"\x89CSG\r\n\x1a\n"
     finally:
         process.send_signal(signal.SIGINT)
-        out, err = process.communicate(timeout=30)
+        try:
+            out, err = process.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            process.kill()  # leave no server behind
+            process.communicate()
+            raise
     assert process.returncode == 0 and "Traceback" not in err
