@@ -37,10 +37,6 @@ from csgs_codec.scene.attribute_forms import quaternion_to_smallest_three
 from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.gaussian_scene import GaussianScene
 
-#: Attribute groups and how many coded values of one Gaussian each holds (SH bands: per
-#: band, coefficients x 3 channels).
-GROUPS = ("position", "dc", "opacity", "scale", "rotation")
-
 
 @dataclass(frozen=True)
 class AttributeSensitivity:
