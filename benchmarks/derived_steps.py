@@ -52,6 +52,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_common import FULL_PRECISION, SCENES, document, emit, held_out_views  # noqa: E402
+from precision_bound import joint_bins, rule_features  # noqa: E402
 
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
 from csgs_codec.codec.float_stream import _fit_prediction, frac_bits_for, predict  # noqa: E402
@@ -171,38 +172,26 @@ def class_offsets(sensitivity: np.ndarray, classes: np.ndarray,
     return table[classes], table
 
 
-def joint_bins(features: list[tuple[np.ndarray, int]]) -> np.ndarray:
-    """Class of each row (or value) from the joint quantile bins of ``features``."""
-    which = np.zeros(features[0][0].shape, np.int64)
-    for feature, count in features:
-        edges = np.quantile(feature, np.linspace(0, 1, count + 1)[1:-1])
-        which = which * count + np.searchsorted(edges, feature)
-    return which
-
-
 def j2_variants(rec, j2: dict[str, np.ndarray]) -> dict:
-    """Variants whose classes come from decoded scales and opacity (features of
+    """Variants whose classes come from decoded scales and opacity (the rules of
     precision_bound.py) and whose offsets follow the per-class mean of J2, the image
     sensitivity on the default viewing distribution (csgs_codec/render/
     jacobian_sensitivity.py): ``*_j2``."""
-    log_s = rec.scales.astype(np.float64)
-    big, small = log_s.max(1), log_s.min(1)
-    mid = np.sort(log_s, 1)[:, 1]
-    alpha = 1.0 / (1.0 + np.exp(-rec.opacity.astype(np.float64)))
-    log_alpha = np.log(np.maximum(alpha, 1e-12))
-    area = big + mid
-    shear = np.log(np.maximum(np.sinh(big - small), 1e-6))
-    rot_classes = joint_bins([(area + 2 * shear + 2 * log_alpha, 16)])
-    dc_classes = joint_bins([(area, 8), (log_alpha, 8)])
-    opacity_classes = joint_bins([(area, 8), (alpha, 8)])
-    scale_classes = joint_bins([(log_s, 16), (np.repeat(log_alpha[:, None], 3, 1), 4)])
+    features = rule_features(rec)
+
+    def classes_of(rule: str, per_value: bool = False) -> np.ndarray:
+        """The rule's joint bins: per value, or per Gaussian (its first channel's)."""
+        parts = features[rule][1]
+        return joint_bins(parts if per_value else [(f[:, 0], k) for f, k in parts])[0]
+
+    rot_classes = classes_of("rotation_by_area_shear_opacity")
+    dc_classes = classes_of("dc_by_area_and_opacity")
+    opacity_classes = classes_of("opacity_by_area_and_opacity")
+    scale_classes = classes_of("scale_by_log_scale_and_opacity", per_value=True)
 
     def make(sens, classes):
-        def build():
-            if classes.ndim == 1:
-                _, table = class_offsets(sens, classes)
-                return table[classes], classes, table
-            _, table = class_offsets(sens.ravel(), classes.ravel())  # one table, all channels
+        def build():  # per-value classes share one table over all channels
+            _, table = class_offsets(sens.ravel(), classes.ravel())
             return table[classes], classes, table
         return build
 

@@ -120,6 +120,33 @@ def rate_bits(variance_like: np.ndarray, distortion: np.ndarray) -> float:
     return float(0.5 * np.log2(variance_like[live] / distortion[live]).sum())
 
 
+def zero_rate_error(r_g: float, delta2: float) -> float:
+    """Squared error of a value left at zero rate: the group's variance implied by its bits
+    per value ``r_g`` at effective step^2 ``delta2`` (high-rate model)."""
+    return delta2 * 2.0 ** (2 * r_g) / 12.0
+
+
+def at_shift(r_g: float, delta2: float, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(bits, squared error) of values whose step is 2^-``shift`` times the group's (bits
+    per value ``r_g``, effective step^2 ``delta2``); at zero bits the error is the
+    variance."""
+    coded = r_g + shift > 0
+    e2 = np.where(coded, delta2 * 2.0 ** (-2 * shift) / 12.0, zero_rate_error(r_g, delta2))
+    return np.maximum(0.0, r_g + shift), e2
+
+
+def joint_bins(features: list[tuple[np.ndarray, int]]) -> tuple[np.ndarray, int]:
+    """(bin of each value, number of bins) from the joint quantile bins of ``features``
+    ((feature, bins) pairs of one shape; their bins multiply)."""
+    which = np.zeros(features[0][0].shape, np.int64)
+    bins = 1
+    for feature, count in features:
+        edges = np.quantile(feature, np.linspace(0, 1, count + 1)[1:-1])
+        which = which * count + np.searchsorted(edges, feature)
+        bins *= count
+    return which, bins
+
+
 def sensitivities(name: str, original, held, allocation, cache: Path | None):
     """J2 on the held-out and allocation views ({group: (N, C)} each) and the seconds the
     pass took, read from ``cache`` when it holds them."""
@@ -158,7 +185,7 @@ def bound_rows(name: str, original, qualities: list[int], width: int, height: in
                                 .astype(np.float64) - ref) ** 2).sum())
                         for c, ref in zip(held, refs))
         # Per value of every group: J2 (held, alloc), zero-rate error S and modelled error.
-        s_held, s_alloc, j_h_all, j_a_all, sigma2_all = [], [], [], [], []
+        s_held, s_alloc, j_h_all, j_a_all, variance_all = [], [], [], [], []
         per_group = []
         plain_bits, modelled, first_order = 0.0, 0.0, 0.0
         groups = {}
@@ -169,16 +196,16 @@ def bound_rows(name: str, original, qualities: list[int], width: int, height: in
             delta2 = 12.0 * float(np.mean(err ** 2))
             if delta2 <= 0:
                 continue
-            sigma2 = delta2 * 2.0 ** (2 * r_g) / 12.0
+            variance = zero_rate_error(r_g, delta2)
             jh, ja = j_held[group][order], j_alloc[group][order]
             plain_bits += bits
             modelled += float((jh * delta2 / 12.0).sum())
             first_order += float((jh * err ** 2).sum())
-            s_held.append((jh * sigma2).ravel())
-            s_alloc.append((ja * sigma2).ravel())
+            s_held.append((jh * variance).ravel())
+            s_alloc.append((ja * variance).ravel())
             j_h_all.append(jh.ravel())
             j_a_all.append(ja.ravel())
-            sigma2_all.append(np.full(count, sigma2))
+            variance_all.append(np.full(count, variance))
             per_group.append((ja, jh, r_g, delta2))
             live = jh[jh > 0]
             groups[group] = {"bits_per_value": r_g, "effective_step": float(np.sqrt(delta2)),
@@ -187,10 +214,9 @@ def bound_rows(name: str, original, qualities: list[int], width: int, height: in
                              else None}
         s_h, s_a = np.concatenate(s_held), np.concatenate(s_alloc)
         j_h, j_a = np.concatenate(j_h_all), np.concatenate(j_a_all)
-        sigma2 = np.concatenate(sigma2_all)
         _, d_oracle = water_fill(s_h, modelled)
         oracle_bits = rate_bits(s_h, d_oracle)
-        alloc_bits = _transferred_bits(s_a, j_a, j_h, sigma2, modelled)
+        alloc_bits = _transferred_bits(s_a, j_a, j_h, np.concatenate(variance_all), modelled)
         classes = class_allocation(per_group, modelled)
         features = rule_features(result.reconstruction)
         index = dict(zip(groups, per_group))
@@ -208,14 +234,14 @@ def bound_rows(name: str, original, qualities: list[int], width: int, height: in
             for g in groups])
         for group, (ja, jh, r_g, delta2) in zip(groups, per_group):
             # The same two allocations within this group alone (the others unchanged).
-            sigma2_g = delta2 * 2.0 ** (2 * r_g) / 12.0
+            variance = zero_rate_error(r_g, delta2)
             target = float((jh * delta2 / 12.0).sum())
             plain_g = r_g * jh.size
-            _, d = water_fill((jh * sigma2_g).ravel(), target)
-            alloc = _transferred_bits((ja * sigma2_g).ravel(), ja.ravel(), jh.ravel(),
-                                      np.full(jh.size, sigma2_g), target)
+            _, d = water_fill((jh * variance).ravel(), target)
+            alloc = _transferred_bits((ja * variance).ravel(), ja.ravel(), jh.ravel(),
+                                      np.full(jh.size, variance), target)
             groups[group]["oracle_saving_bits_per_gaussian"] = \
-                (plain_g - rate_bits((jh * sigma2_g).ravel(), d)) / n_in
+                (plain_g - rate_bits((jh * variance).ravel(), d)) / n_in
             groups[group]["default_distribution_saving_bits_per_gaussian"] = \
                 (plain_g - alloc) / n_in
         other = 8.0 * len(result.data) - plain_bits
@@ -249,13 +275,13 @@ def bound_rows(name: str, original, qualities: list[int], width: int, height: in
     return rows
 
 
-def _transferred_bits(s_alloc, j_alloc, j_held, sigma2, target: float) -> float:
+def _transferred_bits(s_alloc, j_alloc, j_held, variance, target: float) -> float:
     """Bits of the allocation water-filled on the allocation views' J2 whose held-out
     error equals ``target`` (bisection on the allocation's level)."""
     def held_error(theta: float) -> tuple[float, float]:
         d = np.minimum(theta, s_alloc)
         coded = (d < s_alloc) & (j_alloc > 0)
-        e2 = np.where(coded, d / np.where(j_alloc > 0, j_alloc, 1.0), sigma2)
+        e2 = np.where(coded, d / np.where(j_alloc > 0, j_alloc, 1.0), variance)
         return float((j_held * e2).sum()), rate_bits(s_alloc, d)
 
     theta = level_for(lambda t: held_error(t)[0], target, 0.0, float(s_alloc.max()))
@@ -282,28 +308,20 @@ def class_allocation(groups: list[tuple[np.ndarray, np.ndarray, float, float]],
     d_held = np.zeros_like(rate)
     shifts = shifts or [None] * len(groups)
     for (j_alloc, j_held, r_g, delta2), extra in zip(groups, shifts):
-        sigma2 = delta2 * 2.0 ** (2 * r_g) / 12.0
         extra = np.zeros(j_alloc.shape) if extra is None else extra
         for column, k in enumerate(CLASS_SHIFTS):
-            shift = k + extra
-            coded = r_g + shift > 0
-            e2 = np.where(coded, delta2 * 2.0 ** (-2 * shift) / 12.0, sigma2)
-            rate[:, column] += np.maximum(0.0, r_g + shift).sum(1)
+            bits, e2 = at_shift(r_g, delta2, k + extra)
+            rate[:, column] += bits.sum(1)
             d_alloc[:, column] += (j_alloc * e2).sum(1)
             d_held[:, column] += (j_held * e2).sum(1)
     rows = np.arange(n)
 
-    def pick(lam: float) -> np.ndarray:
-        return np.argmin(rate + lam * d_alloc, axis=1)
+    def pick(log_lambda: float) -> np.ndarray:
+        return np.argmin(rate + np.exp(log_lambda) * d_alloc, axis=1)
 
-    low, high = 1e-6, 1e18
-    for _ in range(200):
-        lam = np.sqrt(low * high)
-        if d_held[rows, pick(lam)].sum() > target:
-            low = lam
-        else:
-            high = lam
-    choice = pick(high)
+    # The held-out error falls as lambda rises; search it on a log scale.
+    choice = pick(level_for(lambda x: d_held[rows, pick(x)].sum(), target, np.log(1e-6),
+                            np.log(1e18), rising=False))
     counts = np.bincount(choice, minlength=len(CLASS_SHIFTS))
     p = counts[counts > 0] / n
     return {"bits": float(rate[rows, choice].sum()),
@@ -354,12 +372,7 @@ def rule_features(ref) -> dict[str, tuple[str, list[tuple[np.ndarray, int]]]]:
 def rule_shifts(features: list[tuple[np.ndarray, int]], j_alloc: np.ndarray) -> np.ndarray:
     """(N, C) step shift of each value (octaves finer, median 0) from its features' joint
     quantile bin: half the log2 of the bin's mean allocation-view J2 (high-rate optimum)."""
-    which = np.zeros(j_alloc.shape, np.int64)
-    bins = 1
-    for feature, count in features:
-        edges = np.quantile(feature, np.linspace(0, 1, count + 1)[1:-1])
-        which = which * count + np.searchsorted(edges, feature)
-        bins *= count
+    which, bins = joint_bins(features)
     mean_j = np.bincount(which.ravel(), weights=j_alloc.ravel(), minlength=bins) / \
         np.maximum(np.bincount(which.ravel(), minlength=bins), 1)
     log_mean = np.log2(np.maximum(mean_j, 1e-300))
@@ -371,14 +384,11 @@ def rule_saving(features: list[tuple[np.ndarray, int]], j_alloc: np.ndarray,
     """Bits saved in one group at equal held-out error when each value's step follows
     :func:`rule_shifts`, against the group's uniform step."""
     shift = rule_shifts(features, j_alloc)
-    sigma2 = delta2 * 2.0 ** (2 * r_g) / 12.0
     target = float((j_held * delta2 / 12.0).sum())
 
     def cost(offset: float) -> tuple[float, float]:
-        k = shift + offset
-        coded = r_g + k > 0
-        e2 = np.where(coded, delta2 * 2.0 ** (-2 * k) / 12.0, sigma2)
-        return float((j_held * e2).sum()), float(np.maximum(0.0, r_g + k).sum())
+        bits, e2 = at_shift(r_g, delta2, shift + offset)
+        return float((j_held * e2).sum()), float(bits.sum())
 
     offset = level_for(lambda o: cost(o)[0], target, -40.0, 40.0, rising=False, steps=100)
     return r_g * j_held.size - cost(offset)[1]
