@@ -122,11 +122,7 @@ def run_web(args) -> int:
         if not args.no_browser:
             webbrowser.open(server.url)
         with contextlib.suppress(KeyboardInterrupt):  # Ctrl-C or SIGTERM: the way to stop
-            # Timed waits: the kernel may hand SIGINT to a server thread, and an untimed
-            # wait would then never return to let the main thread raise KeyboardInterrupt.
-            never = threading.Event()
-            while not never.wait(0.5):
-                pass
+            threading.Event().wait()
     return 0
 
 
