@@ -68,8 +68,8 @@ def jacobian_sensitivity(scene: GaussianScene, cameras: Sequence[Camera], *, pro
     Args:
         scene: N Gaussians.
         cameras: the views; each is rendered ``probes`` times forward and backward with the
-            torch reference rasterizer (about a second per 100k Gaussians at 400x300 on one
-            CPU core).
+            torch reference rasterizer (measured: 76 views at 400x300 of 153k Gaussians in
+            53 s on an idle 2-core CPU).
         probes: random +-1 images per view (more lowers the estimate's noise).
         seed: seed of the probe images.
         progress: told ``(done, total)`` after each view.
