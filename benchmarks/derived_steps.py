@@ -15,6 +15,12 @@ Variants (classes in brackets; offsets chosen by the encoder from a sensitivity 
 per-class multiplier m_c ~ mean_c(s)^(-1/2), rate-neutral by count, clipped to +-3 octaves,
 in 1/8-octave step indices):
 
+- ``rot_uv_formula`` (``_half``, ``_035``, ``_065``: offsets x 0.5 / 0.35 / 0.65;
+  ``_half_clip32``): the cells float stream mode 7 carries, 8 quantile bins of u = S0 + S1 +
+  2 min(opacity logit, 0) (log area x opacity^2 from decoded values) x the 8 anisotropy bins
+  of ``rot_aniso``, s = e^u sinh(d)^2, no render (``_half`` is the reference encoder's
+  ``footprint_steps``); ``rot_uv_W``: the same cells, s = W sinh(d)^2; ``rot_uv_j2``
+  (with ``--j2-cache``): the same cells, s = J2.
 - ``rot_aniso``: rotation steps by anisotropy d = max - min decoded log-scale (8 classes,
   edges 0.25, 0.5, 0.75, 1, 1.5, 2, 3), s = sinh(d)^2 (the relative image error of a small
   rotation of a Gaussian with axis ratio e^d: (r - 1/r)^2 / 4).
@@ -199,11 +205,31 @@ def j2_variants(rec, j2: dict[str, np.ndarray]) -> dict:
     dc = make(j2["dc"].sum(1), dc_classes)
     opacity = make(j2["opacity"].sum(1), opacity_classes)
     scale = make(j2["scale"], scale_classes)
-    return {"rot_area_shear_opacity_j2": {"rot": rot},
+    u, v = feasible_scores(rec)
+    uv = feasible_classes(u, v)
+    rot_uv = make(j2["rotation"].sum(1), uv)
+    return {"rot_uv_j2": {"rot": rot_uv},
+            "rot_area_shear_opacity_j2": {"rot": rot},
             "dc_area_opacity_j2": {"dc": dc},
             "opacity_area_opacity_j2": {"opacity": opacity},
             "scale_own_value_j2": {"scale": scale},
             "all_j2": {"rot": rot, "dc": dc, "opacity": opacity, "scale": scale}}
+
+
+def feasible_scores(rec) -> tuple[np.ndarray, np.ndarray]:
+    """(u, v) per Gaussian, scores a decoder computes exactly from decoded values: u = the two
+    largest log-scales plus twice the opacity logit clamped at 0 (log area x opacity^2), v =
+    the anisotropy max - min log-scale."""
+    s = np.sort(np.asarray(rec.scales, np.float64), 1)[:, ::-1]
+    o = np.minimum(np.asarray(rec.opacity, np.float64).reshape(-1), 0.0)
+    return s[:, 0] + s[:, 1] + 2.0 * o, s[:, 0] - s[:, 2]
+
+
+def feasible_classes(u: np.ndarray, v: np.ndarray, u_bins: int = 8) -> np.ndarray:
+    """Joint class of u's quantile bins and v's anisotropy edges (8 x 8)."""
+    edges = np.quantile(u, np.linspace(0, 1, u_bins + 1)[1:-1])
+    return (np.searchsorted(edges, u, side="right") * (len(ANISO_EDGES) + 1)
+            + np.searchsorted(ANISO_EDGES, v, side="right")).astype(np.int64)
 
 
 def variants(rec, weights: np.ndarray) -> dict:
@@ -223,7 +249,16 @@ def variants(rec, weights: np.ndarray) -> dict:
             return table[classes], classes, table
         return build
 
+    u, v = feasible_scores(rec)
+    uv = feasible_classes(u, v)
+    formula = np.exp(np.minimum(u, 50.0)) * g
     return {
+        "rot_uv_formula": {"rot": make(formula, uv)},
+        "rot_uv_formula_half": {"rot": make(formula, uv, factor=0.5)},
+        "rot_uv_formula_035": {"rot": make(formula, uv, factor=0.35)},
+        "rot_uv_formula_065": {"rot": make(formula, uv, factor=0.65)},
+        "rot_uv_formula_half_clip32": {"rot": make(formula, uv, clip=32, factor=0.5)},
+        "rot_uv_W": {"rot": make(weights * g, uv)},
         "rot_aniso": {"rot": make(g, aniso)},
         "rot_aniso_half": {"rot": make(g, aniso, factor=0.5)},
         "rot_aniso_clip8": {"rot": make(g, aniso, clip=8)},

@@ -12,9 +12,11 @@ Scoring views (``--scoring``): ``held-out`` (default) is 16 orbit views at 20 de
 on the default viewing distribution, a sphere of directions at three distances); ``orbit``
 is the ``--views`` orbit views at 20 degrees alone (what results before 2026-11-24 used).
 
-Variants (``--variants``): ``plain`` is ``Encoder(quality=q)`` at ``--qualities``;
-``stacked`` adds the three opt-in distortion-side levers of issue 17 (view pruning on the
-default viewing distribution, derived rotation steps, ``--refine-steps`` refinement steps) at
+Variants (``--variants``): ``plain`` is ``Encoder(quality=q)`` at ``--qualities`` (the
+default encoder: rotation steps by footprint, FORMAT §12.8 mode 7); ``uniform`` is the same
+with one rotation step for all (``--uniform-steps``, the default before 2026-11-24, so
+``plain`` of earlier results); ``stacked`` adds the opt-in distortion-side levers of issue 17
+(view pruning on the default viewing distribution, ``--refine-steps`` refinement steps) at
 ``--stacked-qualities``. For each peer point and variant, ``csgs_size_ratio[variant]`` is the
 size that variant needs for the peer's foreground PSNR (interpolated on its curve, log-size
 linear; null outside it) divided by the peer's size.
@@ -60,7 +62,8 @@ def scores(refs, scene, cameras, backend) -> dict:
 
 
 #: Encoder options of each variant (the quality is added per row).
-VARIANTS = {"plain": {}, "stacked": {"view_pruning": True, "derived_steps": True}}
+VARIANTS = {"plain": {}, "uniform": {"rotation_steps": "uniform"},
+            "stacked": {"view_pruning": True}}
 
 
 def csgs_rows(name, original, refs, cameras, qualities, backend, variant: str = "plain",

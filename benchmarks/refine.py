@@ -8,7 +8,8 @@ degrees, 800x600; refinement uses the default sphere of views at 400 pixels wide
 ``cpu_s`` the encode's CPU time. ``ratio_vs_presets`` divides the bytes by what the plain
 presets 1-9 need for the same held-out PSNR (log-size interpolated; nan outside their range),
 so a refined file below 1 is smaller than any plain encode of its quality. ``--stacked``
-adds view pruning and derived rotation steps to each refined encode.
+adds view pruning and footprint rotation steps (mode 7) to each refined encode; the rest
+use one rotation step (``rotation_steps="uniform"``), as when the results were first taken.
 
     .venv/bin/python benchmarks/refine.py --scenes donut plant --qualities 2 5 \\
         --steps 20 60 --out benchmarks/results/refine_DATE.json
@@ -36,7 +37,7 @@ def measure(scene, held: HeldOut, quality: int, steps: int, stacked: bool = Fals
     view pruning and derived rotation steps to the refinement."""
     start = time.process_time()
     data = Encoder(quality=quality, hyperprior=False, refine=steps, view_pruning=stacked,
-                   derived_steps=stacked).encode(scene)
+                   rotation_steps="footprint" if stacked else "uniform").encode(scene)
     cpu = time.process_time() - start
     return {"quality": quality, "refine_steps": steps, "stacked": stacked,
             "bytes": len(data), "held_out_fg_psnr_db": held.psnr(Decoder().decode(data)),

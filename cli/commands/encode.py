@@ -56,10 +56,18 @@ def add_arguments(parser) -> None:
                              "around the scene unless cameras are known). Default: on when "
                              "cameras are given (--cameras, or an INRIA output folder), else "
                              "off")
-    parser.add_argument("--derived-steps", action="store_true",
-                        help="3DGS scenes: rotation steps from each Gaussian's decoded "
-                             "anisotropy (coarser where the Gaussian is near-isotropic; 1-5%% "
-                             "smaller at equal quality on two of three scenes measured)")
+    steps = parser.add_mutually_exclusive_group()
+    steps.add_argument("--rotation-steps", choices=("footprint", "anisotropy", "uniform"),
+                       default="footprint",
+                       help="3DGS scenes: how each Gaussian's rotation step follows its "
+                            "decoded attributes, at no per-Gaussian cost: 'footprint' "
+                            "(default) by its area, opacity and anisotropy, coarser where a "
+                            "rotation barely shows; 'anisotropy' by its anisotropy alone; "
+                            "'uniform' one step for all")
+    steps.add_argument("--uniform-steps", action="store_true",
+                       help="3DGS scenes: one step per attribute for every Gaussian, as "
+                            "files before render-aware steps (same as --rotation-steps "
+                            "uniform; for comparison)")
     parser.add_argument("--refine", type=int, default=0, metavar="N",
                         help="3DGS scenes: N steps that move each coded value to the lattice "
                              "point whose decoded scene renders closest to the original over "
@@ -116,7 +124,8 @@ def run(args) -> int:
                       fast=args.fast, semantic=args.semantic, prune_opacity=args.prune_opacity,
                       hyperprior=args.hyperprior,
                       view_pruning=view_pruning, cameras=cameras, tile_size=args.tile_size,
-                      derived_steps=args.derived_steps, refine=args.refine,
+                      rotation_steps="uniform" if args.uniform_steps else args.rotation_steps,
+                      refine=args.refine,
                       workers=args.workers, ray=args.ray)
     searching = args.target_psnr is not None or args.lambda_ is not None
     streamed = (not searching and not view_pruning and args.prune_opacity is None
@@ -182,11 +191,12 @@ def _encode_anchors(args, write_atomically) -> int:
 
     if (args.prune_opacity is not None or args.sanitize or args.target_psnr is not None
             or args.cameras is not None or args.view_pruning or args.tile_size is not None
-            or args.workers != 1 or args.ray is not None or args.derived_steps
-            or args.refine):
+            or args.workers != 1 or args.ray is not None or args.uniform_steps
+            or args.rotation_steps != "footprint" or args.refine):
         raise InputError("--prune-opacity, --sanitize, --target-psnr, --cameras, "
-                         "--view-prune, --tile-size, --workers, --ray, --derived-steps and "
-                         "--refine apply to 3DGS PLY input, not to anchor scenes",
+                         "--view-prune, --tile-size, --workers, --ray, --rotation-steps, "
+                         "--uniform-steps and --refine apply to 3DGS PLY input, not to "
+                         "anchor scenes",
                          file=args.scene)
     encoder = AnchorEncoder(quality=args.quality, lambda_=args.lambda_, fast=args.fast,
                             semantic=args.semantic)

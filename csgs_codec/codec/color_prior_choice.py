@@ -18,8 +18,8 @@ from csgs_codec.codec.color_prior import (
     stream_layout,
 )
 from csgs_codec.codec.float_stream import (
+    CLASSED_MODES,
     MODE_CONSTANT,
-    MODE_DERIVED,
     ChannelPrior,
     StreamPlan,
     prior_stream,
@@ -88,8 +88,8 @@ def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int,
     """
     names = list(plans)
     layout = stream_layout(names)
-    # Channels with derived steps (mode 6) keep their own per-class tables.
-    coded = np.array([plans[s].channels[c].mode not in (MODE_CONSTANT, MODE_DERIVED)
+    # Channels with derived or scored steps (modes 6, 7) keep their own per-class tables.
+    coded = np.array([plans[s].channels[c].mode not in (MODE_CONSTANT, *CLASSED_MODES)
                       for s, c in layout], bool)
     if len(cells) < policy.min_gaussians or not coded.any():
         return PriorChoice()

@@ -350,17 +350,21 @@ class Decoder:
             raise FormatError(f"unexpected color chunk(s) {sorted(extra)} for SH degree "
                               f"{header.sh_degree_coded}", chunk=sorted(extra)[0])
         modelled = modelled_streams(prior, names) if prior is not None else set()
-        # Rotations may derive their steps from the decoded scales (mode 6): they are
-        # submitted after the scales, and wait for them only when a channel asks.
-        later = modelled | ({"rot"} if "scale" in modelled else set())
+        # Rotations may derive their steps from the decoded scales and opacities (modes 6
+        # and 7): they are submitted after those, and wait for them only when a channel asks.
+        later = modelled | ({"rot"} if modelled & {"scale", "opacity"} else set())
         jobs: dict[str, Future] = {}
 
         def scales() -> np.ndarray:
             return jobs["scale"].result()[0]
 
+        def opacities() -> np.ndarray:
+            return jobs["opacity"].result()[0]
+
         def submit(name: str, priors=None) -> None:
+            derive_from = (scales, opacities) if name == "rot" else (None, None)
             jobs[name] = _submit(pool, _color_stream, container, header, name, priors,
-                                 scales if name == "rot" else None)
+                                 *derive_from)
 
         for name in names:
             if name not in later:
@@ -499,11 +503,12 @@ def _stream_names(header: SceneHeader) -> list[str]:
 
 
 def _color_stream(container, header: SceneHeader, name: str,
-                   priors: dict[int, ChannelPrior] | None = None, log_scales=None
-                   ) -> tuple[np.ndarray, np.ndarray | None]:
+                   priors: dict[int, ChannelPrior] | None = None, log_scales=None,
+                   opacity=None) -> tuple[np.ndarray, np.ndarray | None]:
     """(values (N, C) float32, dropped-component index per Gaussian for "rot" else None) of
     one color stream; ``priors`` are the hyperprior's for its modelled channels, and
-    ``log_scales`` (rotations only) returns the decoded scales mode 6 derives steps from."""
+    ``log_scales`` and ``opacity`` (rotations only) return the decoded scales and opacity
+    logits modes 6 and 7 derive steps from."""
     code = STREAM_CHUNKS[name]
     data, offset = single_payload(container, code)
     r = ByteReader(data, base_offset=offset, chunk=code)
@@ -515,7 +520,7 @@ def _color_stream(container, header: SceneHeader, name: str,
         if rot_axis.size and rot_axis.max() > 3:
             raise r.error("dropped-component index above 3")
     values = read_float_stream(r, header.count, STREAM_CHANNELS[name], priors,
-                               log_scales)
+                               log_scales, opacity)
     r.expect_end(f"the {name} stream")
     check_finite(values, code)
     return values, rot_axis

@@ -1,5 +1,5 @@
-"""Rotation steps derived from the decoded scales: no per-Gaussian side information (FORMAT
-§12.8, mode 6).
+"""Rotation steps derived from decoded attributes: no per-Gaussian side information (FORMAT
+§12.8, modes 6 and 7).
 
 A small rotation error changes a Gaussian's covariance in proportion to how unequal its axes
 are: for axis ratio r = e^d the relative image error of a rotation by theta is
@@ -10,8 +10,15 @@ class's step: ``step_index + offsets[class_i]``. The class table (thresholds on 
 offsets) is chosen by the encoder and carried once per channel; the class of each Gaussian
 costs nothing.
 
-The class derivation reads decoded float32 values and uses binary64 subtraction and
-comparison only, which are correctly rounded, so every machine derives the same classes.
+Mode 7 (*scored steps*) refines this with the Gaussian's footprint: its class is a cell of
+two scores, each a weighted sum of its sorted decoded log-scales and its opacity logit clamped
+at 0. The reference encoder scores u = log area + 2 log opacity (the two largest log-scales
+plus twice the clamped logit) and v = the anisotropy, so a faint or small Gaussian's rotation
+is coded coarser than that of a large, opaque, elongated one (:func:`footprint_steps`).
+
+The class derivation reads decoded float32 values and uses binary64 products (exact on
+float32 inputs), sums in a fixed order and comparisons only, each correctly rounded, so every
+machine derives the same classes.
 """
 
 from __future__ import annotations
@@ -22,8 +29,11 @@ import numpy as np
 
 from csgs_codec.entropy.residual import STEP_COUNT
 
-#: Most classes a table may hold.
+#: Most classes a table may hold (mode 6), and most bins of each score (mode 7).
 MAX_CLASSES = 8
+#: Features a mode-7 score weighs: the sorted log-scales (largest first) and the opacity
+#: logit clamped at 0.
+SCORE_FEATURES = 4
 #: Step indices per octave of the step table (FORMAT §16.3.1).
 STEPS_PER_OCTAVE = 8
 #: Anisotropy thresholds of the reference encoder (natural-log units: 0.25 is an axis ratio
@@ -55,6 +65,11 @@ class DerivedSteps:
     def count(self) -> int:
         """Number of classes K."""
         return int(len(self.offsets))
+
+    @property
+    def table_bits(self) -> int:
+        """Bits the planner counts for the class table in each channel record."""
+        return 8 * (5 * (self.count - 1) + 2 * self.count)
 
     def step_indices(self, base: int) -> np.ndarray:
         """(N,) int64 step index of every Gaussian for a channel of step index ``base``."""
@@ -115,3 +130,144 @@ def rotation_steps(log_scales: np.ndarray, base: int, *, strength: float = STREN
     if not np.any(offsets[count > 0]):
         return None
     return DerivedSteps(thresholds, offsets, classes)
+
+
+@dataclass(frozen=True)
+class ScoredSteps:
+    """Per-Gaussian step classes from two scores of decoded attributes (FORMAT §12.8 mode 7).
+
+    Attributes:
+        weights: (2, 4) float32, finite: the weights of score u (row 0) and score v (row 1)
+            on the features of :func:`score_features`.
+        thresholds_u, thresholds_v: float32, finite, strictly increasing: the bin of a score
+            is the number of its thresholds at or below it (K_u, K_v = lengths + 1, <= 8).
+        offsets: (K_u * K_v,) int64 step-index offset of each cell, cell = bin_u * K_v + bin_v.
+        classes: (N,) int64 cell of every Gaussian (derived, never coded).
+    """
+
+    weights: np.ndarray
+    thresholds_u: np.ndarray
+    thresholds_v: np.ndarray
+    offsets: np.ndarray
+    classes: np.ndarray
+
+    @property
+    def count(self) -> int:
+        """Number of cells K_u * K_v."""
+        return int(len(self.offsets))
+
+    @property
+    def table_bits(self) -> int:
+        """Bits the cell table takes in each channel record (offsets at one byte each)."""
+        thresholds = len(self.thresholds_u) + len(self.thresholds_v)
+        return 8 * (32 + 2 + 4 * thresholds + 2 * self.count)
+
+    def step_indices(self, base: int) -> np.ndarray:
+        """(N,) int64 step index of every Gaussian for a channel of step index ``base``."""
+        return (base + self.offsets)[self.classes]
+
+
+def score_features(log_scales: np.ndarray, opacity: np.ndarray) -> np.ndarray:
+    """(N, 4) binary64 features of mode 7 from decoded float32 log-scales (N, 3) and opacity
+    logits (N,) or (N, 1): the log-scales sorted largest first, then min(logit, 0)."""
+    s = np.sort(np.asarray(log_scales, np.float32).astype(np.float64), axis=1)[:, ::-1]
+    o = np.minimum(np.asarray(opacity, np.float32).astype(np.float64).reshape(-1, 1), 0.0)
+    return np.concatenate([s, o], axis=1)
+
+
+def score(features: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """(N,) binary64 score ((w0 f0 + w1 f1) + w2 f2) + w3 f3, in that order (FORMAT §12.8)."""
+    w = np.asarray(weights, np.float32).astype(np.float64)
+    total = features[:, 0] * w[0]
+    for j in range(1, SCORE_FEATURES):
+        total = total + features[:, j] * w[j]
+    return total
+
+
+def derive_scored_classes(log_scales: np.ndarray, opacity: np.ndarray, weights: np.ndarray,
+                          thresholds_u: np.ndarray, thresholds_v: np.ndarray) -> np.ndarray:
+    """(N,) int64 cell bin_u * K_v + bin_v of each Gaussian (mode 7)."""
+    features = score_features(log_scales, opacity)
+    bins = []
+    for row, thresholds in ((0, thresholds_u), (1, thresholds_v)):
+        t = np.asarray(thresholds, np.float32).astype(np.float64)
+        bins.append(np.searchsorted(t, score(features, weights[row]), side="right"))
+    return (bins[0] * (len(thresholds_v) + 1) + bins[1]).astype(np.int64)
+
+
+def check_scored_table(weights: np.ndarray, thresholds_u: np.ndarray,
+                       thresholds_v: np.ndarray, offsets: np.ndarray, base: int) -> str | None:
+    """Why a mode-7 table is invalid for a channel of step index ``base``, or None."""
+    if not np.all(np.isfinite(np.asarray(weights, np.float64))):
+        return "score weights must be finite"
+    for name, t in (("u", thresholds_u), ("v", thresholds_v)):
+        t = np.asarray(t, np.float64)
+        if not len(t) < MAX_CLASSES:
+            return f"{len(t) + 1} bins of score {name}, at most {MAX_CLASSES}"
+        if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+            return f"thresholds of score {name} must be finite and strictly increasing"
+    cells = (len(thresholds_u) + 1) * (len(thresholds_v) + 1)
+    if len(offsets) != cells:
+        return f"{len(offsets)} step offsets for {cells} cells"
+    steps = base + np.asarray(offsets, np.int64)
+    if steps.min() < 0 or steps.max() >= STEP_COUNT:
+        return f"step index {base} plus offsets {list(map(int, offsets))} leaves [0, {STEP_COUNT})"
+    return None
+
+
+#: Weights of the reference encoder's scores: u = log area x opacity^2 (two largest
+#: log-scales + 2 x clamped logit), v = anisotropy (largest - smallest log-scale).
+FOOTPRINT_WEIGHTS = ((1.0, 1.0, 0.0, 2.0), (1.0, 0.0, -1.0, 0.0))
+#: Quantile bins of u, and the strength and clip of the reference encoder's footprint table
+#: (measured on held-out views of donut, plant and biker: 0.5 of the high-rate optimum).
+FOOTPRINT_BINS = 8
+FOOTPRINT_STRENGTH = 0.5
+FOOTPRINT_CLIP = 12
+#: Fewest Gaussians a stream needs before the footprint table pays for its 64 cells.
+FOOTPRINT_MIN_GAUSSIANS = 4096
+
+
+def footprint_steps(log_scales: np.ndarray, opacity: np.ndarray, base: int, *,
+                    strength: float = FOOTPRINT_STRENGTH, clip: int = FOOTPRINT_CLIP
+                    ) -> ScoredSteps | None:
+    """The reference encoder's mode-7 table for rotations of Gaussians with decoded
+    ``log_scales`` (N, 3) and opacity logits (N,), quantized at step index ``base``; None
+    for scenes under :data:`FOOTPRINT_MIN_GAUSSIANS` or when every cell keeps the step.
+
+    A small rotation by theta of a Gaussian of axis ratio e^d changes its picture by about
+    theta^2 sinh(d)^2 of its energy, which is about its area times its opacity squared, so
+    each cell's sensitivity is taken as the mean of exp(u) sinh(v)^2 over its Gaussians and
+    its step multiplier as that to the power -strength/2 (1: the high-rate optimum),
+    normalised to a count-weighted mean log-step of 0, in 1/8 octaves, clipped to +-``clip``
+    and to the step table. No render is needed.
+    """
+    n = len(log_scales)
+    if n < FOOTPRINT_MIN_GAUSSIANS:
+        return None
+    weights = np.array(FOOTPRINT_WEIGHTS, np.float32)
+    features = score_features(log_scales, opacity)
+    u = score(features, weights[0])
+    v = score(features, weights[1])
+    edges = np.unique(np.quantile(u, np.linspace(0, 1, FOOTPRINT_BINS + 1)[1:-1])
+                      .astype(np.float32))
+    thresholds_u = edges[np.isfinite(edges)]
+    thresholds_v = np.array(THRESHOLDS, np.float32)
+    classes = derive_scored_classes(log_scales, opacity, weights, thresholds_u, thresholds_v)
+    k = (len(thresholds_u) + 1) * (len(thresholds_v) + 1)
+    count = np.bincount(classes, minlength=k).astype(np.float64)
+    log_sens = u + 2.0 * np.log(np.sinh(np.clip(v, 1e-6, 20.0)))
+    top = np.full(k, -np.inf)
+    np.maximum.at(top, classes, log_sens)
+    safe_top = np.where(np.isfinite(top), top, 0.0)
+    sums = np.bincount(classes, weights=np.exp(log_sens - safe_top[classes]), minlength=k)
+    log_mean = (safe_top + np.log(np.maximum(sums, 1e-300))
+                - np.log(np.maximum(count, 1.0))) / np.log(2.0)
+    log_m = -0.5 * strength * log_mean
+    present = count > 0
+    log_m -= np.sum(count[present] * log_m[present]) / count.sum()
+    offsets = np.clip(np.rint(STEPS_PER_OCTAVE * log_m), -clip, clip)
+    offsets = np.where(present, offsets, 0).astype(np.int64)
+    offsets = np.clip(base + offsets, 0, STEP_COUNT - 1) - base
+    if not np.any(offsets[present]):
+        return None
+    return ScoredSteps(weights, thresholds_u, thresholds_v, offsets, classes)

@@ -21,7 +21,7 @@ from csgs_codec.codec.color_prior_choice import (
     PriorFitPolicy,
     choose_prior,
 )
-from csgs_codec.codec.derived_steps import rotation_steps
+from csgs_codec.codec.derived_steps import footprint_steps, rotation_steps
 from csgs_codec.codec.encode_result import EncodeResult
 from csgs_codec.codec.encoder_checks import check_count, check_encodable, decodable_container
 from csgs_codec.codec.far_points import plan_far_points
@@ -51,6 +51,9 @@ from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.scene.position_grid import PositionGrid
 
 SEMANTIC_MODES = ("auto", "none")
+#: How rotation steps follow decoded attributes (``Encoder(rotation_steps=...)``).
+ROTATION_STEPS = ("footprint", "anisotropy", "uniform")
+DEFAULT_ROTATION_STEPS = "footprint"
 #: Scenes with fewer Gaussians are not view-pruned: the sensitivity pass is not worth it and
 #: tiny test scenes stay whole.
 MIN_PRUNED_SCENE = 1024
@@ -101,10 +104,12 @@ class Encoder:
             (:func:`csgs_codec.render.view_distribution.default_distribution`).
         view_budget: the pruning budget, a fraction of the quantization's squared error on
             the views (default 0.1: at most about 0.4 dB).
-        derived_steps: code rotations with steps derived from each Gaussian's decoded
-            anisotropy (coarser for near-isotropic Gaussians, whose rotation barely shows;
-            FORMAT §12.8 mode 6, no per-Gaussian side information). False (default) keeps
-            one rotation step, as files before it.
+        rotation_steps: how each Gaussian's rotation step follows its decoded attributes, at
+            no per-Gaussian cost (FORMAT §12.8): ``"footprint"`` (default) by its area,
+            opacity and anisotropy (mode 7: coarser where a rotation barely shows;
+            :func:`csgs_codec.codec.derived_steps.footprint_steps`; scenes of 4,096+
+            Gaussians), ``"anisotropy"`` by its anisotropy alone (mode 6), ``"uniform"`` one
+            step for every Gaussian (files before modes 6 and 7).
         refine: Adam steps that move each coded value to the lattice point whose decoded
             scene renders closest to the original over the viewing distribution (``cameras``
             or the default sphere; :mod:`csgs_codec.codec.refinement`). Same format and
@@ -133,7 +138,8 @@ class Encoder:
                  prune_opacity: float | None = None, hyperprior: bool = True,
                  prior_fit: PriorFitPolicy = DEFAULT_PRIOR_FIT,
                  view_pruning: bool = False, cameras=None,
-                 view_budget: float = DEFAULT_BUDGET, derived_steps: bool = False,
+                 view_budget: float = DEFAULT_BUDGET,
+                 rotation_steps: str = DEFAULT_ROTATION_STEPS,
                  refine: int = 0, tile_size: int | None = None, workers: int = 1,
                  ray: str | None = None, tile_progress=None,
                  progress=None, fit_progress=None, view_progress=None,
@@ -171,7 +177,10 @@ class Encoder:
         self.view_pruning = bool(view_pruning)
         self.cameras = None if cameras is None else list(cameras)
         self.view_budget = float(view_budget)
-        self.derived_steps = bool(derived_steps)
+        if rotation_steps not in ROTATION_STEPS:
+            raise InputError(f"rotation steps must be one of {ROTATION_STEPS}, got "
+                             f"{rotation_steps!r}", property="rotation_steps")
+        self.rotation_steps = rotation_steps
         if isinstance(refine, bool) or not isinstance(refine, int) or not 0 <= refine <= 100_000:
             raise InputError(f"refine must be a step count in [0, 100000], got {refine!r}",
                              property="refine")
@@ -406,15 +415,22 @@ class Encoder:
                  "rest3": p.rest_step, "opacity": p.opacity_step, "scale": p.scale_step,
                  "rot": p.rotation_step}
         plans = {}
+        lattices = lattices or {}
         for name, stream in values.items():
             derive = None
-            if name == "rot" and self.derived_steps:
+            if name in lattices:
+                pass  # a lattice comes from a plan with one step: keep that plan's step
+            elif name == "rot" and self.rotation_steps == "anisotropy":
                 scales = plans["scale"].recon
 
                 def derive(base: int, scales=scales):
                     return rotation_steps(scales, base)
-            plans[name] = plan_float_stream(stream, steps[name], derive,
-                                            (lattices or {}).get(name))
+            elif name == "rot" and self.rotation_steps == "footprint":
+                scales, opacity = plans["scale"].recon, plans["opacity"].recon
+
+                def derive(base: int, scales=scales, opacity=opacity):
+                    return footprint_steps(scales, opacity, base)
+            plans[name] = plan_float_stream(stream, steps[name], derive, lattices.get(name))
         return plans
 
     def _refined_plans(self, ordered: GaussianScene, streams: SceneStreams, plans: dict,

@@ -18,6 +18,8 @@ Each channel c is one of:
 - derived steps (mode 6, rotation streams only): as factorized or predicted, but the step of
   Gaussian i is ``step_index + offsets[class_i]`` with the class derived from its decoded
   log-scales (:mod:`csgs_codec.codec.derived_steps`), and each class has its own table.
+- scored steps (mode 7, rotation streams only): as mode 6 with the class a cell of two scores
+  of the decoded log-scales and opacity logit.
 
 The value decodes as ``float32((mu + q * k) * 2^-F)``. The encoder picks, per channel, the mode
 that codes smallest (counting the coefficients), so prediction is used only where it pays.
@@ -29,7 +31,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from csgs_codec.codec.derived_steps import MAX_CLASSES, DerivedSteps, check_table, derive_classes
+from csgs_codec.codec.derived_steps import (
+    MAX_CLASSES,
+    SCORE_FEATURES,
+    DerivedSteps,
+    ScoredSteps,
+    check_scored_table,
+    check_table,
+    derive_classes,
+    derive_scored_classes,
+)
 from csgs_codec.entropy.histogram import decode_histogram, encode_histogram, histogram_cost
 from csgs_codec.entropy.residual import (
     STEP_COUNT,
@@ -53,6 +64,9 @@ MODE_PREDICTED = 2
 MODE_HISTOGRAM = 4
 MODE_HYPERPRIOR = 5
 MODE_DERIVED = 6
+MODE_SCORED = 7
+#: Modes whose steps (and tables) follow per-Gaussian classes derived from decoded values.
+CLASSED_MODES = (MODE_DERIVED, MODE_SCORED)
 #: Fractional bits of prediction coefficients and bias.
 COEF_FRAC_BITS = 12
 #: |A_j| must stay below this; |B| below BIAS_LIMIT.
@@ -102,7 +116,7 @@ class ChannelPlan:
             prediction when ``coefs`` is set.
         coefs, bias: the channel prediction, or None.
         constant: the float32 value of a constant channel.
-        tables: (K,) int64 table of each step class (derived-steps mode only).
+        tables: (K,) int64 table of each step class (derived and scored steps only).
     """
 
     mode: int
@@ -134,7 +148,8 @@ class StreamPlan:
         count, frac_bits, step_idx: N, the grid's fractional bits and the step index.
         channels: one :class:`ChannelPlan` per channel.
         recon: (N, C) float32 values the decoder will reconstruct (whatever the modes).
-        derived: the step classes every coded channel follows (mode 6), or None.
+        derived: the step classes every coded channel follows (:class:`DerivedSteps`, mode
+            6, or :class:`ScoredSteps`, mode 7), or None.
     """
 
     count: int
@@ -142,7 +157,7 @@ class StreamPlan:
     step_idx: int
     channels: list[ChannelPlan]
     recon: np.ndarray
-    derived: DerivedSteps | None = None
+    derived: DerivedSteps | ScoredSteps | None = None
 
     def lattice(self) -> Lattice:
         """This plan's :class:`Lattice`."""
@@ -178,7 +193,8 @@ def plan_float_stream(values: np.ndarray, step: float, derive=None,
     mode without a hyperprior.
 
     ``derive``, when given, is called with the stream's step index and returns the
-    :class:`DerivedSteps` every coded channel then follows (mode 6), or None for one step.
+    :class:`DerivedSteps` (mode 6) or :class:`ScoredSteps` (mode 7) every coded channel then
+    follows, or None for one step.
     ``lattice``, when given, fixes the grid and the channels' means instead of taking them
     from ``values`` (a channel constant in ``values`` is still coded as a constant); not
     with ``derive``.
@@ -236,17 +252,23 @@ def _class_costs(residuals: np.ndarray, classes: np.ndarray, count: int
     return bits + 8 * count, tables
 
 
-def _plan_derived(values: np.ndarray, f: int, step_idx: int, derived: DerivedSteps
-                  ) -> StreamPlan:
-    """The plan of a stream whose coded channels all follow ``derived`` (mode 6)."""
+def _plan_derived(values: np.ndarray, f: int, step_idx: int,
+                  derived: DerivedSteps | ScoredSteps) -> StreamPlan:
+    """The plan of a stream whose coded channels all follow ``derived`` (mode 6 or 7)."""
     n, channels = values.shape
-    why = check_table(derived.thresholds, derived.offsets, step_idx)
+    if isinstance(derived, ScoredSteps):
+        mode = MODE_SCORED
+        why = check_scored_table(derived.weights, derived.thresholds_u, derived.thresholds_v,
+                                 derived.offsets, step_idx)
+    else:
+        mode = MODE_DERIVED
+        why = check_table(derived.thresholds, derived.offsets, step_idx)
     if why is not None:
         raise ValueError(why)
     recon = np.empty((n, channels), np.float32)
     indices = np.zeros((channels, n), np.int64)
     steps = derived.step_indices(step_idx)
-    table_bits = 8 * (5 * (derived.count - 1) + 2 * derived.count)
+    table_bits = derived.table_bits
     plans = []
     for c in range(channels):
         column = values[:, c].astype(np.float32)
@@ -257,7 +279,7 @@ def _plan_derived(values: np.ndarray, f: int, step_idx: int, derived: DerivedSte
         grid, mean, k = _median_quantized(column, f, steps)
         indices[c] = k
         bits, tables = _class_costs(k, derived.classes, derived.count)
-        best = ChannelPlan(MODE_DERIVED, bits + table_bits, mean, k, None, 0, tables=tables)
+        best = ChannelPlan(mode, bits + table_bits, mean, k, None, 0, tables=tables)
         fitted = _fit_prediction(indices[:c].T, k)
         if fitted is not None:
             coefs, bias = fitted
@@ -265,7 +287,7 @@ def _plan_derived(values: np.ndarray, f: int, step_idx: int, derived: DerivedSte
             bits, tables = _class_costs(r, derived.classes, derived.count)
             bits += table_bits + 8 * (3 * c + 6)
             if bits < best.cost:
-                best = ChannelPlan(MODE_DERIVED, bits, mean, r, coefs, bias, tables=tables)
+                best = ChannelPlan(mode, bits, mean, r, coefs, bias, tables=tables)
         plans.append(best)
         means = np.full(n, mean, np.int64)
         recon[:, c] = from_grid(reconstruct(means, k, steps), f).astype(np.float32)
@@ -290,7 +312,7 @@ def write_planned_stream(out: ByteWriter, plan: StreamPlan,
             out.fixed("u8", MODE_CONSTANT)
             out.fixed("f32", ch.constant)
             continue
-        if ch.mode == MODE_DERIVED:
+        if ch.mode in CLASSED_MODES:
             _write_derived_channel(out, plan, ch, c)
             continue
         mode = MODE_HYPERPRIOR if c in priors else ch.mode
@@ -318,14 +340,22 @@ def write_planned_stream(out: ByteWriter, plan: StreamPlan,
 
 def _write_derived_channel(out: ByteWriter, plan: StreamPlan, ch: ChannelPlan, c: int
                            ) -> None:
-    """Append channel ``c``'s record in the derived-steps mode (FORMAT §12.8)."""
+    """Append channel ``c``'s record in the derived- or scored-steps mode (FORMAT §12.8)."""
     derived = plan.derived
-    out.fixed("u8", MODE_DERIVED)
+    out.fixed("u8", ch.mode)
     out.svarint(ch.mean)
     out.fixed("u8", plan.step_idx)
-    out.fixed("u8", derived.count)
-    for t in derived.thresholds:
-        out.fixed("f32", float(t))
+    if ch.mode == MODE_SCORED:
+        for w in np.asarray(derived.weights, np.float32).ravel():
+            out.fixed("f32", float(w))
+        for thresholds in (derived.thresholds_u, derived.thresholds_v):
+            out.fixed("u8", len(thresholds) + 1)
+            for t in thresholds:
+                out.fixed("f32", float(t))
+    else:
+        out.fixed("u8", derived.count)
+        for t in derived.thresholds:
+            out.fixed("f32", float(t))
     for o in derived.offsets:
         out.svarint(int(o))
     for table in ch.tables:
@@ -366,13 +396,14 @@ def _fit_prediction(previous: np.ndarray, k: np.ndarray):
 
 def read_float_stream(r: ByteReader, count: int, channels: int | None = None,
                       priors: dict[int, ChannelPrior] | None = None,
-                      log_scales=None) -> np.ndarray:
+                      log_scales=None, opacity=None) -> np.ndarray:
     """Read a float stream body written by :func:`write_float_stream`: (count, C) float32.
 
     ``priors`` holds the hyperprior's parameters of the channels it models (channel index ->
-    :class:`ChannelPrior`); a channel in mode 5 without one is an error. ``log_scales`` is a
-    callable returning the scene's decoded log-scales (N, 3) float32, which channels in mode
-    6 derive their steps from; None where mode 6 is not allowed (every stream but ROTN).
+    :class:`ChannelPrior`); a channel in mode 5 without one is an error. ``log_scales`` and
+    ``opacity`` are callables returning the scene's decoded log-scales (N, 3) and opacity
+    logits (N, 1) float32, which channels in modes 6 and 7 derive their steps from; None
+    where those modes are not allowed (every stream but ROTN).
 
     Raises:
         FormatError: count or channel mismatch, a bad mode, table, step or coefficient, an
@@ -397,10 +428,11 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None,
         if mode == MODE_CONSTANT:
             out[c] = np.float32(r.fixed("f32", "constant_value"))
             continue
-        if mode == MODE_DERIVED:
-            if log_scales is None:
-                raise r.error(f"channel {c}: derived steps (mode 6) are only allowed in ROTN")
-            k, q = _read_derived_channel(r, c, n, indices, peak, log_scales)
+        if mode in CLASSED_MODES:
+            if log_scales is None or (mode == MODE_SCORED and opacity is None):
+                raise r.error(f"channel {c}: derived steps (mode {mode}) are only allowed "
+                              "in ROTN")
+            k, q = _read_derived_channel(r, c, n, indices, peak, mode, log_scales, opacity)
             mean = k[1]
             k = k[0]
             top = int(np.abs(k).max()) if n else 0
@@ -460,21 +492,38 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None,
 
 
 def _read_derived_channel(r: ByteReader, c: int, n: int, indices: np.ndarray, peak: int,
-                          log_scales) -> tuple[tuple[np.ndarray, int], np.ndarray]:
-    """((indices k (N,), mean), per-Gaussian steps q (N,)) of a channel in mode 6, the reader
-    just past its mode byte (FORMAT §12.8)."""
+                          mode: int, log_scales, opacity
+                          ) -> tuple[tuple[np.ndarray, int], np.ndarray]:
+    """((indices k (N,), mean), per-Gaussian steps q (N,)) of a channel in mode 6 or 7, the
+    reader just past its mode byte (FORMAT §12.8)."""
     mean = r.svarint("mean")
     step = r.fixed("u8", "step_index")
     if abs(mean) > 1 << 53 or step >= STEP_COUNT:
         raise r.error(f"channel {c}: mean or step index out of range")
-    k_count = r.fixed("u8", "class_count")
-    if not 1 <= k_count <= MAX_CLASSES:
-        raise r.error(f"channel {c}: class count {k_count} outside 1..{MAX_CLASSES}")
-    at = r.offset
-    thresholds = np.array([r.fixed("f32", "threshold") for _ in range(k_count - 1)],
-                          np.float32)
-    offsets = np.array([r.svarint("step_offset") for _ in range(k_count)], np.int64)
-    why = check_table(thresholds, offsets, step)
+    if mode == MODE_SCORED:
+        at = r.offset
+        weights = np.array([r.fixed("f32", "score_weight") for _ in range(2 * SCORE_FEATURES)],
+                           np.float32).reshape(2, SCORE_FEATURES)
+        bins = []
+        for name in ("u", "v"):
+            b_count = r.fixed("u8", f"bin_count_{name}")
+            if not 1 <= b_count <= MAX_CLASSES:
+                raise r.error(f"channel {c}: {b_count} bins of score {name}, outside "
+                              f"1..{MAX_CLASSES}")
+            bins.append(np.array([r.fixed("f32", f"threshold_{name}")
+                                  for _ in range(b_count - 1)], np.float32))
+        k_count = (len(bins[0]) + 1) * (len(bins[1]) + 1)
+        offsets = np.array([r.svarint("step_offset") for _ in range(k_count)], np.int64)
+        why = check_scored_table(weights, bins[0], bins[1], offsets, step)
+    else:
+        k_count = r.fixed("u8", "class_count")
+        if not 1 <= k_count <= MAX_CLASSES:
+            raise r.error(f"channel {c}: class count {k_count} outside 1..{MAX_CLASSES}")
+        at = r.offset
+        thresholds = np.array([r.fixed("f32", "threshold") for _ in range(k_count - 1)],
+                              np.float32)
+        offsets = np.array([r.svarint("step_offset") for _ in range(k_count)], np.int64)
+        why = check_table(thresholds, offsets, step)
     if why is not None:
         raise FormatError(f"channel {c}: {why}", chunk=r.chunk, offset=at)
     tables = np.array([r.fixed("u8", "scale_index") for _ in range(k_count)], np.int64)
@@ -493,7 +542,10 @@ def _read_derived_channel(r: ByteReader, c: int, n: int, indices: np.ndarray, pe
             raise r.error(f"channel {c}: earlier indices too large to predict from")
         prediction = predict(indices[:c], coefs, bias)
     stream = r.byte_string("residual_stream")
-    classes = derive_classes(log_scales(), thresholds)
+    if mode == MODE_SCORED:
+        classes = derive_scored_classes(log_scales(), opacity(), weights, bins[0], bins[1])
+    else:
+        classes = derive_classes(log_scales(), thresholds)
     k = decode_symbols(stream, tables[classes], chunk=r.chunk,
                        base_offset=r.offset - len(stream)) + prediction
     q = step_size(step + offsets)[classes]

@@ -147,7 +147,7 @@ def assemble(encoder, jobs: list[TileJob], outputs: list[TileOutput], count: int
 
 def _tile_coder(encoder) -> Callable:
     """What makes a tile's encoder: ``encoder``'s class with the settings a tile shares."""
-    return partial(type(encoder), derived_steps=encoder.derived_steps,
+    return partial(type(encoder), rotation_steps=encoder.rotation_steps,
                    prior_fit=encoder.prior_fit)
 
 

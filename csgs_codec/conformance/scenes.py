@@ -35,6 +35,9 @@ FROZEN = ("donut_q3", "donut_q7", "three_points_sh3_q9", "semantic_small",
           "missing_opacity_chunk", "truncated_dc_payload", "truncated_label_payload")
 #: Suffix of the vectors the current encoder writes (r2: histogram-coded channels).
 REVISION = "_r2"
+#: The vectors written before render-aware rotation steps were the default keep one step
+#: (regenerating them gives the same bytes); the scored-steps vectors show the default.
+UNIFORM = {"rotation_steps": "uniform"}
 
 
 def small_semantic_scene() -> GaussianScene:
@@ -106,17 +109,17 @@ def generate(out_dir: Path) -> None:
     for quality in (3, 7):
         # Written without the color hyperprior, as when they landed; the prior has its own
         # vectors (_color_prior_vectors).
-        data = Encoder(quality=quality, hyperprior=False).encode(donut)
+        data = Encoder(quality=quality, hyperprior=False, **UNIFORM).encode(donut)
         _write(out_dir, f"donut_q{quality}{r}", data,
                f"samples/donut.ply (45,624 Gaussians, SH 0) at quality {quality}",
                _reads(data))
     three = read_ply(THREE_POINTS)
-    data = Encoder(quality=9).encode(three)
+    data = Encoder(quality=9, **UNIFORM).encode(three)
     _write(out_dir, f"three_points_sh3_q9{r}", data,
            "fixtures/three_points_sh3.ply (3 Gaussians, SH 3) at quality 9",
            _reads(data), arrays=Decoder().decode(data))
     small = small_semantic_scene()
-    data = Encoder(quality=6).encode(small)
+    data = Encoder(quality=6, **UNIFORM).encode(small)
     _write(out_dir, f"semantic_small{r}", data,
            "40 Gaussians, SH 1, 3 semantic channels and labels, quality 6",
            _reads(data),
@@ -130,6 +133,7 @@ def generate(out_dir: Path) -> None:
     _view_pruned_vectors(out_dir, donut)
     _tiled_vectors(out_dir, donut)
     _derived_steps_vectors(out_dir, donut)
+    _scored_steps_vectors(out_dir, donut)
 
 
 def _color_prior_vectors(out_dir: Path, donut: GaussianScene) -> None:
@@ -142,7 +146,7 @@ def _color_prior_vectors(out_dir: Path, donut: GaussianScene) -> None:
     head = donut.subset(np.arange(4000))
     policy = PriorFitPolicy(ColorFitSettings(steps=300), min_gaussians=0,
                             keep_when_larger=True)
-    data = Encoder(quality=3, prior_fit=policy).encode(head)
+    data = Encoder(quality=3, prior_fit=policy, **UNIFORM).encode(head)
     _write(out_dir, "color_prior_q3", data,
            "the first 4,000 Gaussians of samples/donut.ply at quality 3 with the color "
            "hyperprior (CHYP; mode-5 channels)", _reads(data))
@@ -176,7 +180,8 @@ def _far_point_vectors(out_dir: Path, donut: GaussianScene) -> None:
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", CsgsWarning)  # "coded apart", expected here
-        data = Encoder(quality=5, hyperprior=False).encode(far_floater_scene(donut))
+        data = Encoder(quality=5, hyperprior=False, **UNIFORM).encode(
+            far_floater_scene(donut))
     _write(out_dir, "far_floaters_q5", data,
            "1,521 Gaussians of samples/donut.ply, 5% moved to ~1e4 / ~1e30 (OUTQ, relative "
            "precision) and one to 3.4e38 (OUTL, exact), quality 5", _reads(data),
@@ -193,7 +198,7 @@ def _view_pruned_vectors(out_dir: Path, donut: GaussianScene) -> None:
     the same file with a ``vdis`` payload of an unknown version, which a decoder that only
     decodes must skip (the chunk is optional) and ``csgs info`` must refuse."""
     head = donut.subset(np.arange(0, len(donut), 12))
-    data = Encoder(quality=5, hyperprior=False, view_pruning=True).encode(head)
+    data = Encoder(quality=5, hyperprior=False, view_pruning=True, **UNIFORM).encode(head)
     _write(out_dir, "view_pruned_q5", data,
            "every 12th Gaussian of samples/donut.ply (3,802) at quality 5 with view pruning "
            "on the default sphere of views (a vdis record in the base layer)", _reads(data))
@@ -212,11 +217,11 @@ def _tiled_vectors(out_dir: Path, donut: GaussianScene) -> None:
     from csgs_codec.codec.tile_index import TileIndex
 
     head = donut.subset(np.arange(0, len(donut), 6))
-    data = Encoder(quality=5, hyperprior=False, tile_size=2000).encode(head)
+    data = Encoder(quality=5, hyperprior=False, tile_size=2000, **UNIFORM).encode(head)
     _write(out_dir, "tiled_q5", data,
            "every 6th Gaussian of samples/donut.ply (7,604) at quality 5 in 4 spatial tiles "
            "of at most 2,000 (TIDX first, each tile its own SCNE/GEOM/streams)", _reads(data))
-    small = Encoder(quality=6, tile_size=12).encode(small_semantic_scene())
+    small = Encoder(quality=6, tile_size=12, **UNIFORM).encode(small_semantic_scene())
     _write(out_dir, "tiled_semantic_small", small,
            "semantic_small's scene (40 Gaussians, SH 1, 3 semantic channels, labels) at "
            "quality 6 in 4 tiles of 10", _reads(small),
@@ -244,7 +249,7 @@ def _derived_steps_vectors(out_dir: Path, donut: GaussianScene) -> None:
     anisotropy), and the same file with its first threshold set to +inf, which decoders
     reject at that threshold's offset."""
     head = donut.subset(np.arange(0, len(donut), 12))
-    data = Encoder(quality=5, hyperprior=False, derived_steps=True).encode(head)
+    data = Encoder(quality=5, hyperprior=False, rotation_steps="anisotropy").encode(head)
     _write(out_dir, "derived_steps_q5", data,
            "every 12th Gaussian of samples/donut.ply (3,802) at quality 5 with rotation steps "
            "derived from the decoded anisotropy (ROTN channels in mode 6)", _reads(data),
@@ -265,3 +270,30 @@ def _derived_steps_vectors(out_dir: Path, donut: GaussianScene) -> None:
     _write(out_dir, "derived_steps_infinite_threshold", bad,
            "derived_steps_q5 with channel 0's first ROTN threshold set to +inf (frame and CRC "
            "rewritten): invalid, reported at that threshold", _reads(bad))
+
+
+def _scored_steps_vectors(out_dir: Path, donut: GaussianScene) -> None:
+    """An encode whose rotation channels use scored steps (mode 7, cells of two scores of
+    the decoded log-scales and opacity: the default), and the same file with its first
+    score weight set to NaN, which decoders reject at the first weight's offset."""
+    head = donut.subset(np.arange(0, len(donut), 10))
+    data = Encoder(quality=5, hyperprior=False, rotation_steps="footprint").encode(head)
+    _write(out_dir, "scored_steps_q5", data,
+           "every 10th Gaussian of samples/donut.ply (4,563) at quality 5 with rotation steps "
+           "from the decoded area, opacity and anisotropy (ROTN channels in mode 7)",
+           _reads(data), arrays=Decoder().decode(data))
+    payload = single_payload(read_layers(data, layers={"color"}), "ROTN")[0]
+    r = ByteReader(payload)
+    r.byte_string("axis_stream")
+    r.varint("count")
+    r.fixed("u8", "channel_count")
+    r.fixed("u8", "frac_bits")
+    r.fixed("u8", "mode")
+    r.svarint("mean")
+    r.fixed("u8", "step_index")
+    top_byte = r.offset + 3  # f32 little-endian: 0x7fc in the top bits is a quiet NaN
+    bad = _invalid(_invalid(data, patch=("ROTN", top_byte, 0x7F)),
+                   patch=("ROTN", top_byte - 1, 0xC0))
+    _write(out_dir, "scored_steps_nan_weight", bad,
+           "scored_steps_q5 with channel 0's first ROTN score weight set to NaN (frame and "
+           "CRC rewritten): invalid, reported at that weight", _reads(bad))

@@ -26,8 +26,9 @@ function checkTarget(target, channels, n, chunk) {
 }
 
 /** One color stream, its values written into ``target`` (and for ROTN the dropped-component
- * indices returned); ``logScales`` (ROTN) returns the decoded SCAL values mode 6 reads. */
-export function decodeStream(container, header, code, priors, family, target, logScales = null) {
+ * indices returned); ``attributes`` (ROTN) = {logScales, opacity}, functions returning the
+ * decoded SCAL and OPAC values modes 6 and 7 read. */
+export function decodeStream(container, header, code, priors, family, target, attributes = null) {
   const [data, offset] = single(container, code);
   const r = new ByteReader(data, offset, code);
   let axis = null;
@@ -36,7 +37,7 @@ export function decodeStream(container, header, code, priors, family, target, lo
     axis = decodeCategorical(stream, header.count, code, r.offset - stream.length);
     for (let i = 0; i < axis.length; i++) if (axis[i] > 3) throw r.error('dropped-component index above 3');
   }
-  readFloatStream(r, header.count, STREAM_CHANNELS[code], priors, family, target, code === 'ROTN' ? logScales : null);
+  readFloatStream(r, header.count, STREAM_CHANNELS[code], priors, family, target, code === 'ROTN' ? attributes : null);
   r.expectEnd(`the ${code} stream`);
   checkTarget(target, STREAM_CHANNELS[code], header.count, code);
   return axis;

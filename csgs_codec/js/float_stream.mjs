@@ -71,11 +71,12 @@ function predict(indices, peaks, coefs, bias, n) {
  * @param {object} family the Gaussian tables
  * @param {{array: Float32Array, stride: number, offset: number}|null} target where value i
  *   of channel c goes: array[i * stride + offset + c] (default: a new N x C array)
- * @param {(() => Float32Array)|null} logScales returns the decoded log-scales (N x 3) that
- *   channels in mode 6 derive their steps from; null where mode 6 is not allowed (not ROTN)
+ * @param {{logScales: () => Float32Array, opacity: () => Float32Array}|null} attributes
+ *   return the decoded log-scales (N x 3) and opacity logits (N) that channels in modes 6
+ *   and 7 derive their steps from; null where those modes are not allowed (not ROTN)
  * @returns {Float32Array} the target array
  */
-export function readFloatStream(r, count, channels, priors, family, target = null, logScales = null) {
+export function readFloatStream(r, count, channels, priors, family, target = null, attributes = null) {
   const n = r.varint('count', MAX_COUNT);
   if (n !== count) throw r.error(`stream holds ${n} values, the scene has ${count} Gaussians`);
   const cCount = r.u8('channel_count');
@@ -96,9 +97,9 @@ export function readFloatStream(r, count, channels, priors, family, target = nul
       peaks.push(0);
       continue;
     }
-    if (mode === 6) {
-      if (!logScales) throw r.error(`channel ${c}: derived steps (mode 6) are only allowed in ROTN`);
-      const derived = readDerivedChannel(r, c, n, indices, peaks, peak, logScales, family);
+    if (mode === 6 || mode === 7) {
+      if (!attributes) throw r.error(`channel ${c}: derived steps (mode ${mode}) are only allowed in ROTN`);
+      const derived = readDerivedChannel(r, c, n, indices, peaks, peak, mode, attributes, family);
       if (derived.top > peak) peak = derived.top;
       steps.push({ qs: derived.qs, mean: derived.mean });
       indices.push(derived.top < INDEX_LIMIT ? Int32Array.from(derived.k) : derived.k);
@@ -209,25 +210,98 @@ function readPrediction(r, c, m, indices, peaks, peak, n) {
   return predict(indices, peaks, coefs, bias, n);
 }
 
+/** Number of thresholds at or below x (thresholds increasing). */
+function binOf(thresholds, x) {
+  let b = 0;
+  while (b < thresholds.length && thresholds[b] <= x) b++;
+  return b;
+}
+
+/** Mode-6 class of every Gaussian: its bin of the spread max - min of its decoded
+ * log-scales (binary64, exact on float32 inputs). */
+function anisotropyClasses(thresholds, scales, n) {
+  const classes = new Uint8Array(n);
+  for (let i = 0; i < n; i++) {
+    const s0 = scales[3 * i];
+    const s1 = scales[3 * i + 1];
+    const s2 = scales[3 * i + 2];
+    classes[i] = binOf(thresholds, Math.max(s0, s1, s2) - Math.min(s0, s1, s2));
+  }
+  return classes;
+}
+
+/** Mode-7 cell of every Gaussian: bin_u * K_v + bin_v, each score
+ * ((w0 S0 + w1 S1) + w2 S2) + w3 min(O, 0) of its log-scales sorted largest first and its
+ * opacity logit, in binary64 (the products are exact on float32 inputs). */
+function scoredClasses(weights, tu, tv, scales, opacity, n) {
+  const classes = new Uint8Array(n);
+  const kv = tv.length + 1;
+  const [u, v] = [weights.slice(0, 4), weights.slice(4)];
+  for (let i = 0; i < n; i++) {
+    let a = scales[3 * i];
+    let b = scales[3 * i + 1];
+    let c = scales[3 * i + 2];
+    if (a < b) [a, b] = [b, a];
+    if (b < c) [b, c] = [c, b];
+    if (a < b) [a, b] = [b, a];
+    const o = Math.min(opacity[i], 0);
+    const su = ((u[0] * a + u[1] * b) + u[2] * c) + u[3] * o;
+    const sv = ((v[0] * a + v[1] * b) + v[2] * c) + v[3] * o;
+    classes[i] = binOf(tu, su) * kv + binOf(tv, sv);
+  }
+  return classes;
+}
+
 /**
- * A channel in mode 6 (derived steps, §12.8), the reader just past its mode byte: the step of
- * Gaussian i is that of step_index + offset[class_i], class_i the number of thresholds at or
- * below the spread max - min of its decoded log-scales (binary64, exact on float32 inputs).
+ * A channel in mode 6 or 7 (derived or scored steps, §12.8), the reader just past its mode
+ * byte: the step of Gaussian i is that of step_index + offset[class_i], class_i derived from
+ * its decoded log-scales (mode 6) and opacity (mode 7).
  * @returns {{k: Float64Array, qs: Float64Array, mean: number, top: number}}
  */
-function readDerivedChannel(r, c, n, indices, peaks, peak, logScales, family) {
+function readDerivedChannel(r, c, n, indices, peaks, peak, mode, attributes, family) {
   const mean = r.svarintBig('mean');
   const step = r.u8('step_index');
   if ((mean < 0n ? -mean : mean) > 2n ** 53n || step >= 176) throw r.error(`channel ${c}: mean or step index out of range`);
-  const classCount = r.u8('class_count');
-  if (classCount < 1 || classCount > 8) throw r.error(`channel ${c}: class count ${classCount} outside 1..8`);
-  const at = r.offset;
-  const thresholds = [];
-  for (let a = 0; a + 1 < classCount; a++) thresholds.push(r.f32('threshold'));
+  let classCount;
+  let at;
+  let classesOf;
+  let validate;
+  if (mode === 7) {
+    at = r.offset;
+    const weights = [];
+    for (let a = 0; a < 8; a++) weights.push(r.f32('score_weight'));
+    const bins = [];
+    for (const name of ['u', 'v']) {
+      const count = r.u8(`bin_count_${name}`);
+      if (count < 1 || count > 8) throw r.error(`channel ${c}: ${count} bins of score ${name}, outside 1..8`);
+      const t = [];
+      for (let a = 0; a + 1 < count; a++) t.push(r.f32(`threshold_${name}`));
+      bins.push(t);
+    }
+    classCount = (bins[0].length + 1) * (bins[1].length + 1);
+    validate = () => {
+      if (!weights.every(Number.isFinite)) throw r.error(`channel ${c}: score weights must be finite`, at);
+      for (const [name, t] of [['u', bins[0]], ['v', bins[1]]]) {
+        const increasing = t.every((x, a) => Number.isFinite(x) && (a === 0 || x > t[a - 1]));
+        if (!increasing) throw r.error(`channel ${c}: thresholds of score ${name} must be finite and strictly increasing`, at);
+      }
+    };
+    classesOf = () => scoredClasses(weights, bins[0], bins[1], attributes.logScales(), attributes.opacity(), n);
+  } else {
+    classCount = r.u8('class_count');
+    if (classCount < 1 || classCount > 8) throw r.error(`channel ${c}: class count ${classCount} outside 1..8`);
+    at = r.offset;
+    const thresholds = [];
+    for (let a = 0; a + 1 < classCount; a++) thresholds.push(r.f32('threshold'));
+    validate = () => {
+      const increasing = thresholds.every((t, a) => Number.isFinite(t) && (a === 0 ? t >= 0 : t > thresholds[a - 1]));
+      if (!increasing) throw r.error(`channel ${c}: thresholds must be finite, >= 0 and strictly increasing`, at);
+    };
+    classesOf = () => anisotropyClasses(thresholds, attributes.logScales(), n);
+  }
   const offsets = [];
   for (let a = 0; a < classCount; a++) offsets.push(Number(r.svarintBig('step_offset')));
-  const increasing = thresholds.every((t, a) => Number.isFinite(t) && (a === 0 ? t >= 0 : t > thresholds[a - 1]));
-  if (!increasing) throw r.error(`channel ${c}: thresholds must be finite, >= 0 and strictly increasing`, at);
+  validate();
   if (offsets.some((o) => step + o < 0 || step + o >= 176)) throw r.error(`channel ${c}: step index ${step} plus offsets [${offsets}] leaves [0, 176)`, at);
   const tables = [];
   for (let a = 0; a < classCount; a++) tables.push(r.u8('scale_index'));
@@ -239,19 +313,9 @@ function readDerivedChannel(r, c, n, indices, peaks, peak, logScales, family) {
     prediction = readPrediction(r, c, m, indices, peaks, peak, n);
   }
   const stream = r.byteString('residual_stream');
-  const scales = logScales();
-  const classes = new Uint8Array(n);
+  const classes = classesOf();
   const perValue = new Uint8Array(n);
-  for (let i = 0; i < n; i++) {
-    const s0 = scales[3 * i];
-    const s1 = scales[3 * i + 1];
-    const s2 = scales[3 * i + 2];
-    const d = Math.max(s0, s1, s2) - Math.min(s0, s1, s2);
-    let cls = 0;
-    while (cls < thresholds.length && thresholds[cls] <= d) cls++;
-    classes[i] = cls;
-    perValue[i] = tables[cls];
-  }
+  for (let i = 0; i < n; i++) perValue[i] = tables[classes[i]];
   const decoded = decodeSymbols(stream, perValue, n, family, r.chunk, r.offset - stream.length);
   const k = decoded.values;
   const stepOf = offsets.map((o) => stepSize(step + o));

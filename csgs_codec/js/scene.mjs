@@ -72,18 +72,20 @@ export function makeTargets(header, Buffer = ArrayBuffer) {
 }
 
 /** Decode one task ('GEOM' or a color stream code) of a prepared scene into its targets;
- * returns the dropped-component indices for ROTN. ``scalesDone``: SCAL is already in its
- * target (a sequential decode); otherwise a ROTN channel in mode 6 decodes SCAL for itself
- * (the parallel decode runs only without the hyperprior, so SCAL needs no priors there). */
-export function decodeTask(prep, out, code, priors = null, scalesDone = false) {
+ * returns the dropped-component indices for ROTN. ``earlierDone``: SCAL and OPAC are already
+ * in their targets (a sequential decode); otherwise a ROTN channel in mode 6 or 7 decodes
+ * them for itself (the parallel decode runs only without the hyperprior, so they need no
+ * priors there). */
+export function decodeTask(prep, out, code, priors = null, earlierDone = false) {
   if (code === 'GEOM') return decodePositions(prep.container, prep.header, out.positions);
-  const logScales = () => {
-    if (scalesDone) return out.targets.SCAL.array;
-    const own = { array: new Float32Array(3 * prep.header.count), stride: 3, offset: 0 };
-    decodeStream(prep.container, prep.header, 'SCAL', null, prep.family, own);
-    return own.array;
+  const own = (source, channels) => () => {
+    if (earlierDone) return out.targets[source].array;
+    const target = { array: new Float32Array(channels * prep.header.count), stride: channels, offset: 0 };
+    decodeStream(prep.container, prep.header, source, null, prep.family, target);
+    return target.array;
   };
-  return decodeStream(prep.container, prep.header, code, priors, prep.family, out.targets[code], logScales);
+  const attributes = { logScales: own('SCAL', 3), opacity: own('OPAC', 1) };
+  return decodeStream(prep.container, prep.header, code, priors, prep.family, out.targets[code], attributes);
 }
 
 /** The scene object of decoded targets, with the semantic layer when it was asked for. */

@@ -22,7 +22,7 @@ from csgs_codec.format.primitives import ByteReader
 from tests.codec.helpers import random_scene
 
 SCENE = random_scene(3000, sh_degree=0, seed=3)
-RESULT = Encoder(quality=5, derived_steps=True).encode_with_report(SCENE)
+RESULT = Encoder(quality=5, rotation_steps="anisotropy").encode_with_report(SCENE)
 
 
 def _chunks(data: bytes) -> list[Chunk]:
@@ -76,7 +76,7 @@ def test_rotation_error_follows_the_derived_step():
 
 
 def test_derived_steps_are_deterministic():
-    again = Encoder(quality=5, derived_steps=True).encode(SCENE)
+    again = Encoder(quality=5, rotation_steps="anisotropy").encode(SCENE)
     assert again == RESULT.data
     assert Encoder(quality=5).encode(SCENE) != RESULT.data
 
@@ -183,10 +183,10 @@ def test_the_cli_flag_writes_mode_6_and_the_decode_matches(tmp_path):
 
     out = tmp_path / "d.csgs"
     assert main(["-q", "encode", str(SAMPLE), "-o", str(out), "--quality", "3",
-                 "--no-hyperprior", "--derived-steps"]) == 0
+                 "--no-hyperprior", "--rotation-steps", "anisotropy"]) == 0
     plain = tmp_path / "p.csgs"
     assert main(["-q", "encode", str(SAMPLE), "-o", str(plain), "--quality", "3",
-                 "--no-hyperprior"]) == 0
+                 "--no-hyperprior", "--uniform-steps"]) == 0
     def rotation_payload(path):
         container = read_layers(path.read_bytes(), layers={"color"})
         entry = next(e for e in container.toc if e.type == "ROTN")

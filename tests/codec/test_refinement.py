@@ -85,7 +85,7 @@ def test_refinement_is_deterministic(head):
 def test_refinement_with_derived_steps_decodes_exactly_and_reports_its_steps(head):
     """Rotations on derived steps keep their values (their steps follow the refined scales)."""
     steps = []
-    result = Encoder(quality=3, hyperprior=False, refine=3, derived_steps=True,
+    result = Encoder(quality=3, hyperprior=False, refine=3, rotation_steps="anisotropy",
                      refine_progress=lambda done, total: steps.append((done, total))
                      ).encode_with_report(head)
     assert steps == [(1, 3), (2, 3), (3, 3)]

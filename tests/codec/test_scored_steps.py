@@ -1,0 +1,244 @@
+"""Rotation steps scored from the decoded scales and opacity (float stream mode 7, FORMAT
+§12.8): the default encoder's rotation coding."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from csgs_codec.codec.container_access import single_payload
+from csgs_codec.codec.decoder import Decoder
+from csgs_codec.codec.derived_steps import (
+    FOOTPRINT_MIN_GAUSSIANS,
+    FOOTPRINT_WEIGHTS,
+    THRESHOLDS,
+    check_scored_table,
+    derive_classes,
+    derive_scored_classes,
+    footprint_steps,
+    score,
+    score_features,
+)
+from csgs_codec.codec.encoder import Encoder
+from csgs_codec.codec.float_stream import MODE_SCORED, read_float_stream
+from csgs_codec.entropy.residual import step_size
+from csgs_codec.errors import FormatError, InputError
+from csgs_codec.format import Chunk, read_layers, write_container
+from csgs_codec.format.primitives import ByteReader
+from tests.codec.helpers import random_scene
+
+SCENE = random_scene(6000, sh_degree=0, seed=11)
+RESULT = Encoder(quality=5, hyperprior=False).encode_with_report(SCENE)
+
+
+def _chunks(data: bytes) -> list[Chunk]:
+    container = read_layers(data, layers={"color"})
+    return [Chunk(e.type, e.layer, bytes(container.payloads[e.index]), e.tile)
+            for e in container.toc]
+
+
+def _rotn(data: bytes) -> bytes:
+    return next(c.payload for c in _chunks(data) if c.type == "ROTN")
+
+
+def _with_rotn(payload: bytes) -> bytes:
+    return write_container([c if c.type != "ROTN" else Chunk("ROTN", c.layer, payload)
+                            for c in _chunks(RESULT.data)])
+
+
+def _rotn_fields(payload: bytes) -> dict[str, int]:
+    """Offsets (in the ROTN payload) of channel 0's mode-7 fields, and its mode."""
+    r = ByteReader(payload)
+    r.byte_string("axis_stream")
+    r.varint("count")
+    r.fixed("u8", "channel_count")
+    r.fixed("u8", "frac_bits")
+    mode = r.fixed("u8", "mode")
+    r.svarint("mean")
+    step_at = r.offset
+    r.fixed("u8", "step_index")
+    weights_at = r.offset
+    for _ in range(8):
+        r.fixed("f32", "weight")
+    bins_u_at = r.offset
+    k_u = r.fixed("u8", "bins_u")
+    thresholds_u_at = r.offset
+    return {"mode": mode, "step_at": step_at, "weights_at": weights_at,
+            "bins_u_at": bins_u_at, "bins_u": k_u, "thresholds_u_at": thresholds_u_at}
+
+
+def _payload_offset(data: bytes) -> int:
+    return single_payload(read_layers(data, layers={"color"}), "ROTN")[1]
+
+
+def test_the_default_encoder_writes_mode_7_and_decodes_to_its_reconstruction():
+    fields = _rotn_fields(_rotn(RESULT.data))
+    assert fields["mode"] == MODE_SCORED and fields["bins_u"] > 1
+    assert Decoder().decode(RESULT.data).equals(RESULT.reconstruction)
+    assert Decoder(threads=1).decode(RESULT.data).equals(RESULT.reconstruction)
+
+
+def test_mode_7_with_the_color_hyperprior_decodes_exactly():
+    from csgs_codec.codec.color_prior_choice import PriorFitPolicy
+    from csgs_codec.model.color_hyperprior import ColorFitSettings
+
+    policy = PriorFitPolicy(ColorFitSettings(steps=60), min_gaussians=0, keep_when_larger=True)
+    result = Encoder(quality=4, prior_fit=policy).encode_with_report(SCENE)
+    assert "CHYP" in {c.type for c in _chunks(result.data)}
+    assert _rotn_fields(_rotn(result.data))["mode"] == MODE_SCORED
+    for threads in (1, 2):
+        assert Decoder(threads=threads).decode(result.data).equals(result.reconstruction)
+
+
+def test_small_scenes_and_uniform_steps_keep_one_rotation_step():
+    small = random_scene(FOOTPRINT_MIN_GAUSSIANS - 1, sh_degree=0, seed=2)
+    for data in (Encoder(quality=5, hyperprior=False).encode(small),
+                 Encoder(quality=5, hyperprior=False, rotation_steps="uniform").encode(SCENE)):
+        assert _rotn_fields(_rotn(data))["mode"] not in (6, MODE_SCORED)
+
+
+def test_unknown_rotation_steps_are_refused():
+    with pytest.raises(InputError, match="rotation steps"):
+        Encoder(rotation_steps="sometimes")
+
+
+def test_scores_follow_the_spec_order_in_binary64():
+    rng = np.random.default_rng(4)
+    log_scales = rng.normal(-4, 2, (300, 3)).astype(np.float32)
+    opacity = rng.normal(0, 4, 300).astype(np.float32)
+    weights = rng.normal(0, 3, 4).astype(np.float32)
+    got = score(score_features(log_scales, opacity), weights)
+    w = [float(x) for x in weights]
+    for i in range(300):
+        s0, s1, s2 = sorted((float(x) for x in log_scales[i]), reverse=True)
+        o = min(float(opacity[i]), 0.0)
+        assert got[i] == ((w[0] * s0 + w[1] * s1) + w[2] * s2) + w[3] * o  # Python floats
+
+
+def test_anisotropy_weights_give_mode_6_classes_exactly():
+    rng = np.random.default_rng(9)
+    log_scales = rng.normal(-4, 1.5, (2000, 3)).astype(np.float32)
+    opacity = rng.normal(0, 3, 2000).astype(np.float32)
+    thresholds = np.array(THRESHOLDS, np.float32)
+    weights = np.array([(0, 0, 0, 0), (1, 0, -1, 0)], np.float32)
+    cells = derive_scored_classes(log_scales, opacity, weights, np.zeros(0, np.float32),
+                                  thresholds)
+    assert np.array_equal(cells, derive_classes(log_scales, thresholds))
+
+
+def test_footprint_steps_are_finer_where_a_rotation_shows_more():
+    rec = RESULT.reconstruction
+    steps = footprint_steps(rec.scales, rec.opacity, 80)
+    weights = np.array(FOOTPRINT_WEIGHTS, np.float32)
+    features = score_features(rec.scales, rec.opacity)
+    u, v = score(features, weights[0]), score(features, weights[1])
+    assert np.array_equal(steps.classes, derive_scored_classes(
+        rec.scales, rec.opacity, weights, steps.thresholds_u, steps.thresholds_v))
+    offsets = steps.step_indices(80) - 80
+    big, small = u > np.quantile(u, 0.9), u < np.quantile(u, 0.1)
+    elongated, round_ = v > 1.5, v < 0.25
+    assert offsets[big & elongated].mean() < offsets[small & round_].mean() - 8
+    counts = np.bincount(steps.classes, minlength=steps.count)
+    assert abs(np.sum(counts * steps.offsets)) / counts.sum() < 1.0  # about rate-neutral
+
+
+def test_steps_of_each_cell_are_the_tables():
+    rec = RESULT.reconstruction
+    steps = footprint_steps(rec.scales, rec.opacity, 70)
+    q = step_size(steps.step_indices(70))
+    for c in range(steps.count):
+        member = q[steps.classes == c]
+        assert member.size == 0 or np.all(
+            member == step_size(np.array([70 + steps.offsets[c]])))
+
+
+@pytest.mark.parametrize("weights, tu, tv, offsets, base, message", [
+    ([[np.nan, 0, 0, 0], [0, 0, 0, 0]], [], [], [0], 60, "finite"),
+    ([[1, 0, 0, 0], [0, 0, 0, 0]], [0.5, 0.5], [], [0, 0, 0], 60, "strictly increasing"),
+    ([[1, 0, 0, 0], [0, 0, 0, 0]], [], [np.inf], [0, 0], 60, "finite"),
+    ([[1, 0, 0, 0], [0, 0, 0, 0]], [0.5], [], [0, 200], 60, "leaves"),
+    ([[1, 0, 0, 0], [0, 0, 0, 0]], [0.5], [1.0], [0, 0], 60, "step offsets for 4 cells"),
+    ([[1, 0, 0, 0], [0, 0, 0, 0]], list(range(8)), [], [0] * 9, 60, "at most 8"),
+])
+def test_bad_scored_tables_are_named(weights, tu, tv, offsets, base, message):
+    why = check_scored_table(np.array(weights, np.float32), np.array(tu, np.float32),
+                             np.array(tv, np.float32), np.array(offsets), base)
+    assert message in why
+
+
+def test_a_nan_weight_is_rejected_at_the_first_weight():
+    payload = bytearray(_rotn(RESULT.data))
+    at = _rotn_fields(bytes(payload))["weights_at"]
+    payload[at + 8:at + 12] = bytes([0, 0, 0xC0, 0x7F])  # the third weight of u: NaN
+    data = _with_rotn(bytes(payload))
+    with pytest.raises(FormatError, match="weights must be finite") as info:
+        Decoder().decode(data)
+    assert (info.value.chunk, info.value.offset) == ("ROTN", _payload_offset(data) + at)
+
+
+def test_unsorted_thresholds_and_bad_bin_counts_are_rejected():
+    payload = _rotn(RESULT.data)
+    fields = _rotn_fields(payload)
+    swapped = bytearray(payload)
+    at = fields["thresholds_u_at"]
+    swapped[at:at + 8] = payload[at + 4:at + 8] + payload[at:at + 4]
+    with pytest.raises(FormatError, match="strictly increasing") as info:
+        Decoder().decode(_with_rotn(bytes(swapped)))
+    assert info.value.offset == _payload_offset(RESULT.data) + fields["weights_at"]
+    for count in (0, 9):
+        bad = bytearray(payload)
+        bad[fields["bins_u_at"]] = count
+        with pytest.raises(FormatError, match="bins of score u") as info:
+            Decoder().decode(_with_rotn(bytes(bad)))
+        assert info.value.offset == _payload_offset(RESULT.data) + fields["bins_u_at"] + 1
+
+
+def test_mode_7_outside_rotations_is_rejected():
+    payload = _rotn(RESULT.data)
+    r = ByteReader(payload)
+    r.byte_string("axis_stream")
+    with pytest.raises(FormatError, match="only allowed in ROTN") as info:
+        read_float_stream(ByteReader(payload[r.offset:], chunk="SCAL"), len(SCENE), 3)
+    assert info.value.chunk == "SCAL"
+
+
+def test_damaged_scored_step_payloads_only_raise_format_error():
+    payload = _rotn(RESULT.data)
+    fields = _rotn_fields(payload)
+    rng = np.random.default_rng(17)
+    decoded = 0
+    for trial in range(150):
+        damaged = bytearray(payload)
+        at = (int(rng.integers(fields["step_at"], fields["thresholds_u_at"] + 200))
+              if trial % 3 else int(rng.integers(0, len(payload))))
+        damaged[at] = int(rng.integers(0, 256))
+        try:
+            Decoder(threads=1).decode(_with_rotn(bytes(damaged)))
+            decoded += 1
+        except FormatError as err:
+            assert err.chunk == "ROTN"
+    assert decoded < 150
+
+
+def test_the_encoding_is_deterministic():
+    assert Encoder(quality=5, hyperprior=False).encode(SCENE) == RESULT.data
+
+
+def test_the_cli_writes_footprint_steps_by_default_and_uniform_on_request(tmp_path):
+    from csgs_cli.main import main
+    from tests.conftest import SAMPLE
+
+    paths = {}
+    for name, extra in (("default", []), ("uniform", ["--uniform-steps"]),
+                        ("aniso", ["--rotation-steps", "anisotropy"])):
+        paths[name] = tmp_path / f"{name}.csgs"
+        assert main(["-q", "encode", str(SAMPLE), "-o", str(paths[name]), "--quality", "3",
+                     "--no-hyperprior", *extra]) == 0
+    modes = {name: _rotn_fields(_rotn(p.read_bytes()))["mode"] for name, p in paths.items()}
+    assert modes["default"] == MODE_SCORED and modes["aniso"] == 6
+    assert modes["uniform"] not in (6, MODE_SCORED)
+    out = tmp_path / "both.csgs"
+    with pytest.raises(SystemExit) as info:
+        main(["-q", "encode", str(SAMPLE), "-o", str(out), "--uniform-steps",
+              "--rotation-steps", "anisotropy"])
+    assert info.value.code == 2 and not out.exists()
