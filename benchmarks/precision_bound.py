@@ -23,7 +23,10 @@ Two structured allocations an encoder could signal are costed the same way: one 
 per Gaussian shared by all its values (``class_map_*``: a class map, its zeroth-order entropy
 reported as side information), and steps derived from decoded scales and opacity (each
 candidate rule of :func:`rule_features` per group, ``derived_rule_saving_*``; the best rule
-per group summed, and on top of the class map).
+per group summed, and on top of the class map). Rules named ``*_by_position`` and
+``*_and_position`` stand for steps a position-only predictor (the color hyperprior's
+network) would supply: a neighbourhood estimate of each Gaussian's J2 that never sees its
+own (:func:`position_features`; optimistic, the network's bytes are not counted).
 
 Rows give the plain bits per Gaussian and each allocation's bits at equal held-out error, and
 their fractions of the plain bits. ``--rd FILE`` (an rd.py document with plain csgs curves
@@ -220,6 +223,8 @@ def bound_rows(name: str, original, qualities: list[int], width: int, height: in
         classes = class_allocation(per_group, modelled)
         features = rule_features(result.reconstruction)
         index = dict(zip(groups, per_group))
+        features.update(position_features(result.reconstruction, features,
+                                           {g: v[0] for g, v in index.items()}))
         rules = {}
         best: dict[str, tuple[float, str]] = {}
         for rule, (group, feature) in features.items():
@@ -367,6 +372,47 @@ def rule_features(ref) -> dict[str, tuple[str, list[tuple[np.ndarray, int]]]]:
         "opacity_by_opacity": ("opacity", [(alpha, 16)]),
         "opacity_by_area_and_opacity": ("opacity", [(area, 8), (alpha, 8)]),
     }
+
+
+def position_smoothed(positions: np.ndarray, values: np.ndarray, *, members: int = 4,
+                      levels: int = 12) -> np.ndarray:
+    """(N,) leave-one-out mean of ``values`` over the Gaussians in the same voxel, at the
+    finest of ``levels`` octree depths where the voxel holds at least ``members`` others:
+    what a predictor that sees only a Gaussian's position (and its neighbours' values, never
+    its own) could know. An optimistic stand-in for the color hyperprior's small network."""
+    lo = positions.min(0)
+    extent = float((positions.max(0) - lo).max()) or 1.0
+    out = np.full(len(values), float(np.mean(values)))
+    done = np.zeros(len(values), bool)
+    for depth in range(levels, 0, -1):
+        cells = np.minimum(((positions - lo) / extent * (1 << depth)).astype(np.int64),
+                           (1 << depth) - 1)
+        key = (cells[:, 0] << 42) | (cells[:, 1] << 21) | cells[:, 2]
+        _, which, count = np.unique(key, return_inverse=True, return_counts=True)
+        total = np.bincount(which, weights=values)
+        ok = ~done & (count[which] > members)
+        out[ok] = (total[which][ok] - values[ok]) / (count[which][ok] - 1)
+        done |= ok
+    return out
+
+
+def position_features(ref, features: dict, j_alloc: dict[str, np.ndarray]) -> dict:
+    """Rules whose feature a position-only predictor could supply: per group, the
+    neighbourhood estimate of the Gaussian's log allocation-view J2 (:func:`position_smoothed`,
+    16 quantile bins), alone (``<group>_by_position``) and joint with the decoded-attribute
+    rules of rotation and DC (4 x 8 bins, ``..._and_position``), as the hyperprior predicting
+    a step from position on top of mode 7's rule would."""
+    positions = np.asarray(ref.positions, np.float64)
+    out = {}
+    for group, ja in j_alloc.items():
+        log_j = np.log(np.maximum(ja.sum(1), 1e-30))
+        predicted = np.repeat(position_smoothed(positions, log_j)[:, None], ja.shape[1], 1)
+        out[f"{group}_by_position"] = (group, [(predicted, 16)])
+        for rule in ("rotation_by_area_shear_opacity", "dc_by_area_and_opacity"):
+            if features[rule][0] == group:
+                parts = [(predicted, 4)] + [(f, 8) for f, _ in features[rule][1]][:1]
+                out[f"{rule}_and_position"] = (group, parts)
+    return out
 
 
 def rule_shifts(features: list[tuple[np.ndarray, int]], j_alloc: np.ndarray) -> np.ndarray:

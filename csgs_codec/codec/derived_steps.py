@@ -168,19 +168,32 @@ class ScoredSteps:
 
 
 def score_features(log_scales: np.ndarray, opacity: np.ndarray) -> np.ndarray:
-    """(N, 4) binary64 features of mode 7 from decoded float32 log-scales (N, 3) and opacity
-    logits (N,) or (N, 1): the log-scales sorted largest first, then min(logit, 0)."""
-    s = np.sort(np.asarray(log_scales, np.float32).astype(np.float64), axis=1)[:, ::-1]
-    o = np.minimum(np.asarray(opacity, np.float32).astype(np.float64).reshape(-1, 1), 0.0)
-    return np.concatenate([s, o], axis=1)
+    """(4, N) binary64 features of mode 7 from decoded float32 log-scales (N, 3) and opacity
+    logits (N,) or (N, 1), one row each: the log-scales sorted largest first, then
+    min(logit, 0)."""
+    s = np.asarray(log_scales, np.float32)
+    n = len(s)
+    out = np.empty((4, n), np.float64)
+    a, b, c = (s[:, j].astype(np.float64) for j in range(3))
+    low, high = np.minimum(a, b), np.maximum(a, b)
+    # Selections only (no arithmetic): the sorted values are the decoded values exactly.
+    np.maximum(high, c, out=out[0])
+    np.minimum(low, c, out=out[2])
+    np.minimum(high, c, out=high)
+    np.maximum(low, high, out=out[1])
+    np.minimum(np.asarray(opacity, np.float32).reshape(-1), 0.0, out=out[3])
+    return out
 
 
 def score(features: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """(N,) binary64 score ((w0 f0 + w1 f1) + w2 f2) + w3 f3, in that order (FORMAT §12.8)."""
+    """(N,) binary64 score ((w0 f0 + w1 f1) + w2 f2) + w3 f3 of ``features`` (4, N), in that
+    order (FORMAT §12.8)."""
     w = np.asarray(weights, np.float32).astype(np.float64)
-    total = features[:, 0] * w[0]
+    total = features[0] * w[0]
+    term = np.empty_like(total)
     for j in range(1, SCORE_FEATURES):
-        total = total + features[:, j] * w[j]
+        np.multiply(features[j], w[j], out=term)
+        total += term
     return total
 
 

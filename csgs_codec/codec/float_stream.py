@@ -423,6 +423,7 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None,
     indices = np.zeros((c_count, n), np.int64)
     peak = 0  # largest |index| of the channels decoded so far
     tables = gaussian_family().count
+    class_cache: dict[tuple, np.ndarray] = {}  # channels with one class table share classes
     for c in range(c_count):
         mode = r.fixed("u8", "mode")
         if mode == MODE_CONSTANT:
@@ -432,7 +433,8 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None,
             if log_scales is None or (mode == MODE_SCORED and opacity is None):
                 raise r.error(f"channel {c}: derived steps (mode {mode}) are only allowed "
                               "in ROTN")
-            k, q = _read_derived_channel(r, c, n, indices, peak, mode, log_scales, opacity)
+            k, q = _read_derived_channel(r, c, n, indices, peak, mode, log_scales, opacity,
+                                         class_cache)
             mean = k[1]
             k = k[0]
             top = int(np.abs(k).max()) if n else 0
@@ -492,10 +494,11 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None,
 
 
 def _read_derived_channel(r: ByteReader, c: int, n: int, indices: np.ndarray, peak: int,
-                          mode: int, log_scales, opacity
+                          mode: int, log_scales, opacity, class_cache: dict
                           ) -> tuple[tuple[np.ndarray, int], np.ndarray]:
     """((indices k (N,), mean), per-Gaussian steps q (N,)) of a channel in mode 6 or 7, the
-    reader just past its mode byte (FORMAT §12.8)."""
+    reader just past its mode byte (FORMAT §12.8); ``class_cache`` keeps the classes of
+    each class table read so far in the stream."""
     mean = r.svarint("mean")
     step = r.fixed("u8", "step_index")
     if abs(mean) > 1 << 53 or step >= STEP_COUNT:
@@ -543,9 +546,15 @@ def _read_derived_channel(r: ByteReader, c: int, n: int, indices: np.ndarray, pe
         prediction = predict(indices[:c], coefs, bias)
     stream = r.byte_string("residual_stream")
     if mode == MODE_SCORED:
-        classes = derive_scored_classes(log_scales(), opacity(), weights, bins[0], bins[1])
+        key = (mode, weights.tobytes(), bins[0].tobytes(), bins[1].tobytes())
+        if key not in class_cache:
+            class_cache[key] = derive_scored_classes(log_scales(), opacity(), weights,
+                                                     bins[0], bins[1])
     else:
-        classes = derive_classes(log_scales(), thresholds)
+        key = (mode, thresholds.tobytes())
+        if key not in class_cache:
+            class_cache[key] = derive_classes(log_scales(), thresholds)
+    classes = class_cache[key]
     k = decode_symbols(stream, tables[classes], chunk=r.chunk,
                        base_offset=r.offset - len(stream)) + prediction
     q = step_size(step + offsets)[classes]
