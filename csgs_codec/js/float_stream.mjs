@@ -89,6 +89,7 @@ export function readFloatStream(r, count, channels, priors, family, target = nul
   const indices = [];
   const peaks = [];
   let peak = 0;
+  const classCache = new Map(); // channels with one class table share its classes
   for (let c = 0; c < cCount; c++) {
     const mode = r.u8('mode');
     if (mode === 0) {
@@ -99,7 +100,7 @@ export function readFloatStream(r, count, channels, priors, family, target = nul
     }
     if (mode === 6 || mode === 7) {
       if (!attributes) throw r.error(`channel ${c}: derived steps (mode ${mode}) are only allowed in ROTN`);
-      const derived = readDerivedChannel(r, c, n, indices, peaks, peak, mode, attributes, family);
+      const derived = readDerivedChannel(r, c, n, indices, peaks, peak, mode, attributes, family, classCache);
       if (derived.top > peak) peak = derived.top;
       steps.push({ qs: derived.qs, mean: derived.mean });
       indices.push(derived.top < INDEX_LIMIT ? Int32Array.from(derived.k) : derived.k);
@@ -210,6 +211,12 @@ function readPrediction(r, c, m, indices, peaks, peak, n) {
   return predict(indices, peaks, coefs, bias, n);
 }
 
+/** cache.get(key), computed by make() the first time. */
+function cached(cache, key, make) {
+  if (!cache.has(key)) cache.set(key, make());
+  return cache.get(key);
+}
+
 /** Number of thresholds at or below x (thresholds increasing). */
 function binOf(thresholds, x) {
   let b = 0;
@@ -258,7 +265,7 @@ function scoredClasses(weights, tu, tv, scales, opacity, n) {
  * its decoded log-scales (mode 6) and opacity (mode 7).
  * @returns {{k: Float64Array, qs: Float64Array, mean: number, top: number}}
  */
-function readDerivedChannel(r, c, n, indices, peaks, peak, mode, attributes, family) {
+function readDerivedChannel(r, c, n, indices, peaks, peak, mode, attributes, family, classCache) {
   const mean = r.svarintBig('mean');
   const step = r.u8('step_index');
   if ((mean < 0n ? -mean : mean) > 2n ** 53n || step >= 176) throw r.error(`channel ${c}: mean or step index out of range`);
@@ -286,7 +293,8 @@ function readDerivedChannel(r, c, n, indices, peaks, peak, mode, attributes, fam
         if (!increasing) throw r.error(`channel ${c}: thresholds of score ${name} must be finite and strictly increasing`, at);
       }
     };
-    classesOf = () => scoredClasses(weights, bins[0], bins[1], attributes.logScales(), attributes.opacity(), n);
+    const key = `7:${weights}:${bins[0]}:${bins[1]}`;
+    classesOf = () => cached(classCache, key, () => scoredClasses(weights, bins[0], bins[1], attributes.logScales(), attributes.opacity(), n));
   } else {
     classCount = r.u8('class_count');
     if (classCount < 1 || classCount > 8) throw r.error(`channel ${c}: class count ${classCount} outside 1..8`);
@@ -297,7 +305,7 @@ function readDerivedChannel(r, c, n, indices, peaks, peak, mode, attributes, fam
       const increasing = thresholds.every((t, a) => Number.isFinite(t) && (a === 0 ? t >= 0 : t > thresholds[a - 1]));
       if (!increasing) throw r.error(`channel ${c}: thresholds must be finite, >= 0 and strictly increasing`, at);
     };
-    classesOf = () => anisotropyClasses(thresholds, attributes.logScales(), n);
+    classesOf = () => cached(classCache, `6:${thresholds}`, () => anisotropyClasses(thresholds, attributes.logScales(), n));
   }
   const offsets = [];
   for (let a = 0; a < classCount; a++) offsets.push(Number(r.svarintBig('step_offset')));

@@ -78,11 +78,17 @@ export function makeTargets(header, Buffer = ArrayBuffer) {
  * priors there). */
 export function decodeTask(prep, out, code, priors = null, earlierDone = false) {
   if (code === 'GEOM') return decodePositions(prep.container, prep.header, out.positions);
-  const own = (source, channels) => () => {
-    if (earlierDone) return out.targets[source].array;
-    const target = { array: new Float32Array(channels * prep.header.count), stride: channels, offset: 0 };
-    decodeStream(prep.container, prep.header, source, null, prep.family, target);
-    return target.array;
+  const own = (source, channels) => {
+    let decoded = null; // decoded once, however many channels ask
+    return () => {
+      if (earlierDone) return out.targets[source].array;
+      if (!decoded) {
+        const target = { array: new Float32Array(channels * prep.header.count), stride: channels, offset: 0 };
+        decodeStream(prep.container, prep.header, source, null, prep.family, target);
+        decoded = target.array;
+      }
+      return decoded;
+    };
   };
   const attributes = { logScales: own('SCAL', 3), opacity: own('OPAC', 1) };
   return decodeStream(prep.container, prep.header, code, priors, prep.family, out.targets[code], attributes);
