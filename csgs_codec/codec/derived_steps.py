@@ -201,10 +201,15 @@ def derive_scored_classes(log_scales: np.ndarray, opacity: np.ndarray, weights: 
                           thresholds_u: np.ndarray, thresholds_v: np.ndarray) -> np.ndarray:
     """(N,) int64 cell bin_u * K_v + bin_v of each Gaussian (mode 7)."""
     features = score_features(log_scales, opacity)
-    bins = []
-    for row, thresholds in ((0, thresholds_u), (1, thresholds_v)):
-        t = np.asarray(thresholds, np.float32).astype(np.float64)
-        bins.append(np.searchsorted(t, score(features, weights[row]), side="right"))
+    return _cells(score(features, weights[0]), score(features, weights[1]), thresholds_u,
+                  thresholds_v)
+
+
+def _cells(u: np.ndarray, v: np.ndarray, thresholds_u: np.ndarray,
+           thresholds_v: np.ndarray) -> np.ndarray:
+    """(N,) int64 cell bin_u * K_v + bin_v of scores u, v (N,) binary64."""
+    bins = [np.searchsorted(np.asarray(t, np.float32).astype(np.float64), x, side="right")
+            for x, t in ((u, thresholds_u), (v, thresholds_v))]
     return (bins[0] * (len(thresholds_v) + 1) + bins[1]).astype(np.int64)
 
 
@@ -265,7 +270,7 @@ def footprint_steps(log_scales: np.ndarray, opacity: np.ndarray, base: int, *,
                       .astype(np.float32))
     thresholds_u = edges[np.isfinite(edges)]
     thresholds_v = np.array(THRESHOLDS, np.float32)
-    classes = derive_scored_classes(log_scales, opacity, weights, thresholds_u, thresholds_v)
+    classes = _cells(u, v, thresholds_u, thresholds_v)
     k = (len(thresholds_u) + 1) * (len(thresholds_v) + 1)
     count = np.bincount(classes, minlength=k).astype(np.float64)
     log_sens = u + 2.0 * np.log(np.sinh(np.clip(v, 1e-6, 20.0)))
