@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from csgs_codec.codec.payloads import SceneHeader
 from csgs_codec.codec.view_record import ViewRecord
-from csgs_codec.errors import FormatError
+from csgs_codec.errors import CsgsError, FormatError
 from csgs_codec.format import describe, read_layers
 from csgs_codec.format.primitives import ByteReader
+from csgs_codec.format.reader import read_frame
+from csgs_codec.format.source import open_source
 
 
 def describe_bitstream(source, *, verify: bool = True) -> dict:
@@ -16,11 +18,15 @@ def describe_bitstream(source, *, verify: bool = True) -> dict:
     ``far_outliers`` (positions coded apart from the grid: ``far_relative`` of them with
     relative precision in OUTQ, ``far_exact`` as float32 in OUTL), ``views`` (the viewing
     distribution view pruning followed, when the file records one) and
-    ``bits_per_gaussian`` for the file, each layer and each chunk (bytes * 8 / N); and
-    always ``semantic_share_percent``, the semantic layer's chunk frames as a percentage of
-    the whole file (header and TOC included).
+    ``bits_per_gaussian`` for the file, each layer and each chunk (bytes * 8 / N),
+    ``rotation_steps`` (how the first tile's rotation steps follow decoded attributes:
+    ``uniform``, ``anisotropy`` (mode 6) or ``footprint`` (mode 7) with its class count, when
+    its ROTN chunk is present and readable); and always ``semantic_share_percent``, the
+    semantic layer's chunk frames as a percentage of the whole file (header and TOC
+    included).
 
-    Reads only the base layer's payloads besides the header and TOC.
+    Reads only the base layer's payloads and the first ROTN payload besides the header and
+    TOC.
     """
     facts = describe(source, verify=verify)
     total = facts["file_bytes"]
@@ -50,6 +56,9 @@ def describe_bitstream(source, *, verify: bool = True) -> dict:
         if record is not None:
             facts["views"] = {"source": record.source, "count": record.views,
                               "left_out": record.left_out, "description": record.description}
+    steps = _rotation_steps(source, container)
+    if steps is not None:
+        facts["rotation_steps"] = steps
     if n:
         facts["bits_per_gaussian"] = 8 * facts["file_bytes"] / n
         for layer in facts["layers"].values():
@@ -57,6 +66,46 @@ def describe_bitstream(source, *, verify: bool = True) -> dict:
         for chunk in facts["chunks"]:
             chunk["bits_per_gaussian"] = 8 * chunk["bytes"] / n
     return facts
+
+
+def _rotation_steps(source, container) -> dict | None:
+    """How the first ROTN chunk's coded channels set their steps ({"mode", "name",
+    "classes"}; the encoder gives every coded channel of a stream the same kind), or None
+    when the chunk is absent, cut off or unreadable (informative only)."""
+    entry = next((e for e in container.toc if e.type == "ROTN"), None)
+    if entry is None:
+        return None
+    try:
+        src = open_source(source)
+        try:
+            data = read_frame(src, entry)
+        finally:
+            src.close()
+        r = ByteReader(data, entry.offset + 8, chunk="ROTN")
+        r.byte_string("axis_stream")
+        r.varint("count")
+        channels = r.fixed("u8", "channel_count")
+        r.fixed("u8", "frac_bits")
+        mode = 0
+        for _ in range(channels):  # the first channel that is not a constant tells
+            mode = r.fixed("u8", "mode")
+            if mode != 0:
+                break
+            r.fixed("f32", "constant_value")
+        if mode not in (6, 7):
+            return {"mode": mode, "name": "uniform", "classes": 1}
+        r.svarint("mean")
+        r.fixed("u8", "step_index")
+        if mode == 6:
+            return {"mode": 6, "name": "anisotropy", "classes": r.fixed("u8", "class_count")}
+        for _ in range(8):
+            r.fixed("f32", "score_weight")
+        k_u = r.fixed("u8", "bin_count_u")
+        for _ in range(k_u - 1):
+            r.fixed("f32", "threshold_u")
+        return {"mode": 7, "name": "footprint", "classes": k_u * r.fixed("u8", "bin_count_v")}
+    except (CsgsError, OSError):
+        return None
 
 
 def _view_record(container) -> ViewRecord | None:

@@ -101,6 +101,11 @@ def format_description(facts: dict) -> str:
     elif views:
         lines.append(f"  views            {views['description']} ({views['source']}); "
                      f"{views['left_out']:,} Gaussians left out for them")
+    steps = facts.get("rotation_steps")
+    if steps:
+        lines.append(f"  rotation steps   {steps['name']}"
+                     + (f" (mode {steps['mode']}, {steps['classes']} classes)"
+                        if steps["classes"] > 1 else " (one step)"))
     lines.append(f"  header + TOC     {facts['header_bytes']:>12,} bytes")
     for label, layer in facts["layers"].items():
         missing = "" if layer["present"] else "  (not all present)"

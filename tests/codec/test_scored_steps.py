@@ -242,3 +242,16 @@ def test_the_cli_writes_footprint_steps_by_default_and_uniform_on_request(tmp_pa
         main(["-q", "encode", str(SAMPLE), "-o", str(out), "--uniform-steps",
               "--rotation-steps", "anisotropy"])
     assert info.value.code == 2 and not out.exists()
+
+
+def test_info_reports_the_rotation_steps(tmp_path):
+    from csgs_codec.codec.describe import describe_bitstream
+
+    path = tmp_path / "s.csgs"
+    path.write_bytes(RESULT.data)
+    assert describe_bitstream(str(path))["rotation_steps"] == {
+        "mode": 7, "name": "footprint", "classes": 64}
+    uniform = Encoder(quality=5, hyperprior=False, rotation_steps="uniform").encode(SCENE)
+    assert describe_bitstream(uniform)["rotation_steps"]["name"] == "uniform"
+    cut = RESULT.data[:len(RESULT.data) - 1000]  # the ROTN chunk is cut off
+    assert "rotation_steps" not in describe_bitstream(cut, verify=False)
