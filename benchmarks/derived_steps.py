@@ -21,6 +21,10 @@ in 1/8-octave step indices):
   of ``rot_aniso``, s = e^u sinh(d)^2, no render (``_half`` is the reference encoder's
   ``footprint_steps``); ``rot_uv_W``: the same cells, s = W sinh(d)^2; ``rot_uv_j2``
   (with ``--j2-cache``): the same cells, s = J2.
+- ``position_rule_j2`` (with ``--j2-cache``): positions quantized per class of decoded opacity
+  x largest log-scale (4 x 4 quantile bins) in whole octree levels from the class's mean
+  position J2, each level costed at the GEOM bits one position bit measures at that quality
+  (:func:`position_level_bits`): what sensitivity-following position precision could give.
 - ``rot_aniso``: rotation steps by anisotropy d = max - min decoded log-scale (8 classes,
   edges 0.25, 0.5, 0.75, 1, 1.5, 2, 3), s = sinh(d)^2 (the relative image error of a small
   rotation of a Gaussian with axis ratio e^d: (r - 1/r)^2 / 4).
@@ -269,6 +273,59 @@ def variants(rec, weights: np.ndarray) -> dict:
     }
 
 
+def position_level_bits(scene, quality: int) -> float:
+    """Measured GEOM bits per Gaussian one octree level costs at ``quality``: the GEOM bytes
+    of the preset against the same preset with one position bit less, per Gaussian."""
+    from dataclasses import replace
+
+    sizes = []
+    for drop in (0, 1):
+        encoder = Encoder(quality=quality, hyperprior=False)
+        encoder.preset = replace(encoder.preset,
+                                 position_bits=encoder.preset.position_bits - drop)
+        sizes.append(encoder.encode_with_report(scene).stream_bytes["GEOM"])
+    return 8.0 * (sizes[0] - sizes[1]) / len(scene)
+
+
+def position_rule_variant(result, original, j2_position: np.ndarray, level_bits: float,
+                          bins: int = 4, clip: int = 2):
+    """(byte change, positions (N, 3) float32) of positions quantized per class of decoded
+    opacity x largest log-scale (``bins`` x ``bins`` quantile bins, rule
+    ``position_by_opacity_and_largest``): class c moves ``shift_c`` octree levels coarser
+    (negative: finer), shift_c = round(-1/2 log2 of the class's mean J2 over the median
+    class), count-weighted to a mean of 0, clipped to +-``clip``; each level costs
+    ``level_bits`` per Gaussian. Decoded order; positions from the original."""
+    rec = result.reconstruction
+    features = rule_features(rec)["position_by_opacity_and_largest"][1]
+    classes = joint_bins([(f[:, 0], bins) for f, _ in features])[0]
+    k = bins * bins
+    count = np.bincount(classes, minlength=k).astype(float)
+    mean = np.bincount(classes, weights=j2_position.sum(1), minlength=k) / np.maximum(count, 1)
+    log_m = -0.5 * np.log2(np.maximum(mean, 1e-30))
+    log_m -= np.sum(count * log_m) / count.sum()
+    shift = np.clip(np.rint(log_m), -clip, clip).astype(np.int64)
+    origin, cell = result_grid(result)
+    p = original.subset(result.order).positions.astype(np.float64)
+    out = rec.positions.copy()
+    per = shift[classes]
+    for level in np.unique(per):
+        rows = per == level
+        step = cell * 2.0 ** level
+        out[rows] = (np.rint((p[rows] - origin) / step) * step + origin).astype(np.float32)
+    return float(-(per * level_bits).sum() / 8.0), out, shift.tolist()
+
+
+def result_grid(result) -> tuple[np.ndarray, float]:
+    """(origin (3,), cell) of the position grid of the encode behind ``result``."""
+    from csgs_codec.codec.payloads import SceneHeader
+    from csgs_codec.format import read_layers
+
+    container = read_layers(result.data, layers=set())
+    entry = next(e for e in container.toc if e.type == "SCNE")
+    header = SceneHeader.from_bytes(bytes(container.payloads[entry.index]))
+    return np.asarray(header.grid_origin, np.float64), float(header.grid_cell)
+
+
 def size_at_psnr(curve: list[tuple[float, float]], psnr: float) -> float:
     """Bytes the uniform presets need for ``psnr`` (log-size linear in PSNR; nan outside)."""
     points = sorted(curve)
@@ -312,6 +369,22 @@ def run_scene(name: str, qualities: list[int], names: list[str],
         if j2 is not None:
             candidates.update(j2_variants(result.reconstruction,
                                           {k: v[result.order] for k, v in j2.items()}))
+        if j2 is not None and "position_rule_j2" in names:
+            level_bits = position_level_bits(scene, quality)
+            delta, positions, shifts = position_rule_variant(
+                result, scene, j2["position"][result.order], level_bits)
+            moved = result.reconstruction.subset(np.arange(len(positions)))
+            moved.positions = positions
+            psnr = held.psnr(moved)
+            nbytes = len(result.data) + delta
+            rows.append({"scene": f"{name}.ply", "full_precision": name in FULL_PRECISION,
+                         "quality": quality, "variant": "position_rule_j2", "bytes": nbytes,
+                         "held_out_fg_psnr_db": psnr, "delta_db": psnr - base_psnr,
+                         "bytes_vs_uniform": nbytes / len(result.data),
+                         "ratio_vs_presets": nbytes / size_at_psnr(curve, psnr),
+                         "offsets": {"position_levels": shifts},
+                         "level_bits_per_gaussian": level_bits})
+            print(json.dumps(rows[-1])[:300], file=sys.stderr)
         for vname, spec in candidates.items():
             if vname not in names:
                 continue
