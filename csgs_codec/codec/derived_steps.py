@@ -46,8 +46,25 @@ STRENGTH = 0.5
 CLIP = 12
 
 
+class _StepClasses:
+    """What every per-Gaussian step table shares: ``offsets`` (K,) per class and the
+    derived ``classes`` (N,)."""
+
+    offsets: np.ndarray
+    classes: np.ndarray
+
+    @property
+    def count(self) -> int:
+        """Number of classes K."""
+        return int(len(self.offsets))
+
+    def step_indices(self, base: int) -> np.ndarray:
+        """(N,) int64 step index of every Gaussian for a channel of step index ``base``."""
+        return (base + self.offsets)[self.classes]
+
+
 @dataclass(frozen=True)
-class DerivedSteps:
+class DerivedSteps(_StepClasses):
     """Per-Gaussian step classes of a rotation stream and the table that defines them.
 
     Attributes:
@@ -62,18 +79,9 @@ class DerivedSteps:
     classes: np.ndarray
 
     @property
-    def count(self) -> int:
-        """Number of classes K."""
-        return int(len(self.offsets))
-
-    @property
     def table_bits(self) -> int:
         """Bits the planner counts for the class table in each channel record."""
         return 8 * (5 * (self.count - 1) + 2 * self.count)
-
-    def step_indices(self, base: int) -> np.ndarray:
-        """(N,) int64 step index of every Gaussian for a channel of step index ``base``."""
-        return (base + self.offsets)[self.classes]
 
 
 def anisotropy(log_scales: np.ndarray) -> np.ndarray:
@@ -133,7 +141,7 @@ def rotation_steps(log_scales: np.ndarray, base: int, *, strength: float = STREN
 
 
 @dataclass(frozen=True)
-class ScoredSteps:
+class ScoredSteps(_StepClasses):
     """Per-Gaussian step classes from two scores of decoded attributes (FORMAT §12.8 mode 7).
 
     Attributes:
@@ -152,19 +160,10 @@ class ScoredSteps:
     classes: np.ndarray
 
     @property
-    def count(self) -> int:
-        """Number of cells K_u * K_v."""
-        return int(len(self.offsets))
-
-    @property
     def table_bits(self) -> int:
         """Bits the cell table takes in each channel record (offsets at one byte each)."""
         thresholds = len(self.thresholds_u) + len(self.thresholds_v)
         return 8 * (32 + 2 + 4 * thresholds + 2 * self.count)
-
-    def step_indices(self, base: int) -> np.ndarray:
-        """(N,) int64 step index of every Gaussian for a channel of step index ``base``."""
-        return (base + self.offsets)[self.classes]
 
 
 def score_features(log_scales: np.ndarray, opacity: np.ndarray) -> np.ndarray:

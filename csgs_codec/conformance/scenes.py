@@ -254,17 +254,7 @@ def _derived_steps_vectors(out_dir: Path, donut: GaussianScene) -> None:
            "every 12th Gaussian of samples/donut.ply (3,802) at quality 5 with rotation steps "
            "derived from the decoded anisotropy (ROTN channels in mode 6)", _reads(data),
            arrays=Decoder().decode(data))
-    payload = single_payload(read_layers(data, layers={"color"}), "ROTN")[0]
-    r = ByteReader(payload)
-    r.byte_string("axis_stream")
-    r.varint("count")
-    r.fixed("u8", "channel_count")
-    r.fixed("u8", "frac_bits")
-    r.fixed("u8", "mode")
-    r.svarint("mean")
-    r.fixed("u8", "step_index")
-    r.fixed("u8", "class_count")
-    top_byte = r.offset + 3  # f32 little-endian: 0x7f8 in the top bits is +inf
+    top_byte = _after_rotn_step_index(data) + 1 + 3  # past class_count; f32 LE: +inf
     bad = _invalid(_invalid(data, patch=("ROTN", top_byte, 0x7F)),
                    patch=("ROTN", top_byte - 1, 0x80))
     _write(out_dir, "derived_steps_infinite_threshold", bad,
@@ -282,8 +272,18 @@ def _scored_steps_vectors(out_dir: Path, donut: GaussianScene) -> None:
            "every 10th Gaussian of samples/donut.ply (4,563) at quality 5 with rotation steps "
            "from the decoded area, opacity and anisotropy (ROTN channels in mode 7)",
            _reads(data), arrays=Decoder().decode(data))
-    payload = single_payload(read_layers(data, layers={"color"}), "ROTN")[0]
-    r = ByteReader(payload)
+    top_byte = _after_rotn_step_index(data) + 3  # f32 little-endian: 0x7fc is a quiet NaN
+    bad = _invalid(_invalid(data, patch=("ROTN", top_byte, 0x7F)),
+                   patch=("ROTN", top_byte - 1, 0xC0))
+    _write(out_dir, "scored_steps_nan_weight", bad,
+           "scored_steps_q5 with channel 0's first ROTN score weight set to NaN (frame and "
+           "CRC rewritten): invalid, reported at that weight", _reads(bad))
+
+
+def _after_rotn_step_index(data: bytes) -> int:
+    """Offset in the ROTN payload of ``data`` just past channel 0's step index (a channel in
+    mode 6 or 7): where its class table starts."""
+    r = ByteReader(single_payload(read_layers(data, layers={"color"}), "ROTN")[0])
     r.byte_string("axis_stream")
     r.varint("count")
     r.fixed("u8", "channel_count")
@@ -291,9 +291,4 @@ def _scored_steps_vectors(out_dir: Path, donut: GaussianScene) -> None:
     r.fixed("u8", "mode")
     r.svarint("mean")
     r.fixed("u8", "step_index")
-    top_byte = r.offset + 3  # f32 little-endian: 0x7fc in the top bits is a quiet NaN
-    bad = _invalid(_invalid(data, patch=("ROTN", top_byte, 0x7F)),
-                   patch=("ROTN", top_byte - 1, 0xC0))
-    _write(out_dir, "scored_steps_nan_weight", bad,
-           "scored_steps_q5 with channel 0's first ROTN score weight set to NaN (frame and "
-           "CRC rewritten): invalid, reported at that weight", _reads(bad))
+    return r.offset

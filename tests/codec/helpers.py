@@ -31,3 +31,29 @@ def random_scene(n: int, *, sh_degree: int = 1, seed: int = 0, semantic: int = 0
     if labels:
         scene.labels = rng.integers(0, 7, size=n).astype(np.int32)
     return scene
+
+
+def color_chunks(data: bytes) -> list:
+    """The chunks of ``data``'s base and color layers, as :class:`Chunk` objects."""
+    from csgs_codec.format import Chunk, read_layers
+
+    container = read_layers(data, layers={"color"})
+    return [Chunk(e.type, e.layer, bytes(container.payloads[e.index]), e.tile)
+            for e in container.toc]
+
+
+def rotn_channel_reader(payload: bytes):
+    """(reader just past channel 0's step index, its mode, the step index's offset) of a
+    ROTN payload whose channel 0 is in mode 6 or 7."""
+    from csgs_codec.format.primitives import ByteReader
+
+    r = ByteReader(payload)
+    r.byte_string("axis_stream")
+    r.varint("count")
+    r.fixed("u8", "channel_count")
+    r.fixed("u8", "frac_bits")
+    mode = r.fixed("u8", "mode")
+    r.svarint("mean")
+    step_at = r.offset
+    r.fixed("u8", "step_index")
+    return r, mode, step_at

@@ -19,29 +19,18 @@ from csgs_codec.entropy.residual import step_size
 from csgs_codec.errors import FormatError
 from csgs_codec.format import Chunk, read_layers, write_container
 from csgs_codec.format.primitives import ByteReader
-from tests.codec.helpers import random_scene
+from tests.codec.helpers import color_chunks, random_scene, rotn_channel_reader
 
 SCENE = random_scene(3000, sh_degree=0, seed=3)
 RESULT = Encoder(quality=5, rotation_steps="anisotropy").encode_with_report(SCENE)
 
 
-def _chunks(data: bytes) -> list[Chunk]:
-    container = read_layers(data, layers={"color"})
-    return [Chunk(e.type, e.layer, bytes(container.payloads[e.index]), e.tile)
-            for e in container.toc]
+_chunks = color_chunks
 
 
 def _rotn_fields(payload: bytes) -> dict[str, int]:
     """Offsets (in the ROTN payload) of channel 0's fields, and its mode and class count."""
-    r = ByteReader(payload)
-    r.byte_string("axis_stream")
-    r.varint("count")
-    r.fixed("u8", "channel_count")
-    r.fixed("u8", "frac_bits")
-    mode = r.fixed("u8", "mode")
-    r.svarint("mean")
-    step_at = r.offset
-    r.fixed("u8", "step_index")
+    r, mode, step_at = rotn_channel_reader(payload)
     k = r.fixed("u8", "class_count")
     return {"mode": mode, "step_at": step_at, "thresholds_at": r.offset, "classes": k}
 
