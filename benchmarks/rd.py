@@ -21,6 +21,10 @@ with one rotation step for all (``--uniform-steps``, the default before 2026-11-
 size that variant needs for the peer's foreground PSNR (interpolated on its curve, log-size
 linear; null outside it) divided by the peer's size.
 
+Each csgs row of another variant, measured beside ``uniform``, gets
+``size_vs_uniform_at_same_psnr``: its bytes over what the uniform curve needs for its
+foreground PSNR (null outside that curve).
+
     .venv/bin/python benchmarks/rd.py --scenes donut biker --out rd.json --plot rd.png
     .venv/bin/python benchmarks/rd.py --variants plain stacked --scenes donut --out a.json
     .venv/bin/python benchmarks/rd.py --combine a.json b.json --out rd.json --plot rd.png
@@ -149,6 +153,13 @@ def add_ratios(rows: list[dict]) -> None:
             ratios[variant] = None if size is None else size / row["bytes"]
         row["csgs_bytes_at_same_psnr"] = sizes
         row["csgs_size_ratio"] = ratios
+    for row in rows:  # each csgs variant against one rotation step for all
+        if row["codec"] != "csgs" or row.get("variant", "plain") == "uniform":
+            continue
+        uniform = [r for r in rows if r["codec"] == "csgs" and r["scene"] == row["scene"]
+                   and r.get("variant") == "uniform"]
+        size = size_at(uniform, row["foreground_psnr"]) if uniform else None
+        row["size_vs_uniform_at_same_psnr"] = None if size is None else row["bytes"] / size
 
 
 def plot(rows: list[dict], path: str) -> None:
@@ -203,7 +214,8 @@ def combine(paths: list[str]) -> tuple[list[dict], dict]:
             raise SystemExit(f"{path}: measured differently ({these} vs {settings})")
         settings = these
         rows += [{k: v for k, v in r.items() if k not in ("csgs_size_ratio",
-                                                          "csgs_bytes_at_same_psnr")}
+                                                          "csgs_bytes_at_same_psnr",
+                                                          "size_vs_uniform_at_same_psnr")}
                  for r in doc["results"]]
     return rows, {**settings, "combined_from": [Path(p).name for p in paths]}
 

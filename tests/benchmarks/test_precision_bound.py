@@ -60,6 +60,16 @@ def test_peer_ratios_are_kept_per_variant():
     assert rows[-1]["csgs_size_ratio"] == {"plain": None, "stacked": None}
 
 
+def test_variants_are_compared_with_the_uniform_curve_at_equal_psnr():
+    rows = [_csgs("s", "uniform", 40.0, 1000), _csgs("s", "uniform", 50.0, 2000),
+            _csgs("s", "plain", 45.0, 1200), _csgs("s", "plain", 60.0, 3000)]
+    add_ratios(rows)
+    assert rows[2]["size_vs_uniform_at_same_psnr"] == pytest.approx(
+        1200 / math.sqrt(1000 * 2000))
+    assert rows[3]["size_vs_uniform_at_same_psnr"] is None  # beyond the uniform curve
+    assert "size_vs_uniform_at_same_psnr" not in rows[0]
+
+
 def test_combine_refuses_documents_measured_differently(tmp_path):
     one = {"scoring": "held-out", "size": "800x600", "refine_steps": 20,
            "results": [_csgs("a", "plain", 40.0, 1000)]}
