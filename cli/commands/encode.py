@@ -7,7 +7,7 @@ import os
 
 from tqdm import tqdm
 
-from csgs_codec.codec.presets import DEFAULT_QUALITY
+from csgs_codec.codec.presets import DEFAULT_QUALITY, DEFAULT_ROTATION_STEPS, ROTATION_STEPS
 from csgs_codec.errors import InputError
 
 NAME = "encode"
@@ -57,8 +57,8 @@ def add_arguments(parser) -> None:
                              "cameras are given (--cameras, or an INRIA output folder), else "
                              "off")
     steps = parser.add_mutually_exclusive_group()
-    steps.add_argument("--rotation-steps", choices=("footprint", "anisotropy", "uniform"),
-                       default="footprint",
+    steps.add_argument("--rotation-steps", choices=ROTATION_STEPS,
+                       default=DEFAULT_ROTATION_STEPS,
                        help="3DGS scenes: how each Gaussian's rotation step follows its "
                             "decoded attributes, at no per-Gaussian cost: 'footprint' "
                             "(default) by its area, opacity and anisotropy, coarser where a "
@@ -192,7 +192,7 @@ def _encode_anchors(args, write_atomically) -> int:
     if (args.prune_opacity is not None or args.sanitize or args.target_psnr is not None
             or args.cameras is not None or args.view_pruning or args.tile_size is not None
             or args.workers != 1 or args.ray is not None or args.uniform_steps
-            or args.rotation_steps != "footprint" or args.refine):
+            or args.rotation_steps != DEFAULT_ROTATION_STEPS or args.refine):
         raise InputError("--prune-opacity, --sanitize, --target-psnr, --cameras, "
                          "--view-prune, --tile-size, --workers, --ray, --rotation-steps, "
                          "--uniform-steps and --refine apply to 3DGS PLY input, not to "

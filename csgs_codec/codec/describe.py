@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from csgs_codec.codec.derived_steps import SCORE_FEATURES
+from csgs_codec.codec.float_stream import CLASSED_MODES, MODE_DERIVED, rotation_class_table
 from csgs_codec.codec.payloads import SceneHeader
 from csgs_codec.codec.view_record import ViewRecord
 from csgs_codec.errors import CsgsError, FormatError
@@ -82,23 +84,12 @@ def _rotation_steps(source, container) -> dict | None:
         finally:
             src.close()
         r = ByteReader(data, entry.offset + 8, chunk="ROTN")
-        r.byte_string("axis_stream")
-        r.varint("count")
-        channels = r.fixed("u8", "channel_count")
-        r.fixed("u8", "frac_bits")
-        mode = 0
-        for _ in range(channels):  # the first channel that is not a constant tells
-            mode = r.fixed("u8", "mode")
-            if mode != 0:
-                break
-            r.fixed("f32", "constant_value")
-        if mode not in (6, 7):
+        mode = rotation_class_table(r)
+        if mode not in CLASSED_MODES:
             return {"mode": mode, "name": "uniform", "classes": 1}
-        r.svarint("mean")
-        r.fixed("u8", "step_index")
-        if mode == 6:
+        if mode == MODE_DERIVED:
             return {"mode": 6, "name": "anisotropy", "classes": r.fixed("u8", "class_count")}
-        for _ in range(8):
+        for _ in range(2 * SCORE_FEATURES):
             r.fixed("f32", "score_weight")
         k_u = r.fixed("u8", "bin_count_u")
         for _ in range(k_u - 1):

@@ -35,7 +35,14 @@ from csgs_codec.codec.payloads import (
     SceneHeader,
     names_to_bytes,
 )
-from csgs_codec.codec.presets import DEFAULT_QUALITY, Preset, preset, scaled_preset
+from csgs_codec.codec.presets import (
+    DEFAULT_QUALITY,
+    DEFAULT_ROTATION_STEPS,
+    ROTATION_STEPS,
+    Preset,
+    preset,
+    scaled_preset,
+)
 from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
 from csgs_codec.codec.tiling import check_tile_size, effective_tile_size
 from csgs_codec.codec.view_pruning import DEFAULT_BUDGET, decide
@@ -51,9 +58,6 @@ from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.scene.position_grid import PositionGrid
 
 SEMANTIC_MODES = ("auto", "none")
-#: How rotation steps follow decoded attributes (``Encoder(rotation_steps=...)``).
-ROTATION_STEPS = ("footprint", "anisotropy", "uniform")
-DEFAULT_ROTATION_STEPS = "footprint"
 #: Scenes with fewer Gaussians are not view-pruned: the sensitivity pass is not worth it and
 #: tiny test scenes stay whole.
 MIN_PRUNED_SCENE = 1024
@@ -417,21 +421,22 @@ class Encoder:
         plans = {}
         lattices = lattices or {}
         for name, stream in values.items():
-            derive = None
-            if name in lattices:
-                pass  # a lattice comes from a plan with one step: keep that plan's step
-            elif name == "rot" and self.rotation_steps == "anisotropy":
-                scales = plans["scale"].recon
-
-                def derive(base: int, scales=scales):
-                    return rotation_steps(scales, base)
-            elif name == "rot" and self.rotation_steps == "footprint":
-                scales, opacity = plans["scale"].recon, plans["opacity"].recon
-
-                def derive(base: int, scales=scales, opacity=opacity):
-                    return footprint_steps(scales, opacity, base)
+            # A lattice comes from a plan with one step, which it keeps.
+            derive = (self._rotation_classes(plans) if name == "rot" and name not in lattices
+                      else None)
             plans[name] = plan_float_stream(stream, steps[name], derive, lattices.get(name))
         return plans
+
+    def _rotation_classes(self, plans: dict):
+        """What makes the rotation stream's step classes from the planned scales and
+        opacities (``derive`` of :func:`plan_float_stream`), or None for one step."""
+        if self.rotation_steps == "uniform":
+            return None
+        scales = plans["scale"].recon
+        if self.rotation_steps == "anisotropy":
+            return lambda base: rotation_steps(scales, base)
+        opacity = plans["opacity"].recon
+        return lambda base: footprint_steps(scales, opacity, base)
 
     def _refined_plans(self, ordered: GaussianScene, streams: SceneStreams, plans: dict,
                        positions: np.ndarray, p: Preset) -> dict:

@@ -63,6 +63,11 @@ MULTIPLIERS = {1: 12.0, 2: 8.0, 3: 6.0, 4: 4.0, 5: 3.0, 6: 2.0, 7: 1.4, 8: 1.0, 
 _BITS = {1: 10, 2: 11, 3: 11, 4: 12, 5: 12, 6: 13, 7: 14, 8: 14, 9: 16}
 PRESETS = {q: _row(q, _BITS[q], MULTIPLIERS[q]) for q in MULTIPLIERS}
 DEFAULT_QUALITY = 5
+#: How rotation steps follow decoded attributes (``Encoder(rotation_steps=...)``,
+#: ``csgs encode --rotation-steps``): footprint is float stream mode 7, anisotropy mode 6,
+#: uniform one step for all.
+ROTATION_STEPS = ("footprint", "anisotropy", "uniform")
+DEFAULT_ROTATION_STEPS = "footprint"
 
 #: Anchor scenes (spec §17) use the same multipliers on their own steps at quality 8, in
 #: coding units: features, offsets (units of exp(scaling[:3])), natural-log scaling, semantic

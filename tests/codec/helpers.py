@@ -43,17 +43,11 @@ def color_chunks(data: bytes) -> list:
 
 
 def rotn_channel_reader(payload: bytes):
-    """(reader just past channel 0's step index, its mode, the step index's offset) of a
-    ROTN payload whose channel 0 is in mode 6 or 7."""
+    """(reader just past the first coded channel's step index, its mode, the step index's
+    offset) of a ROTN payload whose coded channels are in mode 6 or 7."""
+    from csgs_codec.codec.float_stream import rotation_class_table
     from csgs_codec.format.primitives import ByteReader
 
     r = ByteReader(payload)
-    r.byte_string("axis_stream")
-    r.varint("count")
-    r.fixed("u8", "channel_count")
-    r.fixed("u8", "frac_bits")
-    mode = r.fixed("u8", "mode")
-    r.svarint("mean")
-    step_at = r.offset
-    r.fixed("u8", "step_index")
-    return r, mode, step_at
+    mode = rotation_class_table(r)
+    return r, mode, r.offset - 1
