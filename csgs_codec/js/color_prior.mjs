@@ -1,12 +1,12 @@
 /**
  * The color hyperprior chunk CHYP (spec/FORMAT.md §12.19): a channel mask over the color
  * streams and an integer network whose outputs give each modelled channel a per-Gaussian
- * mean (in steps) and scale-table index.
+ * mean (in steps) and scale-table index. The network runs in decode_tasks.mjs (PRIOR tasks).
  */
 
 import { ByteReader } from './bytes.mjs';
 import { FormatError } from './errors.mjs';
-import { forwardIntNet, parseIntNet } from './intnet.mjs';
+import { parseIntNet } from './intnet.mjs';
 
 export const STREAM_CHANNELS = { SHDC: 3, SHBA: 9, SHBB: 15, SHBC: 21, OPAC: 1, SCAL: 3, ROTN: 3 };
 
@@ -56,36 +56,4 @@ export function modelledStreams(prior, codes) {
     for (let c = 0; c < STREAM_CHANNELS[code]; c++, t++) if (prior.mask[t]) out.add(code);
   }
   return out;
-}
-
-/**
- * Run the network on every Gaussian's cell (far outliers: (0, 0, 0)).
- * @returns {Map<string, Map<number, {mean: Float64Array, scale: Uint8Array}>>} per stream,
- *   per channel, the prior of each Gaussian
- */
-export function channelPriors(prior, cells, count, codes, sine) {
-  const xs = new Float64Array(count);
-  const ys = new Float64Array(count);
-  const zs = new Float64Array(count);
-  xs.set(cells.x); ys.set(cells.y); zs.set(cells.z);
-  const out = forwardIntNet(prior.net, xs, ys, zs, count, sine);
-  const m = prior.mask.reduce((a, b) => a + b, 0);
-  const width = 2 * m;
-  const result = new Map(codes.map((code) => [code, new Map()]));
-  let t = 0;
-  let j = 0;
-  for (const code of codes) {
-    for (let c = 0; c < STREAM_CHANNELS[code]; c++, t++) {
-      if (!prior.mask[t]) continue;
-      const mean = new Float64Array(count);
-      const scale = new Uint8Array(count);
-      for (let i = 0; i < count; i++) {
-        mean[i] = Math.floor((out[i * width + j] + 32) / 64);
-        scale[i] = out[i * width + m + j];
-      }
-      result.get(code).set(c, { mean, scale });
-      j++;
-    }
-  }
-  return result;
 }

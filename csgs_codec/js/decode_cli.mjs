@@ -27,8 +27,9 @@ import { performance } from 'node:perf_hooks';
 
 import { LAYERS, readLayers } from './container.mjs';
 import { FormatError, UnsupportedError } from './errors.mjs';
-import { WorkerLane, decodeSceneParallel } from './parallel_node.mjs';
+import { workerLanes } from './parallel_node.mjs';
 import { setRangeCoder } from './range_decoder.mjs';
+import { decodeScene, sceneArrays } from './scene.mjs';
 import { loadTables } from './tables_node.mjs';
 
 function sha256(typed) {
@@ -37,22 +38,11 @@ function sha256(typed) {
 }
 
 function sceneSummary(scene) {
-  const n = scene.count;
-  const arrays = {
-    positions: [scene.positions, [n, 3]],
-    sh_dc: [scene.sh_dc, [n, 3]],
-    sh_rest: [scene.sh_rest, [n, scene.sh_rest.length / Math.max(3 * n, 1), 3]],
-    opacity: [scene.opacity, [n]],
-    scales: [scene.scales, [n, 3]],
-    rotations: [scene.rotations, [n, 4]],
-  };
-  if (scene.semantic) arrays.semantic = [scene.semantic, [n, scene.semanticNames.length]];
-  if (scene.labels) arrays.labels = [scene.labels, [n]];
   const out = {};
-  for (const [name, [values, shape]] of Object.entries(arrays)) out[name] = { shape, sha256: sha256(values) };
+  for (const [name, [values, shape]] of Object.entries(sceneArrays(scene))) out[name] = { shape, sha256: sha256(values) };
   const v = scene.metadata.views;
   const views = v && { source: v.source, count: v.count, left_out: v.leftOut, description: v.description };
-  return { count: n, arrays: out, semantic_names: scene.semanticNames, views };
+  return { count: scene.count, arrays: out, semantic_names: scene.semanticNames, views };
 }
 
 function containerSummary(data, layers) {
@@ -68,7 +58,7 @@ function containerSummary(data, layers) {
   };
 }
 
-async function decodeFile(file, wanted, container, repeat, tables, lane) {
+async function decodeFile(file, wanted, container, repeat, tables, lanes) {
   const data = new Uint8Array(readFileSync(file));
   try {
     if (container) return [0, { ok: true, ...containerSummary(data, wanted) }];
@@ -80,7 +70,7 @@ async function decodeFile(file, wanted, container, repeat, tables, lane) {
     for (let i = 0; i < repeat; i++) {
       const cpu = process.cpuUsage();
       const start = performance.now();
-      scene = await decodeSceneParallel(data, { layers: [...wanted], tables: loaded }, lane);
+      scene = await decodeScene(data, { layers: [...wanted], tables: loaded, lanes });
       const wall = (performance.now() - start) / 1000;
       const used = process.cpuUsage(cpu);
       first = first ?? wall;
@@ -123,16 +113,16 @@ async function main(argv) {
   const wanted = new Set(layers);
   let loaded = null;
   const tables = () => { loaded = loaded || loadTables(); return loaded; };
-  const lane = threads > 1 && !container ? new WorkerLane(rangeCoder) : null;
+  const lanes = threads > 1 && !container ? workerLanes(threads, rangeCoder) : [];
   let status = 0;
   try {
     for (const file of files) {
-      const [code, result] = await decodeFile(file, wanted, container, repeat, tables, lane);
+      const [code, result] = await decodeFile(file, wanted, container, repeat, tables, lanes);
       status = Math.max(status, code);
       process.stdout.write(`${JSON.stringify({ file, ...result })}\n`);
     }
   } finally {
-    if (lane) await lane.close();
+    await Promise.all(lanes.map((lane) => lane.close()));
   }
   return status;
 }

@@ -7,6 +7,7 @@
 import { ByteReader } from './bytes.mjs';
 import { FormatError } from './errors.mjs';
 import { decodeSymbols } from './residual.mjs';
+import { denseInstance, forwardDense } from './wasm_intnet.mjs';
 
 const MAX_WIDTH = 4096;
 const BIAS_LIMIT = 2n ** 52n;
@@ -139,6 +140,41 @@ export function parseIntNet(bytes, family, chunk, baseOffset) {
 }
 
 /**
+ * The positional embedding (§16.4.1) of positions [start, start + count): element j of
+ * position start + i goes to h[at(i) + j * stride], where at(i) = i * width (stride 1) or,
+ * with ``stride`` 4, ((i >> 2) * width) * 4 + (i & 3) (blocks of four positions,
+ * wasm_intnet.mjs's layout).
+ */
+function embed(net, coords, sine, h, start, count, stride) {
+  const width = 6 * net.numFreqs;
+  for (let i = 0; i < count; i++) {
+    const p = start + i;
+    const at = stride === 1 ? i * width : (((i >> 2) * width) << 2) + (i & 3);
+    for (let l = 0; l < net.numFreqs; l++) {
+      const down = net.posBits - l - 10; // in [-25, 22]: posBits <= 32, l <= 15
+      for (let d = 0; d < 3; d++) {
+        const x = coords[d][p];
+        // ((x << (l + 10)) >> B) mod 1024 on the integer x < 2^32: the low ten bits of a
+        // shift, exact in 32-bit integer arithmetic.
+        const k = down >= 0 ? (x >>> down) & 1023 : (x << -down) & 1023;
+        const j = at + (6 * l + 2 * d) * stride;
+        h[j] = sine[k];
+        h[j + stride] = sine[(k + 256) & 1023];
+      }
+    }
+  }
+}
+
+let useWasm = true;
+
+/** Choose the loop forwardIntNet runs: 'wasm' (WebAssembly SIMD, where the engine has it)
+ * or 'js'. Both give the same outputs; tests run both. */
+export function setIntNetKernel(kind) {
+  if (kind !== 'wasm' && kind !== 'js') throw new Error(`unknown integer-network kernel ${kind}`);
+  useWasm = kind === 'wasm';
+}
+
+/**
  * Evaluate the network on integer positions (§16.4.1, §16.4.2).
  * @param {object} net from parseIntNet
  * @param {ArrayLike<number>} xs, ys, zs coordinates, each in [0, 2^posBits)
@@ -146,6 +182,10 @@ export function parseIntNet(bytes, family, chunk, baseOffset) {
  * @returns {Float64Array} N x O outputs, row-major
  */
 export function forwardIntNet(net, xs, ys, zs, n, sine) {
+  const coords = [xs, ys, zs];
+  if (useWasm && n >= 16 && denseInstance()) {
+    return forwardDense(net, n, (h, start, count) => embed(net, coords, sine, h, start, count, 4));
+  }
   const outWidth = net.layers[net.layers.length - 1].out;
   const result = new Float64Array(n * outWidth);
   const width0 = 6 * net.numFreqs;
@@ -156,18 +196,8 @@ export function forwardIntNet(net, xs, ys, zs, n, sine) {
   const top = 2 ** net.actBits - 1;
   const scales = net.layers.map((layer) => 2 ** -layer.shift);
   const offsets = net.layers.map((layer) => (layer.shift ? 2 ** (layer.shift - 1) : 0));
-  const coords = [xs, ys, zs];
   for (let p = 0; p < n; p++) {
-    for (let l = 0; l < net.numFreqs; l++) {
-      const down = net.posBits - l - 10;
-      for (let d = 0; d < 3; d++) {
-        const x = coords[d][p];
-        // ((x << (l + 10)) >> B) mod 1024, on the exact integer x < 2^32.
-        const i = down >= 0 ? Math.floor(x / 2 ** down) % 1024 : (x * 2 ** -down) % 1024;
-        h[6 * l + 2 * d] = sine[i];
-        h[6 * l + 2 * d + 1] = sine[(i + 256) % 1024];
-      }
-    }
+    embed(net, coords, sine, h, p, 1, 1);
     for (let k = 0; k < net.layers.length; k++) {
       const layer = net.layers[k];
       const w = layer.w;

@@ -4,15 +4,15 @@
  * an ANCH chunk raises UnsupportedError.
  */
 
-import { decodePositions, readHeader } from './base_layer.mjs';
+import { readHeader } from './base_layer.mjs';
 import { single } from './chunks.mjs';
-import { BAND_CODES, SH_REST, decodeStream, rotations } from './color_layer.mjs';
-import { channelPriors, modelledStreams, parseColorPrior } from './color_prior.mjs';
+import { BAND_CODES } from './color_layer.mjs';
+import { modelledStreams, parseColorPrior } from './color_prior.mjs';
 import { readLayers } from './container.mjs';
+import { planDecode, sceneOf } from './decode_plan.mjs';
+import { LocalLane, runPlan } from './decode_runner.mjs';
 import { FormatError, UnsupportedError } from './errors.mjs';
-import { decodeSemantic } from './semantic_layer.mjs';
 import { checkSameKind, checkTile, isTiled, joinTiles, readTileIndex, tileContainer } from './tile_index.mjs';
-import { readViews } from './view_record.mjs';
 
 const MAX_GAUSSIANS = 2 ** 24;
 const MAX_GAUSSIANS_PER_BYTE = 64;
@@ -52,81 +52,77 @@ export function prepareContainer(container, size, layers, options) {
 }
 
 /**
- * The output arrays of the color streams, each stream's place in them ({array, stride,
- * offset}) and the positions array; ``Buffer`` makes their storage (ArrayBuffer or
- * SharedArrayBuffer).
+ * Decode a standard scene: the one orchestration of the receiver (the Node command line, its
+ * worker threads and the browser viewer's worker all call it). The plan (decode_plan.mjs)
+ * says what each task needs and in what order errors count; the runner (decode_runner.mjs)
+ * spreads the tasks over ``options.lanes`` (this thread when none is given). A tiled file
+ * (§12.22) decodes tile by tile.
+ * @param {Uint8Array} data the .csgs bytes (or a prefix holding the requested layers)
+ * @param {{layers?: string[], tables: {family: object, sine: Int32Array},
+ *   maxGaussians?: number, maxGaussiansPerByte?: number, lanes?: object[],
+ *   onStage?: (stage: string, scene: object) => void,
+ *   onProgress?: (fraction: number) => void}} options lanes: LocalLane / RemoteLane
+ *   instances to decode on; onStage (an untiled file only) gets the scene a stage of
+ *   decode_plan.mjs STAGES can show, as soon as it is decoded ('first': no SH bands yet)
+ * @returns {Promise<object>} count, positions (N x 3), sh_dc (N x 3), sh_rest (N x R x 3),
+ *   opacity, scales (N x 3), rotations (N x 4, w x y z), semantic (N x S) and
+ *   semanticNames, labels, metadata {views, skipped}: the informative vdis record (§12.21;
+ *   view_record.mjs)
  */
-export function makeTargets(header, Buffer = ArrayBuffer) {
-  const n = header.count;
-  const f32 = (length) => new Float32Array(new Buffer(4 * length));
-  const restCount = SH_REST[header.stored];
-  const shRest = f32(n * restCount * 3);
-  const targets = {
-    SHDC: { array: f32(3 * n), stride: 3, offset: 0 },
-    OPAC: { array: f32(n), stride: 1, offset: 0 },
-    SCAL: { array: f32(3 * n), stride: 3, offset: 0 },
-    ROTN: { array: f32(3 * n), stride: 3, offset: 0 },
-  };
-  BAND_CODES.forEach((code, b) => { targets[code] = { array: shRest, stride: restCount * 3, offset: SH_REST[b] * 3 }; });
-  return { targets, shRest, positions: f32(3 * n) };
-}
-
-/** Decode one task ('GEOM' or a color stream code) of a prepared scene into its targets;
- * returns the dropped-component indices for ROTN. ``earlierDone``: SCAL and OPAC are already
- * in their targets (a sequential decode); otherwise a ROTN channel in mode 6 or 7 decodes
- * them for itself (the parallel decode runs only without the hyperprior, so they need no
- * priors there). */
-export function decodeTask(prep, out, code, priors = null, earlierDone = false) {
-  if (code === 'GEOM') return decodePositions(prep.container, prep.header, out.positions);
-  const own = (source, channels) => {
-    let decoded = null; // decoded once, however many channels ask
-    return () => {
-      if (earlierDone) return out.targets[source].array;
-      if (!decoded) {
-        const target = { array: new Float32Array(channels * prep.header.count), stride: channels, offset: 0 };
-        decodeStream(prep.container, prep.header, source, null, prep.family, target);
-        decoded = target.array;
-      }
-      return decoded;
-    };
-  };
-  const attributes = { logScales: own('SCAL', 3), opacity: own('OPAC', 1) };
-  return decodeStream(prep.container, prep.header, code, priors, prep.family, out.targets[code], attributes);
-}
-
-/** The scene object of decoded targets, with the semantic layer when it was asked for. */
-export function finishScene(prep, out, axis) {
-  const n = prep.header.count;
-  const scene = {
-    count: n,
-    positions: out.positions,
-    sh_dc: out.targets.SHDC.array,
-    sh_rest: out.shRest,
-    opacity: out.targets.OPAC.array,
-    scales: out.targets.SCAL.array,
-    rotations: rotations(axis, out.targets.ROTN.array, n),
-    semantic: null,
-    semanticNames: [],
-    labels: null,
-    metadata: readViews(prep.container),
-  };
-  if (prep.layers.has('semantic')) decodeSemantic(prep.container, prep.header, scene, prep.family);
-  return scene;
+export async function decodeScene(data, options) {
+  const lanes = options.lanes && options.lanes.length ? options.lanes : [new LocalLane()];
+  const tiled = tiledScene(data, options);
+  if (!tiled) {
+    const prep = prepareScene(data, options);
+    return decodePrepared(data, prep, lanes, options.onStage, options.onProgress);
+  }
+  const scenes = [];
+  for (let i = 0; i < tiled.tiles.length; i++) {
+    const progress = options.onProgress && ((f) => options.onProgress((i + f) / tiled.tiles.length));
+    scenes.push(checkedTile(tiled, i, await decodePrepared(data, tiled.prepare(i), lanes, null, progress)));
+  }
+  return joinTiledScenes(tiled, scenes);
 }
 
 /**
- * Decode a standard scene on this thread (parallel_node.mjs spreads it over two in Node).
- * @param {Uint8Array} data the .csgs bytes (or a prefix holding the requested layers)
- * @param {{layers?: string[], tables: {family: object, sine: Int32Array},
- *   maxGaussians?: number, maxGaussiansPerByte?: number}} options
- * @returns {object} count, positions (N x 3), sh_dc (N x 3), sh_rest (N x R x 3), opacity,
- *   scales (N x 3), rotations (N x 4, w x y z), semantic (N x S) and semanticNames, labels,
- *   metadata {views, skipped}: the informative vdis record (§12.21; view_record.mjs)
+ * The semantic layer alone (a viewer that decoded the color layer from a prefix of the file
+ * reads it on, say): {semantic (N x S), semanticNames, labels}, each null or empty when the
+ * file has none. ``data`` holds the file up to the end of its semantic layer; an untiled
+ * file only.
  */
-export function decodeScene(data, options) {
-  const tiled = tiledScene(data, options);
-  if (!tiled) return decodePrepared(prepareScene(data, options));
-  return joinTiledScenes(tiled, tiled.tiles.map((_, i) => checkedTile(tiled, i, decodePrepared(tiled.prepare(i)))));
+export async function decodeSemanticLayer(data, options) {
+  const prep = prepareScene(data, { ...options, layers: ['semantic'] });
+  const plan = planDecode(prep, { stages: ['semantic'] });
+  const results = await runPlan(plan, [new LocalLane()]);
+  return results.get('SEMANTIC');
+}
+
+/** The decoded arrays of a scene in the receiver's canonical layout, for hashing: {name:
+ * [typed array, shape]} (float32 arrays, int32 labels; semantic and labels when present). */
+export function sceneArrays(scene) {
+  const n = scene.count;
+  const arrays = {
+    positions: [scene.positions, [n, 3]],
+    sh_dc: [scene.sh_dc, [n, 3]],
+    sh_rest: [scene.sh_rest, [n, scene.sh_rest.length / Math.max(3 * n, 1), 3]],
+    opacity: [scene.opacity, [n]],
+    scales: [scene.scales, [n, 3]],
+    rotations: [scene.rotations, [n, 4]],
+  };
+  if (scene.semantic) arrays.semantic = [scene.semantic, [n, scene.semanticNames.length]];
+  if (scene.labels) arrays.labels = [scene.labels, [n]];
+  return arrays;
+}
+
+/** The scene (or tile) of one prepared container, decoded on ``lanes``. */
+async function decodePrepared(data, prep, lanes, onStage, onProgress) {
+  const plan = planDecode(prep, { priorParts: lanes.length });
+  plan.source = { data, entries: prep.container.toc.entries, layers: prep.layers };
+  const results = await runPlan(plan, lanes, {
+    onStage: onStage && ((stage, done) => { if (stage !== 'semantic') onStage(stage, sceneOf(plan, done, stage)); }),
+    onTask: onProgress && ((task, done, total) => onProgress(done / total)),
+  });
+  return sceneOf(plan, results);
 }
 
 /**
@@ -154,28 +150,4 @@ export function checkedTile(tiled, i, scene) {
 export function joinTiledScenes(tiled, scenes) {
   checkSameKind(scenes, tiled.containers);
   return joinTiles(scenes);
-}
-
-/** The rest of decodeScene after prepareScene, on this thread. Errors come in the order the
- * reference decoder reports them: hyperprior cells, color streams in order, geometry. */
-export function decodePrepared(prep) {
-  const out = makeTargets(prep.header);
-  let priors = new Map();
-  let geometryDone = false;
-  if (prep.modelled.size) {
-    const cells = decodeTask(prep, out, 'GEOM');
-    geometryDone = true;
-    const cellLimit = 2 ** prep.prior.net.posBits;
-    for (const axis of [cells.x, cells.y, cells.z]) {
-      for (let i = 0; i < axis.length; i++) if (axis[i] >= cellLimit) throw new FormatError('the color hyperprior needs smaller cells', { chunk: 'CHYP' });
-    }
-    priors = channelPriors(prep.prior, cells, prep.header.count, prep.codes, prep.sine);
-  }
-  let axis = null;
-  for (const code of prep.codes) {
-    const result = decodeTask(prep, out, code, priors.get(code) || null, true);
-    if (code === 'ROTN') axis = result;
-  }
-  if (!geometryDone) decodeTask(prep, out, 'GEOM');
-  return finishScene(prep, out, axis);
 }

@@ -10,53 +10,7 @@
  * lookup indices of the tables in use, and the output symbols.
  */
 
-const I32 = 0x7f;
-const I64 = 0x7e;
-
-/** Unsigned LEB128. */
-function uleb(value) {
-  const out = [];
-  let v = value;
-  do {
-    let byte = v & 0x7f;
-    v = Math.floor(v / 128);
-    if (v) byte |= 0x80;
-    out.push(byte);
-  } while (v);
-  return out;
-}
-
-/** Signed LEB128 of a BigInt. */
-function sleb(value) {
-  const out = [];
-  let v = BigInt(value);
-  while (true) {
-    const byte = Number(v & 0x7fn);
-    v >>= 7n;
-    const done = (v === 0n && !(byte & 0x40)) || (v === -1n && (byte & 0x40));
-    out.push(done ? byte : byte | 0x80);
-    if (done) return out;
-  }
-}
-
-const vec = (items) => [...uleb(items.length), ...items.flat()];
-const section = (id, bytes) => [id, ...uleb(bytes.length), ...bytes];
-const name = (text) => vec([...text].map((c) => [c.charCodeAt(0)]));
-
-// Instructions used by the loop (opcode bytes of the WebAssembly core specification).
-const op = {
-  block: [0x02, 0x40], loop: [0x03, 0x40], if: [0x04, 0x40], ifI64: [0x04, I64], else: [0x05],
-  end: [0x0b], br: (d) => [0x0c, ...uleb(d)], brIf: (d) => [0x0d, ...uleb(d)],
-  get: (i) => [0x20, ...uleb(i)], set: (i) => [0x21, ...uleb(i)],
-  i32Load: (offset) => [0x28, 2, ...uleb(offset)], i64Load: (offset) => [0x29, 3, ...uleb(offset)],
-  i64Load32U: (offset) => [0x35, 2, ...uleb(offset)],
-  i32Store: (offset) => [0x36, 2, ...uleb(offset)], i64Store: (offset) => [0x37, 3, ...uleb(offset)],
-  i32Const: (v) => [0x41, ...sleb(v)], i64Const: (v) => [0x42, ...sleb(v)],
-  i32LtU: [0x49], i32GtU: [0x4b], i32GeU: [0x4f], i64LtU: [0x54], i64GeU: [0x5a],
-  i32Add: [0x6a], i32Sub: [0x6b], i32Shl: [0x74], i32ShrU: [0x76],
-  i64Sub: [0x7d], i64Mul: [0x7e], i64DivU: [0x80], i64Or: [0x84], i64Shl: [0x86], i64ShrU: [0x88],
-  i32WrapI64: [0xa7], i64ExtendI32U: [0xad],
-};
+import { I32, I64, moduleBytes, op } from './wasm_assembler.mjs';
 
 // Parameters and locals of decode(view, index, out, count, shift) -> symbols decoded.
 const VIEW = 0; const INDEX = 1; const OUT = 2; const COUNT = 3; const SHIFT = 4;
@@ -113,23 +67,15 @@ function decodeBody() {
     op.i32Const(0), op.get(RANGE), op.i64Store(8),
     op.i32Const(0), op.get(POS), op.i32Store(16),
     op.get(I),
-    op.end,
   ].flat();
 }
 
 /** The module's bytes: one function ``decode`` and one exported memory. */
 export function assemble() {
-  const type = [0x60, ...vec([[I32], [I32], [I32], [I32], [I32]]), ...vec([[I32]])];
-  const locals = vec([[...uleb(9), I32], [...uleb(4), I64]]);
-  const body = [...locals, ...decodeBody()];
-  return new Uint8Array([
-    0x00, 0x61, 0x73, 0x6d, 0x01, 0x00, 0x00, 0x00,
-    ...section(1, vec([type])),
-    ...section(3, vec([[0]])),
-    ...section(5, vec([[0x00, ...uleb(2)]])),
-    ...section(7, vec([[...name('decode'), 0x00, 0], [...name('memory'), 0x02, 0]])),
-    ...section(10, vec([[...uleb(body.length), ...body]])),
-  ]);
+  return moduleBytes({
+    exportName: 'decode', params: [I32, I32, I32, I32, I32], results: [I32],
+    locals: [[9, I32], [4, I64]], body: decodeBody(),
+  });
 }
 
 let instance = null;

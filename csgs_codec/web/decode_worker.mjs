@@ -1,31 +1,67 @@
 /**
  * The viewer's Web Worker: reads a .csgs layer by layer and decodes it with the JavaScript
- * receiver (../js/), reporting progress.
+ * receiver's one orchestration (../js/scene.mjs decodeScene) on decode lanes, Web Workers of
+ * their own (lane_worker.mjs; this thread when a browser cannot start them).
  *
  * Order: header and TOC, then the bytes up to the end of the color layer (one HTTP Range
- * request, or a slice of a picked file), decoded and posted at once so the page can draw;
- * then, when asked, the semantic layer's bytes, decoded and posted after.
+ * request, or a slice of a picked file), decoded; the splats with their base color are
+ * posted as soon as they are decoded (stage 'first'), the SH bands after; then, when asked,
+ * the semantic layer's bytes, decoded and posted.
  *
- * Messages in: {kind: 'open', url | file, layers: ['color'] | ['color', 'semantic']}.
+ * Its URL may say ``?lanes=N`` (see decodeLanes).
+ * Messages in: {kind: 'open', url | file, layers: ['color'] | ['color', 'semantic'],
+ *   hashes: bool}.
  * Messages out (each with the open request's id):
  *   {kind: 'progress', stage, fraction, text}
- *   {kind: 'toc', fileEnd, colorEnd, hasSemantic}
- *   {kind: 'color', scene, bytesRead, decodeMs}   arrays transferred
+ *   {kind: 'toc', fileEnd, colorEnd, hasSemantic, chunks}
+ *   {kind: 'color', scene, complete, bytesRead, decodeMs}   the splats; ``complete`` false
+ *     while the SH bands are still decoding (scene.sh_rest then has no coefficients)
+ *   {kind: 'sh', sh_rest, decodeMs}   the SH bands of an incomplete 'color' scene
  *   {kind: 'semantic', semantic, channels, names, labels, bytesRead, decodeMs}
- *   {kind: 'error', stage, message, chunk, offset}   the receiver's errors name both
+ *   {kind: 'hashes', arrays}   when asked: {name: {shape, sha256}} of every decoded array,
+ *     as decode_cli.mjs prints them (tests compare them with the Python decoder's)
+ *   {kind: 'error', stage, message, chunk, offset, kind}   the receiver's errors name both;
+ *     ``errorKind``: 'format', 'unsupported' or 'internal'
+ *   {kind: 'mark', name, at}   when a step happened (epoch milliseconds)
  *   {kind: 'done'}
  */
 
-import { channelPriors } from '../js/color_prior.mjs';
+import './receiver_modules.mjs';
+import { RemoteLane } from '../js/lane_client.mjs';
 import { readToc } from '../js/container.mjs';
-import { FormatError } from '../js/errors.mjs';
-import { decodeTask, finishScene, makeTargets, prepareScene } from '../js/scene.mjs';
-import { decodeSemantic } from '../js/semantic_layer.mjs';
-import { GAUSSIAN_V1_SHA256, SINE_V1_SHA256, parseGaussianFamily, parseSineTable } from '../js/tables.mjs';
+import { LocalLane } from '../js/decode_runner.mjs';
+import { FormatError, UnsupportedError } from '../js/errors.mjs';
+import { decodeScene, decodeSemanticLayer, sceneArrays } from '../js/scene.mjs';
+import { loadTables, sha256Hex } from './tables_fetch.mjs';
 
 const HEADER_SIZE = 16;
-const TABLES_URL = new URL('../entropy/data/', import.meta.url);
-let tablesPromise = null;
+/** Decode lanes: one Web Worker per core, at most this many. */
+const MAX_LANES = 4;
+let lanes = null;
+
+/** The decode lanes, started when this worker starts, for every file it opens: ``asked``
+ * Web Workers (null: one per core, at most MAX_LANES; 0: decode on this thread). */
+function decodeLanes(asked) {
+  if (lanes) return lanes;
+  const count = asked ?? Math.max(1, Math.min(self.navigator?.hardwareConcurrency || 2, MAX_LANES));
+  if (count === 0) {
+    lanes = [new LocalLane()];
+    return lanes;
+  }
+  try {
+    lanes = Array.from({ length: count }, () => {
+      const worker = new Worker(new URL('./lane_worker.mjs', import.meta.url), { type: 'module' });
+      return new RemoteLane({
+        post: (message, transfer = []) => worker.postMessage(message, transfer),
+        listen: (handler) => { worker.onmessage = (event) => handler(event.data); },
+        close: () => worker.terminate(),
+      });
+    });
+  } catch { // no nested workers here: decode on this thread
+    lanes = [new LocalLane()];
+  }
+  return lanes;
+}
 
 /** Bytes [start, end) of a scene at a URL, by HTTP Range requests. */
 class UrlSource {
@@ -91,73 +127,25 @@ function concat(parts) {
   return out;
 }
 
-async function sha256Hex(bytes) {
-  const digest = new Uint8Array(await crypto.subtle.digest('SHA-256', bytes));
-  return Array.from(digest, (b) => b.toString(16).padStart(2, '0')).join('');
+/** {name: {shape, sha256}} of a decoded scene's arrays (decode_cli.mjs's layout). */
+async function arrayHashes(scene) {
+  const out = {};
+  for (const [name, [values, shape]] of Object.entries(sceneArrays(scene))) {
+    out[name] = { shape, sha256: await sha256Hex(new Uint8Array(values.buffer, values.byteOffset, values.byteLength)) };
+  }
+  return out;
 }
 
-/** The frozen tables (§16.2.1, §16.2.2), fetched once and checked against their SHA-256. */
-function loadTables() {
-  tablesPromise ??= (async () => {
-    const get = async (name, expected) => {
-      const response = await fetch(new URL(name, TABLES_URL));
-      if (!response.ok) throw new Error(`cannot fetch the frozen table ${name}: HTTP ${response.status}`);
-      const bytes = new Uint8Array(await response.arrayBuffer());
-      if (await sha256Hex(bytes) !== expected) throw new Error(`the frozen table ${name} has the wrong SHA-256`);
-      return bytes;
-    };
-    const [family, sine] = await Promise.all([get('gaussian_v1.bin', GAUSSIAN_V1_SHA256), get('sine_v1.bin', SINE_V1_SHA256)]);
-    return { family: parseGaussianFamily(family), sine: parseSineTable(sine) };
-  })();
-  return tablesPromise;
-}
-
-/** Payload bytes of the chunks a decode task reads, as its share of the decode's work. */
-function taskWeight(entries, code) {
-  const types = code === 'GEOM' ? ['GEOM', 'OUTL', 'OUTQ'] : [code];
-  return 1 + entries.filter((e) => types.includes(e.type)).reduce((s, e) => s + e.length, 0);
-}
-
-/**
- * Decode the base and color layers of ``bytes`` (a prefix of the file is enough), calling
- * ``report(fraction)`` after each stream. The task order and the hyperprior's cell check are
- * those of scene.mjs's decodePrepared, which has no progress hook.
- */
-function decodeColor(bytes, tables, report) {
-  const prep = prepareScene(bytes, { layers: [], tables });
-  const out = makeTargets(prep.header);
-  const modelled = prep.modelled.size > 0;
-  const tasks = modelled ? ['GEOM', ...prep.codes] : [...prep.codes, 'GEOM'];
-  const weights = tasks.map((code) => taskWeight(prep.container.toc.entries, code));
-  const total = weights.reduce((a, b) => a + b, 0);
-  let done = 0;
-  let priors = new Map();
-  let axis = null;
-  tasks.forEach((code, k) => {
-    if (code === 'GEOM') {
-      const cells = decodeTask(prep, out, 'GEOM');
-      if (modelled) {
-        const cellLimit = 2 ** prep.prior.net.posBits;
-        for (const values of [cells.x, cells.y, cells.z]) {
-          for (let i = 0; i < values.length; i++) {
-            if (values[i] >= cellLimit) throw new FormatError('the color hyperprior needs smaller cells', { chunk: 'CHYP' });
-          }
-        }
-        priors = channelPriors(prep.prior, cells, prep.header.count, prep.codes, prep.sine);
-      }
-    } else {
-      const result = decodeTask(prep, out, code, priors.get(code) || null);
-      if (code === 'ROTN') axis = result;
-    }
-    done += weights[k];
-    report(done / total);
-  });
-  return finishScene(prep, out, axis);
+/** Tell the page when a step of the load happened (its ``state.timeline``, in the page's
+ * milliseconds since navigation). */
+function mark(post, name) {
+  post({ kind: 'mark', name, at: performance.timeOrigin + performance.now() });
 }
 
 function errorMessage(error, stage) {
+  const errorKind = error instanceof FormatError ? 'format' : error instanceof UnsupportedError ? 'unsupported' : 'internal';
   return {
-    kind: 'error', stage, message: String(error && (error.detail || error.message) || error),
+    kind: 'error', stage, errorKind, message: String(error && (error.detail || error.message) || error),
     chunk: error && error.chunk !== undefined ? error.chunk : null,
     offset: error && error.offset !== undefined ? error.offset : null,
   };
@@ -167,6 +155,7 @@ async function open(request, post) {
   const source = request.file ? new FileSource(request.file) : new UrlSource(request.url);
   const wanted = new Set(request.layers || ['color', 'semantic']);
   const progress = (stage, fraction, text) => post({ kind: 'progress', stage, fraction, text });
+  const decoding = decodeLanes(null);
   let stage = 'color';
   try {
     progress('color', 0, 'reading the header');
@@ -182,22 +171,40 @@ async function open(request, post) {
     const fileEnd = entries.length ? entries[entries.length - 1].end : toc.tocEnd;
     const hasSemantic = entries.some((e) => e.layer === 2);
     post({ kind: 'toc', fileEnd, colorEnd, hasSemantic, chunks: entries.length });
+    mark(post, 'tocRead');
     if (source.size !== null && source.size > fileEnd) {
       throw new FormatError(`${source.size - fileEnd} bytes follow the last chunk`, { offset: fileEnd });
     }
     const need = colorEnd - prefix.length;
     const body = await source.read(prefix.length, colorEnd,
-      (n) => progress('color', 0.5 * n / Math.max(need, 1), `downloading the color layer: ${n.toLocaleString()} of ${need.toLocaleString()} bytes`));
+      (n) => progress('color', 0.3 * n / Math.max(need, 1), `downloading the color layer: ${n.toLocaleString()} of ${need.toLocaleString()} bytes`));
     const colorBytes = concat([prefix, body]);
+    mark(post, 'colorBytesRead');
     const tables = await tablesReady;
-    progress('color', 0.5, 'decoding the color layer');
+    progress('color', 0.3, 'decoding the color layer');
+    mark(post, 'decodeStarted');
     const t0 = performance.now();
-    const scene = decodeColor(colorBytes, tables, (f) => progress('color', 0.5 + 0.5 * f, 'decoding the color layer'));
+    let shown = false;
+    const onStage = (done, partial) => {
+      if (done === 'first') {
+        shown = partial;
+        post({ kind: 'color', scene: { ...partial, fileEnd, colorEnd }, complete: partial.complete, bytesRead: colorBytes.length, decodeMs: performance.now() - t0 });
+      }
+    };
+    const scene = await decodeScene(colorBytes, {
+      layers: [], tables, lanes: decoding, onStage,
+      onProgress: (f) => progress('color', 0.3 + 0.7 * f, 'decoding the color layer'),
+    });
     const decodeMs = performance.now() - t0;
-    const arrays = [scene.positions, scene.sh_dc, scene.sh_rest, scene.opacity, scene.scales, scene.rotations];
-    post({ kind: 'color', scene: { ...scene, fileEnd, colorEnd }, bytesRead: colorBytes.length, decodeMs },
-      arrays.map((a) => a.buffer));
+    mark(post, 'colorDecoded');
+    if (!shown) { // a tiled file: the whole scene at once
+      post({ kind: 'color', scene: { ...scene, fileEnd, colorEnd }, complete: true, bytesRead: colorBytes.length, decodeMs });
+    } else if (!shown.complete) {
+      post({ kind: 'sh', sh_rest: scene.sh_rest, decodeMs });
+    }
+    let hashes = request.hashes ? await arrayHashes(scene) : null;
     if (!wanted.has('semantic') || !hasSemantic) {
+      if (hashes) post({ kind: 'hashes', arrays: hashes });
       post({ kind: 'done' });
       return;
     }
@@ -208,22 +215,28 @@ async function open(request, post) {
     const whole = concat([colorBytes, rest]);
     progress('semantic', 0.5, 'decoding the semantic layer');
     const t1 = performance.now();
-    const prep = prepareScene(whole, { layers: ['semantic'], tables });
-    const layer = { semantic: null, semanticNames: [], labels: null };
-    decodeSemantic(prep.container, prep.header, layer, tables.family);
+    const layer = await decodeSemanticLayer(whole, { tables });
     const channels = layer.semantic ? layer.semanticNames.length : 0;
+    if (hashes) {
+      hashes = await arrayHashes({ ...scene, semantic: layer.semantic, semanticNames: layer.semanticNames, labels: layer.labels });
+    }
     post({ kind: 'semantic', semantic: layer.semantic, channels, names: layer.semanticNames,
-      labels: layer.labels, bytesRead: whole.length, decodeMs: performance.now() - t1 },
-    [layer.semantic, layer.labels].filter(Boolean).map((a) => a.buffer));
+      labels: layer.labels, bytesRead: whole.length, decodeMs: performance.now() - t1 });
+    if (hashes) post({ kind: 'hashes', arrays: hashes });
     post({ kind: 'done' });
   } catch (error) {
     post(errorMessage(error, stage));
   }
 }
 
+const workerStarted = performance.timeOrigin + performance.now();
+const lanesAsked = new URLSearchParams(self.location.search).get('lanes');
+decodeLanes(/^\d$/.test(lanesAsked || '') ? Number(lanesAsked) : null); // start them now
+
 self.onmessage = (event) => {
   const request = event.data;
   if (request.kind !== 'open') return;
   const post = (message, transfer = []) => self.postMessage({ ...message, id: request.id }, transfer);
+  post({ kind: 'mark', name: 'workerStarted', at: workerStarted });
   open(request, post);
 };

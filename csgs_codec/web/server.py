@@ -4,9 +4,12 @@ package).
 
 Routes:
 
-* ``/`` redirects to ``/web/index.html``;
-* ``/web/...``, ``/js/...``, ``/entropy/data/...``: files of the installed ``csgs_codec``
-  package under those folders (the page, the receiver's modules, the frozen tables);
+* ``/`` redirects to ``/v/TAG/web/index.html``;
+* ``/v/TAG/web/...``, ``/v/TAG/js/...``, ``/v/TAG/entropy/data/...``: files of the installed
+  ``csgs_codec`` package under those folders (the page, the receiver's modules, the frozen
+  tables), cacheable for good: TAG (:func:`package_tag`) changes whenever a served file
+  does, so the page and its decode workers load each module once;
+* the same paths without ``/v/TAG`` answer the same files, never cached;
 * ``/config.json``: the scene's URL, file name and the layers the page should read;
 * ``/scene.csgs``: the scene file, answering single-range HTTP Range requests (206 with
   Content-Range, 416 past the end), so a page showing the color layer fetches only the
@@ -18,6 +21,7 @@ how ``benchmarks/web_viewer.py`` measures what the page fetches.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import re
 import threading
@@ -41,6 +45,23 @@ CONTENT_TYPES = {
 SCENE_PATH = "/scene.csgs"
 _BLOCK = 1 << 16
 _RANGE = re.compile(r"bytes=(\d*)-(\d*)")
+_VERSIONED = re.compile(r"/v/([0-9a-f]{16})(/.*)")
+_FOREVER = "public, max-age=31536000, immutable"
+_NEVER = "no-store"
+
+
+def package_tag() -> str:
+    """16 hex digits naming the current content of the served package folders (a hash of
+    each file's path, size and modification time): the ``/v/TAG/`` prefix of cacheable
+    URLs."""
+    digest = hashlib.sha256()
+    for folder in SERVED_FOLDERS:
+        for path in sorted((PACKAGE_ROOT / folder).rglob("*")):
+            if path.is_file() and path.suffix in CONTENT_TYPES:
+                stat = path.stat()
+                digest.update(f"{path.relative_to(PACKAGE_ROOT)}|{stat.st_size}|"
+                              f"{stat.st_mtime_ns}\n".encode())
+    return digest.hexdigest()[:16]
 
 
 def parse_layers(text: str | None) -> tuple[str, ...]:
@@ -96,6 +117,7 @@ class ViewerServer(ThreadingHTTPServer):
         self._lock = threading.Lock()
         self._sent = 0
         self._thread: threading.Thread | None = None
+        self.tag = package_tag()
         super().__init__((host, port), _Handler)
 
     @property
@@ -177,8 +199,13 @@ class _Handler(BaseHTTPRequestHandler):
         url = urlsplit(self.path)
         path = url.path
         try:
+            cache = _NEVER
+            versioned = _VERSIONED.fullmatch(path)
+            if versioned and versioned[1] == self.server.tag:
+                path, cache = versioned[2], _FOREVER
             if path == "/":
-                self._redirect("/web/index.html" + (f"?{url.query}" if url.query else ""))
+                self._redirect(f"/v/{self.server.tag}/web/index.html"
+                               + (f"?{url.query}" if url.query else ""))
             elif path == "/config.json":
                 body = json.dumps(self.server.config()).encode()
                 self._send_bytes(body, "application/json", send_body)
@@ -191,7 +218,7 @@ class _Handler(BaseHTTPRequestHandler):
                                      status=HTTPStatus.NOT_FOUND)
                 else:
                     self._send_bytes(found.read_bytes(), CONTENT_TYPES[found.suffix],
-                                     send_body)
+                                     send_body, cache=cache)
         except (BrokenPipeError, ConnectionResetError):
             pass  # the page went away mid-answer
 
@@ -202,11 +229,11 @@ class _Handler(BaseHTTPRequestHandler):
         self.end_headers()
 
     def _send_bytes(self, body: bytes, content_type: str, send_body: bool,
-                    status: HTTPStatus = HTTPStatus.OK) -> None:
+                    status: HTTPStatus = HTTPStatus.OK, cache: str = _NEVER) -> None:
         self.send_response(status)
         self.send_header("Content-Type", content_type)
         self.send_header("Content-Length", str(len(body)))
-        self.send_header("Cache-Control", "no-store")
+        self.send_header("Cache-Control", cache)
         self.end_headers()
         if send_body:
             self.wfile.write(body)

@@ -16,7 +16,23 @@ function floatProperty(name, storage) {
   return { type: 'float', name, storage, byteSize: 4 };
 }
 
-/** GSplatData of a decoded scene (positions, sh_dc, sh_rest N x R x 3, opacity, scales, rotations w x y z). */
+/** The f_rest columns of PLY order from sh_rest (N x R x 3): f_rest_{c * R + k} is
+ * coefficient k of color channel c. */
+function restColumns(shRest, n, rest) {
+  const columns = [];
+  for (let c = 0; c < 3; c++) {
+    for (let k = 0; k < rest; k++) {
+      const out = new Float32Array(n);
+      for (let i = 0; i < n; i++) out[i] = shRest[i * 3 * rest + 3 * k + c];
+      columns.push(out);
+    }
+  }
+  return columns;
+}
+
+/** GSplatData of a decoded scene (positions, sh_dc, sh_rest N x R x 3, opacity, scales,
+ * rotations w x y z); a scene whose SH bands are still decoding (sh_rest empty,
+ * shCoefficients R > 0) gets R zero coefficients, filled in later by updateSH. */
 function splatData(scene) {
   const n = scene.count;
   const column = (source, stride, k) => {
@@ -27,11 +43,10 @@ function splatData(scene) {
   const properties = [];
   ['x', 'y', 'z'].forEach((name, k) => properties.push(floatProperty(name, column(scene.positions, 3, k))));
   [0, 1, 2].forEach((k) => properties.push(floatProperty(`f_dc_${k}`, column(scene.sh_dc, 3, k))));
-  const rest = n ? scene.sh_rest.length / (3 * n) : 0;
-  // PLY order: f_rest_{c * R + k} is coefficient k of color channel c.
-  for (let c = 0; c < 3; c++) {
-    for (let k = 0; k < rest; k++) properties.push(floatProperty(`f_rest_${c * rest + k}`, column(scene.sh_rest, 3 * rest, 3 * k + c)));
-  }
+  const rest = scene.sh_rest.length ? scene.sh_rest.length / (3 * n) : (scene.shCoefficients || 0);
+  const columns = scene.sh_rest.length ? restColumns(scene.sh_rest, n, rest)
+    : Array.from({ length: 3 * rest }, () => new Float32Array(n));
+  columns.forEach((values, j) => properties.push(floatProperty(`f_rest_${j}`, values)));
   properties.push(floatProperty('opacity', Float32Array.from(scene.opacity)));
   [0, 1, 2].forEach((k) => properties.push(floatProperty(`scale_${k}`, column(scene.scales, 3, k))));
   [0, 1, 2, 3].forEach((k) => properties.push(floatProperty(`rot_${k}`, column(scene.rotations, 4, k))));
@@ -113,6 +128,16 @@ export class SplatView {
     this.splat.addComponent('gsplat', { resource: this.resource });
     this.app.root.addChild(this.splat);
     this.sorts = 0;
+  }
+
+  /** Fill in the SH coefficients of the scene shown (sh_rest N x R x 3, as show's scene's
+   * shCoefficients said). */
+  updateSH(shRest) {
+    if (!this.data || !shRest.length) return;
+    const n = this.data.numSplats;
+    restColumns(shRest, n, shRest.length / (3 * n)).forEach((values, j) => this.data.getProp(`f_rest_${j}`).set(values));
+    this.resource.updateSHData(this.data);
+    this.splat.gsplat.workBufferUpdate = pc.WORKBUFFER_UPDATE_ONCE;
   }
 
   /** Point the engine's camera as the project-convention ``camera`` (camera_rig.mjs). */

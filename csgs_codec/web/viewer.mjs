@@ -1,37 +1,54 @@
 /**
- * The viewer page: starts the decode worker, draws the color layer as soon as it arrives,
- * reads the semantic layer after it, and selects the object under a click.
+ * The viewer page: starts the decode worker first, loads the renderer meanwhile, draws the
+ * splats as soon as their base color is decoded and again with the SH bands, reads the
+ * semantic layer after it, and selects the object under a click.
  *
  * URL parameters: ``size=WxH`` a fixed drawing-buffer size (tests and screenshots; otherwise
  * the canvas fills the window), ``scene=URL`` and ``layers=color|color,semantic`` override
- * the server's /config.json.
+ * the server's /config.json; ``hashes=1`` has the worker hash every decoded array
+ * (``state.hashes``, compared with the Python decoder's by the tests); ``lanes=N`` decodes on
+ * N Web Workers (0: on the decode worker's own thread; default one per core, at most 4).
  *
  * ``window.csgsViewer`` is the page's state for scripts (the browser tests read it):
  * ``state`` (phase, timings, counts, error, selection), ``setCamera(camera)``,
  * ``camera()``, ``frameDrawn()`` (a promise of the next frame with the splats sorted),
  * ``capture()`` (PNG data URL of the canvas) and ``selectAt(column, row)``.
+ * Timings are ``performance.now()`` values (ms from navigation): ``firstFrameMs`` the first
+ * frame drawn with every splat (base color), ``colorFrameMs`` the first with the whole color
+ * layer (the same frame for a scene without SH bands); ``timeline`` has the steps before
+ * them (workerStarted, tocRead, colorBytesRead, decodeStarted, colorDecoded from the worker;
+ * rendererReady, 0 when it was ready before the file was opened).
  */
 
 import { CameraRig } from './camera_rig.mjs';
 import { DEFAULT_THRESHOLD, selectAtPixel } from './pick.mjs';
-import { SplatView } from './splat_view.mjs';
 
 const $ = (id) => document.getElementById(id);
 const params = new URLSearchParams(location.search);
 const sizeMatch = /^(\d{1,5})x(\d{1,5})$/.exec(params.get('size') || '');
 const fixedSize = sizeMatch ? { width: Number(sizeMatch[1]), height: Number(sizeMatch[2]) } : null;
 if (fixedSize) document.body.classList.add('fixed-size');
+const wantHashes = params.get('hashes') === '1';
+const lanesParam = /^\d$/.test(params.get('lanes') || '') ? Number(params.get('lanes')) : null;
 
 const state = {
   phase: 'starting', name: null, layers: ['color', 'semantic'], count: 0, fileEnd: null,
   colorEnd: null, hasSemantic: null, colorShown: false, semanticReady: false, firstFrameMs: null,
-  colorMs: null, semanticMs: null, colorDecodeMs: null, semanticDecodeMs: null,
-  colorBytesRead: null, semanticBytesRead: null, error: null, selection: null,
+  colorFrameMs: null, colorMs: null, semanticMs: null, colorDecodeMs: null, shDecodeMs: null,
+  semanticDecodeMs: null, colorBytesRead: null, semanticBytesRead: null, error: null,
+  selection: null, hashes: null, timeline: {},
 };
-const view = new SplatView($('canvas'), fixedSize);
+// The decoder starts before the renderer loads: the two overlap.
+const worker = new Worker(new URL(`./decode_worker.mjs${lanesParam === null ? '' : `?lanes=${lanesParam}`}`, import.meta.url), { type: 'module' });
 const rig = new CameraRig();
 rig.attach($('canvas'));
-const worker = new Worker(new URL('./decode_worker.mjs', import.meta.url), { type: 'module' });
+let view = null;
+const viewReady = import('./splat_view.mjs').then(({ SplatView }) => {
+  view = new SplatView($('canvas'), fixedSize);
+  state.timeline.rendererReady ??= performance.now();
+  startDrawing();
+  return view;
+});
 let requestId = 0;
 let scene = null;
 let semantic = null;
@@ -44,35 +61,39 @@ const frameWaiters = [];
  * sorted for the current view (and, for a new scene, its first sort received); a frame drawn
  * then is complete, and frameDrawn() waiters are answered.
  */
-view.app.autoRender = false;
-view.app.on('frameend', () => {
-  framesSinceChange++;
-  settledFrames = view.settled && (!view.splat || view.sorts > 0) ? settledFrames + 1 : 0;
-  const settled = settledFrames >= 2 && framesSinceChange >= 2;
-  if (settled) {
-    while (frameWaiters.length) frameWaiters.shift()();
-  } else {
-    view.app.renderNextFrame = true;
-  }
-});
+function startDrawing() {
+  view.app.autoRender = false;
+  view.app.on('frameend', () => {
+    framesSinceChange++;
+    settledFrames = view.settled && (!view.splat || view.sorts > 0) ? settledFrames + 1 : 0;
+    const settled = settledFrames >= 2 && framesSinceChange >= 2;
+    if (settled) {
+      while (frameWaiters.length) frameWaiters.shift()();
+    } else {
+      view.app.renderNextFrame = true;
+    }
+  });
+  rig.onChange(redraw);
+  view.app.graphicsDevice.on('resizecanvas', redraw);
+}
 
 /** Draw again until settled (after any change to the view or the splats). */
 function drawAgain() {
+  if (!view) return;
   framesSinceChange = 0;
   settledFrames = 0;
   view.app.renderNextFrame = true;
 }
 
 function redraw() {
+  if (!view) return;
   const { width, height } = view.size;
   view.setCamera(rig.camera(width, height));
   drawAgain();
 }
-rig.onChange(redraw);
-view.app.graphicsDevice.on('resizecanvas', redraw);
-
 /** A promise of the next frame drawn after the splats were sorted for the current view. */
-function frameDrawn() {
+async function frameDrawn() {
+  await viewReady;
   return new Promise((resolve) => { frameWaiters.push(resolve); view.app.renderNextFrame = true; });
 }
 
@@ -92,11 +113,14 @@ function showStatus() {
   if (state.error) {
     const { text, place } = describeError(state.error);
     setMessage(state.error.stage === 'semantic' && state.colorShown
-      ? `The color layer is shown, but the semantic layer could not be read: ${text}${place}`
-      : `Cannot show this file: ${text}${place}`, 'error');
+      ? `The color layer is shown, but the semantic layer could not be read: ${text}${place}. ${advice(state.error)}`
+      : `Cannot show this file: ${text}${place}. ${advice(state.error)}`, 'error');
     return;
   }
-  if (!state.colorShown) return;
+  if (!state.colorShown) {
+    if (state.firstFrameMs !== null) setMessage(`${state.count.toLocaleString()} Gaussians (base color); decoding the SH bands`);
+    return;
+  }
   const count = `${state.count.toLocaleString()} Gaussians`;
   if (state.semanticReady) {
     setMessage(`${count}, ${semantic.channels} semantic channels: click an object to select it`);
@@ -115,25 +139,79 @@ function describeError(error) {
   return { text: `${error.message}`, place };
 }
 
+/** What the user can do about an error (the worker says which kind it is). */
+function advice(error) {
+  if (error.errorKind === 'unsupported') {
+    return 'The page shows standard scenes: decode this one with `csgs decode FILE -o scene.ply`, '
+      + 'then `csgs encode scene.ply -o scene.csgs`, and open that.';
+  }
+  if (error.errorKind === 'format') {
+    return 'The file is damaged or cut short. If `csgs info FILE` reads it without an error, '
+      + 'the page is wrong: please report it as a bug, with the file.';
+  }
+  return 'This is a bug in the viewer: please report it, with the file and this message.';
+}
+
 function open(source, name, layers) {
   requestId += 1;
   Object.assign(state, {
     phase: 'loading', name, layers, count: 0, fileEnd: null, colorEnd: null, hasSemantic: null,
-    colorShown: false, semanticReady: false,
-    firstFrameMs: null, colorMs: null, semanticMs: null, error: null, selection: null,
+    colorShown: false, semanticReady: false, firstFrameMs: null, colorFrameMs: null,
+    colorMs: null, semanticMs: null, colorDecodeMs: null, shDecodeMs: null, error: null,
+    selection: null, hashes: null, timeline: view ? { rendererReady: 0 } : {},
   });
   scene = null;
   semantic = null;
+  drawing = Promise.resolve();
   $('selection').textContent = '';
   setMessage('');
   $('title').textContent = name || 'csgs viewer';
   setProgress(0, 'starting');
-  worker.postMessage({ kind: 'open', id: requestId, layers, ...source });
+  worker.postMessage({ kind: 'open', id: requestId, layers, hashes: wantHashes, ...source });
 }
 
-worker.onmessage = async (event) => {
+/** The drawing of the scene so far: messages that change the splats wait for it in turn. */
+let drawing = Promise.resolve();
+
+/** Draw ``next`` (the whole scene, or its splats with the base color) and note the time. */
+async function showScene(next, complete, id) {
+  await viewReady;
+  if (id !== requestId) return;
+  const first = scene === null || state.firstFrameMs === null;
+  scene = next;
+  view.show(scene);
+  if (first) {
+    const { width, height } = view.size;
+    rig.frame(scene.positions, scene.opacity, width, height);
+  }
+  await frameDrawn();
+  if (id !== requestId) return;
+  const now = performance.now();
+  if (first) state.firstFrameMs = now;
+  if (complete) {
+    state.colorFrameMs = now;
+    state.colorShown = true;
+  }
+  showStatus();
+}
+
+/** Draw the scene shown again with its SH bands (sh_rest N x R x 3). */
+async function showBands(shRest, id) {
+  if (id !== requestId || !scene) return;
+  scene = { ...scene, sh_rest: shRest };
+  view.updateSH(shRest);
+  drawAgain();
+  await frameDrawn();
+  if (id !== requestId) return;
+  state.colorFrameMs = performance.now();
+  state.colorShown = true;
+  showStatus();
+}
+
+worker.onmessage = (event) => {
   const message = event.data;
-  if (message.id !== requestId) return; // from a file opened before this one
+  const id = message.id;
+  if (id !== requestId) return; // from a file opened before this one
   if (message.kind === 'progress') {
     const base = message.stage === 'semantic' ? 0.8 : 0;
     const span = message.stage === 'semantic' ? 0.2 : 0.8;
@@ -141,18 +219,14 @@ worker.onmessage = async (event) => {
   } else if (message.kind === 'toc') {
     Object.assign(state, { fileEnd: message.fileEnd, colorEnd: message.colorEnd, hasSemantic: message.hasSemantic });
   } else if (message.kind === 'color') {
-    scene = message.scene;
     Object.assign(state, {
-      phase: 'color', count: scene.count, colorMs: performance.now(),
+      phase: 'color', count: message.scene.count, colorMs: performance.now(),
       colorDecodeMs: message.decodeMs, colorBytesRead: message.bytesRead,
     });
-    const { width, height } = view.size;
-    view.show(scene);
-    rig.frame(scene.positions, scene.opacity, width, height);
-    await frameDrawn();
-    state.firstFrameMs = performance.now();
-    state.colorShown = true;
-    showStatus();
+    drawing = drawing.then(() => showScene(message.scene, message.complete, id));
+  } else if (message.kind === 'sh') {
+    state.shDecodeMs = message.decodeMs;
+    drawing = drawing.then(() => showBands(message.sh_rest, id));
   } else if (message.kind === 'semantic') {
     semantic = message.semantic ? { features: message.semantic, channels: message.channels, names: message.names } : null;
     Object.assign(state, {
@@ -160,13 +234,20 @@ worker.onmessage = async (event) => {
       semanticDecodeMs: message.decodeMs, semanticBytesRead: message.bytesRead,
     });
     showStatus();
+  } else if (message.kind === 'mark') {
+    state.timeline[message.name] = message.at - performance.timeOrigin;
+  } else if (message.kind === 'hashes') {
+    state.hashes = message.arrays;
   } else if (message.kind === 'done') {
     state.phase = 'done';
     setProgress(1, 'done');
     showStatus();
   } else if (message.kind === 'error') {
     state.phase = 'error';
-    state.error = { stage: message.stage, message: message.message, chunk: message.chunk, offset: message.offset };
+    state.error = {
+      stage: message.stage, errorKind: message.errorKind, message: message.message,
+      chunk: message.chunk, offset: message.offset,
+    };
     showStatus();
     setProgress($('progress').value, 'stopped');
   }
@@ -188,7 +269,7 @@ function selectAt(column, row) {
 
 function clearSelection() {
   state.selection = null;
-  view.highlight(null);
+  if (view) view.highlight(null);
   drawAgain();
   $('selection').textContent = '';
 }
