@@ -3,7 +3,7 @@
  * Command line of the JavaScript receiver.
  *
  *   node decode_cli.mjs FILE... [--layers color|color,semantic] [--container] [--repeat N]
- *                                [--threads 1|2] [--range-coder wasm|js]
+ *                                [--threads N] [--range-coder wasm|js]
  *
  * Prints one JSON object per file, one per line, with the file's name under "file". Scene mode (default): {"ok": true, "count": N, "arrays": {name:
  * {"shape": [...], "sha256": hex}}, "semantic_names": [...], "decode_s": seconds} where each
@@ -16,9 +16,9 @@
  * status 2 (FormatError) or 3 (unsupported). --repeat N decodes N times and reports the
  * fastest decode_s (wall) and decode_cpu_s (CPU time of the process), and first_decode_s,
  * the first decode (before the JIT has warmed up); tables are loaded once, outside the
- * timing. --threads 2 (the default, as the Python decoder's) decodes on this
- * thread and one worker thread (parallel_node.mjs); 1 on this thread only. --range-coder
- * picks the range decoder's loop: WebAssembly (default) or plain JavaScript; same output.
+ * timing. --threads N (default 2, as the Python decoder's) decodes on N worker threads
+ * (parallel_node.mjs); 1 on this thread only. --range-coder picks the WebAssembly loops (the
+ * range decoder's and the integer network's; default) or plain JavaScript; same output.
  */
 
 import { createHash } from 'node:crypto';
@@ -27,6 +27,7 @@ import { performance } from 'node:perf_hooks';
 
 import { LAYERS, readLayers } from './container.mjs';
 import { FormatError, UnsupportedError } from './errors.mjs';
+import { setIntNetKernel } from './intnet.mjs';
 import { workerLanes } from './parallel_node.mjs';
 import { setRangeCoder } from './range_decoder.mjs';
 import { decodeScene, sceneArrays } from './scene.mjs';
@@ -106,10 +107,11 @@ async function main(argv) {
     else files.push(args[i]);
   }
   if (!files.length) {
-    process.stderr.write('usage: node decode_cli.mjs FILE... [--layers color,semantic] [--container] [--repeat N] [--threads 1|2] [--range-coder wasm|js]\n');
+    process.stderr.write('usage: node decode_cli.mjs FILE... [--layers color,semantic] [--container] [--repeat N] [--threads N] [--range-coder wasm|js]\n');
     return 64;
   }
   setRangeCoder(rangeCoder);
+  setIntNetKernel(rangeCoder);
   const wanted = new Set(layers);
   let loaded = null;
   const tables = () => { loaded = loaded || loadTables(); return loaded; };

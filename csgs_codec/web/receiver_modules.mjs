@@ -32,4 +32,6 @@ import '../js/tables.mjs';
 import '../js/tile_index.mjs';
 import '../js/varints.mjs';
 import '../js/view_record.mjs';
+import '../js/wasm_assembler.mjs';
+import '../js/wasm_intnet.mjs';
 import '../js/wasm_range.mjs';

@@ -50,16 +50,16 @@ _FOREVER = "public, max-age=31536000, immutable"
 _NEVER = "no-store"
 
 
-def package_tag() -> str:
-    """16 hex digits naming the current content of the served package folders (a hash of
-    each file's path, size and modification time): the ``/v/TAG/`` prefix of cacheable
-    URLs."""
+def package_tag(root: Path = PACKAGE_ROOT) -> str:
+    """16 hex digits naming the current content of the served folders under ``root`` (a
+    hash of each file's path, size and modification time): the ``/v/TAG/`` prefix of
+    cacheable URLs."""
     digest = hashlib.sha256()
     for folder in SERVED_FOLDERS:
-        for path in sorted((PACKAGE_ROOT / folder).rglob("*")):
+        for path in sorted((root / folder).rglob("*")):
             if path.is_file() and path.suffix in CONTENT_TYPES:
                 stat = path.stat()
-                digest.update(f"{path.relative_to(PACKAGE_ROOT)}|{stat.st_size}|"
+                digest.update(f"{path.relative_to(root)}|{stat.st_size}|"
                               f"{stat.st_mtime_ns}\n".encode())
     return digest.hexdigest()[:16]
 
@@ -106,18 +106,21 @@ class ViewerServer(ThreadingHTTPServer):
         scene: path of the .csgs file to serve, or None.
         layers: page layers to read (see :func:`parse_layers`).
         host, port: where to listen; port 0 picks a free one.
+        package_root: the folder holding ``web/``, ``js/`` and ``entropy/data/`` (default:
+            the installed package's; benchmarks/web_viewer.py serves an older page too).
     """
 
     daemon_threads = True
 
     def __init__(self, scene: str | Path | None, *, layers: tuple[str, ...] = PAGE_LAYERS,
-                 host: str = "127.0.0.1", port: int = 0):
+                 host: str = "127.0.0.1", port: int = 0, package_root: Path = PACKAGE_ROOT):
         self.scene = None if scene is None else Path(scene)
+        self.package_root = Path(package_root).resolve()
         self.layers = tuple(layers)
         self._lock = threading.Lock()
         self._sent = 0
         self._thread: threading.Thread | None = None
-        self.tag = package_tag()
+        self.tag = package_tag(self.package_root)
         super().__init__((host, port), _Handler)
 
     @property
@@ -170,14 +173,14 @@ class ViewerServer(ThreadingHTTPServer):
         self.close()
 
 
-def package_file(url_path: str) -> Path | None:
-    """The package file a URL path names under :data:`SERVED_FOLDERS`, or None (anything
-    else, ``..`` tricks and unknown file types included)."""
+def package_file(url_path: str, root: Path = PACKAGE_ROOT) -> Path | None:
+    """The file under ``root`` a URL path names under :data:`SERVED_FOLDERS`, or None
+    (anything else, ``..`` tricks and unknown file types included)."""
     relative = unquote(url_path).lstrip("/")
     if not relative.startswith(SERVED_FOLDERS) or Path(relative).suffix not in CONTENT_TYPES:
         return None
-    path = (PACKAGE_ROOT / relative).resolve()
-    if not path.is_relative_to(PACKAGE_ROOT) or not path.is_file():
+    path = (root / relative).resolve()
+    if not path.is_relative_to(root) or not path.is_file():
         return None
     return path
 
@@ -212,7 +215,7 @@ class _Handler(BaseHTTPRequestHandler):
             elif path == SCENE_PATH and self.server.scene is not None:
                 self._send_scene(send_body)
             else:
-                found = package_file(path)
+                found = package_file(path, self.server.package_root)
                 if found is None:
                     self._send_bytes(b"not found\n", "text/plain", send_body,
                                      status=HTTPStatus.NOT_FOUND)

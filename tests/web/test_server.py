@@ -176,3 +176,39 @@ def test_view_web_serves_until_interrupted(tmp_path):
             process.communicate()
             raise
     assert process.returncode == 0 and "Traceback" not in err
+
+
+def _imports(path) -> set:
+    """The files a module imports (static ``import ... from './x.mjs'`` / ``import './x.mjs'``)."""
+    import re
+
+    names = re.findall(r"""import[^'"]*['"](\.{1,2}/[^'"]+\.mjs)['"]""", path.read_text())
+    return {(path.parent / name).resolve() for name in names}
+
+
+def test_the_workers_name_every_receiver_module_up_front():
+    """receiver_modules.mjs lists every module the decode workers reach, so the browser
+    requests them all at once (a module left out still loads, one import level later)."""
+    web = PACKAGE_ROOT / "web"
+    listed = _imports(web / "receiver_modules.mjs")
+    for worker in ("decode_worker.mjs", "lane_worker.mjs"):
+        assert (web / "receiver_modules.mjs").resolve() in _imports(web / worker), worker
+        reached, todo = set(), [web / worker]
+        while todo:
+            for module in _imports(todo.pop()):
+                if module not in reached:
+                    reached.add(module)
+                    todo.append(module)
+        receiver = {m for m in reached if m.parent == (PACKAGE_ROOT / "js").resolve()}
+        assert receiver and receiver <= listed, sorted(m.name for m in receiver - listed)
+
+
+def test_package_files_have_cacheable_versioned_urls(server):
+    status, headers, _ = _get(server.url)
+    assert status == 200
+    tag = server.tag
+    status, headers, body = _get(f"{server.url}v/{tag}/js/scene.mjs")
+    assert status == 200 and body == (PACKAGE_ROOT / "js" / "scene.mjs").read_bytes()
+    assert "immutable" in headers["Cache-Control"]
+    assert _get(f"{server.url}v/{'0' * 16}/js/scene.mjs")[0] == 404  # another version's
+    assert _get(server.url + "js/scene.mjs")[1]["Cache-Control"] == "no-store"

@@ -20,13 +20,12 @@ from __future__ import annotations
 
 import dataclasses
 import io
-import os
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from csgs_codec import Decoder, Encoder, read_ply
+from csgs_codec import Decoder, Encoder
 from csgs_codec.format.source import open_source
 from csgs_codec.format.toc import read_toc
 from csgs_codec.render.rasterizer import render
@@ -44,7 +43,8 @@ MIN_RENDER_PSNR = 27.0
 MIN_CLICK_IOU = 0.9
 SIZE = (400, 300)
 CLICK_SIZE = (480, 360)
-#: Set to write the README's screenshot (docs/images/web_viewer.png) from the selection test.
+#: Set to write the README's screenshot (docs/images/web_viewer.png): the sample's default
+#: encode as the page shows it (test_viewer_default_encodes.py).
 SCREENSHOT_ENV = "CSGS_WRITE_SCREENSHOTS"
 SCREENSHOT = REPO / "docs" / "images" / "web_viewer.png"
 
@@ -60,19 +60,18 @@ def _open(browser, server: ViewerServer, size=SIZE, query: str = "") -> None:
 
 
 @pytest.fixture(scope="module")
-def donut(tmp_path_factory):
-    """(path, decoded color layer) of samples/donut.ply at quality 5."""
-    path = tmp_path_factory.mktemp("donut") / "donut.csgs"
-    data = Encoder(quality=5, hyperprior=False).encode(read_ply(SAMPLE))
-    path.write_bytes(data)
-    return path, Decoder().decode(data, layers="color")
+def donut(default_encode):
+    """(path, decoded color layer) of what `csgs encode samples/donut.ply` writes."""
+    path = default_encode(SAMPLE)
+    return path, Decoder().decode(path.read_bytes(), layers="color")
 
 
 @pytest.fixture(scope="module")
 def objects(tmp_path_factory):
-    """(path, decoded scene with both layers): 5 labelled blobs with 6 semantic channels."""
+    """(path, decoded scene with both layers): 5 labelled blobs with 6 semantic channels,
+    encoded with the encoder's default settings."""
     path = tmp_path_factory.mktemp("objects") / "objects.csgs"
-    data = Encoder(quality=5, hyperprior=False).encode(labelled_blob_scene(5, 400, seed=3))
+    data = Encoder().encode(labelled_blob_scene(5, 400, seed=3))
     path.write_bytes(data)
     return path, Decoder().decode(data, layers="color,semantic")
 
@@ -130,11 +129,9 @@ def test_click_selects_the_labelled_object(browser, objects):
             assert mask_iou(selected, python) >= 0.99, label
             text = browser.find_element(By.ID, "selection").text
             assert f"selected {selected.sum():,} of {len(scene):,} Gaussians" in text
-        if os.environ.get(SCREENSHOT_ENV):
-            _save_page_screenshot(browser, SCREENSHOT)
 
 
-def _save_page_screenshot(browser, path: Path) -> None:
+def save_page_screenshot(browser, path: Path) -> None:
     """The canvas and the panel beside it, cropped from a screenshot of the window."""
     from PIL import Image
 
@@ -248,12 +245,15 @@ def test_anchor_scenes_are_reported_as_not_supported(browser):
     assert not state["colorShown"]
     message = browser.find_element(By.ID, "message").text
     assert "Cannot show this file" in message and "not implemented" in message
+    assert "csgs decode" in message  # what the user can do about it
 
 
 @pytest.mark.parametrize("name", ["fuzz_payload_bit_flip.csgs", "fuzz_crc_lie.csgs",
                                   "fuzz_truncate.csgs", "fuzz_toc_size_lie.csgs",
                                   "fuzz_chunk_drop.csgs"])
 def test_invalid_files_are_refused_at_the_python_decoders_chunk_and_offset(browser, name):
+    from selenium.webdriver.common.by import By
+
     from csgs_codec.errors import FormatError
 
     vector = REPO / "spec" / "vectors" / "invalid" / name
@@ -262,8 +262,10 @@ def test_invalid_files_are_refused_at_the_python_decoders_chunk_and_offset(brows
     with ViewerServer(vector) as server:
         _open(browser, server)
         state = wait_for_state(browser, lambda s: s["phase"] == "error")
+        message = browser.find_element(By.ID, "message").text
     assert (state["error"]["chunk"], state["error"]["offset"]) == (
         expected.value.chunk, expected.value.offset)
+    assert "damaged or cut short" in message and "report it as a bug" in message
 
 
 def test_an_empty_scene_opens_with_nothing_to_draw(browser, tmp_path):
