@@ -3,7 +3,7 @@ the first frame with the whole color layer, what share of it the decode takes, a
 bytes the page fetches with ``--layers color`` against the whole file.
 
     .venv/bin/python benchmarks/web_viewer.py [--quality 5] [--rounds 3] [--size 800x600]
-        [--scenes donut,playbot,objects] [--baseline REF] [--out FILE]
+        [--scenes donut,playbot,objects] [--baseline REF] [--lanes N] [--out FILE]
 
 Scenes: ``donut`` (samples/donut.ply, the sample), ``playbot`` (../shared/data/scenes, 248k
 Gaussians, SH degree 2) and ``objects`` (a synthetic labelled scene, 5 objects x 4,000
@@ -77,11 +77,12 @@ def color_end(data: bytes) -> int:
     return max(entry.end for entry in toc.entries if int(entry.layer) <= 1)
 
 
-def open_page(browser, server: ViewerServer, size: str, want_semantic: bool) -> dict:
+def open_page(browser, server: ViewerServer, size: str, want_semantic: bool,
+              query: str = "") -> dict:
     """Load the page in a fresh navigation and wait until it is done; returns its state."""
     browser.get("about:blank")
     server.reset_counter()
-    browser.get(f"{server.url}?size={size}")
+    browser.get(f"{server.url}?size={size}{query}")
     state = wait_for_state(browser, lambda s: s["phase"] in ("done", "error") and (
         s["colorShown"] or s["error"]), timeout=600)
     if state["error"]:
@@ -109,15 +110,17 @@ def _median(values):
 
 def measure_file(name: str, source: str, encode: str, path: Path, page: str,
                  package_root: Path, rounds: int, size: str, browser, gaussians: int,
-                 sh_degree: int, encode_s: float) -> dict:
-    """One row: open ``path`` ``rounds`` times with the page under ``package_root``."""
+                 sh_degree: int, encode_s: float, lanes: int | None = None) -> dict:
+    """One row: open ``path`` ``rounds`` times with the page under ``package_root`` (today's
+    page: on ``lanes`` decode workers, default its own choice)."""
     data = path.read_bytes()
+    query = "" if lanes is None else f"&lanes={lanes}"
     rows = []
     with ViewerServer(path, package_root=package_root) as server:
         for _ in range(rounds):
-            rows.append(open_page(browser, server, size, want_semantic=True))
+            rows.append(open_page(browser, server, size, want_semantic=True, query=query))
     with ViewerServer(path, layers=("color",), package_root=package_root) as server:
-        color_only = open_page(browser, server, size, want_semantic=False)
+        color_only = open_page(browser, server, size, want_semantic=False, query=query)
     if any(r["count"] != gaussians for r in [*rows, color_only]):
         raise RuntimeError("the page decoded another number of Gaussians than Python")
     first = [r["firstFrameMs"] for r in rows]
@@ -130,7 +133,7 @@ def measure_file(name: str, source: str, encode: str, path: Path, page: str,
     semantic = [r["semanticMs"] for r in rows if r["semanticMs"] is not None]
     return {
         "scene": name, "source": source, "full_precision_scene": name in FULL_PRECISION,
-        "encode": encode, "page": page,
+        "encode": encode, "page": page, "decode_lanes": lanes,
         "gaussians": gaussians, "sh_degree": sh_degree,
         "has_semantic_layer": bool(rows[0].get("hasSemantic")), "encode_s": encode_s,
         "canvas": size, "rounds": rounds,
@@ -149,7 +152,7 @@ def measure_file(name: str, source: str, encode: str, path: Path, page: str,
 
 
 def measure(name: str, quality: int, rounds: int, size: str, browser, tmp: Path,
-            baseline: tuple[str, Path] | None) -> list[dict]:
+            baseline: tuple[str, Path] | None, lanes: int | None) -> list[dict]:
     """The rows of one scene: today's page on the default encode; with a baseline, both
     pages on the ``--no-hyperprior`` encode."""
     scene, source = load_scene(name)
@@ -168,7 +171,8 @@ def measure(name: str, quality: int, rounds: int, size: str, browser, tmp: Path,
         for page, root in pages:
             out.append(measure_file(name, source, f"quality {quality}, {encode}", path, page,
                                     root, rounds, size, browser, len(decoded),
-                                    decoded.sh_degree_stored, encode_s))
+                                    decoded.sh_degree_stored, encode_s,
+                                    lanes if page == "current" else None))
             row = out[-1]
             print(f"{name} [{encode}, {page}]: first frame {row['first_frame_ms']} ms, "
                   f"color {row['color_frame_ms']} ms", file=sys.stderr)
@@ -183,6 +187,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--size", default="800x600", help="canvas WxH in pixels")
     parser.add_argument("--baseline", metavar="REF",
                         help="also time the page of this git commit, same run")
+    parser.add_argument("--lanes", type=int, default=None,
+                        help="today's page decodes on this many Web Workers (default: its own "
+                             "choice, one per core but one, up to 4; 0: in its decode "
+                             "worker)")
     parser.add_argument("--out")
     args = parser.parse_args(argv)
     reason = unavailable_reason()
@@ -200,7 +208,7 @@ def main(argv: list[str] | None = None) -> int:
                 baseline = (args.baseline, baseline_package(args.baseline, Path(tmp) / "base"))
             for name in args.scenes.split(","):
                 results += measure(name.strip(), args.quality, args.rounds, args.size, browser,
-                                   Path(tmp), baseline)
+                                   Path(tmp), baseline, args.lanes)
     finally:
         browser.quit()
     commit = subprocess.run(["git", "-C", str(REPO), "describe", "--always", "--dirty"],

@@ -53,7 +53,8 @@ def default_encoding(tmp_path_factory):
         if key not in made:
             scene, _ = read_scene(source)
             result = Encoder().encode_with_report(scene)
-            path = folder / f"{len(made)}_{Path(source).stem}.csgs"
+            path = folder / str(len(made)) / f"{Path(source).stem}.csgs"
+            path.parent.mkdir()
             path.write_bytes(result.data)
             made[key] = (path, result)
         return made[key]
@@ -76,7 +77,8 @@ def default_encode(tmp_path_factory, default_encoding):
             return default_encoding(source)[0]
         key = (str(Path(source).resolve()), flags)
         if key not in made:
-            out = folder / f"{len(made)}_{Path(source).stem}.csgs"
+            out = folder / str(len(made)) / f"{Path(source).stem}.csgs"
+            out.parent.mkdir()
             code = main(["encode", str(source), "-o", str(out), "--quiet", *flags])
             assert code == 0, f"csgs encode {source} {' '.join(flags)} exited with {code}"
             made[key] = out

@@ -35,15 +35,19 @@ import { decodeScene, decodeSemanticLayer, sceneArrays } from '../js/scene.mjs';
 import { loadTables, sha256Hex } from './tables_fetch.mjs';
 
 const HEADER_SIZE = 16;
-/** Decode lanes: one Web Worker per core, at most this many. */
+/** Decode lanes: one Web Worker per core but one (the page's own thread draws meanwhile; on
+ * two cores one lane got the first frame 10% sooner than two, benchmarks/web_viewer.py), at
+ * most this many. */
 const MAX_LANES = 4;
 let lanes = null;
 
 /** The decode lanes, started when this worker starts, for every file it opens: ``asked``
- * Web Workers (null: one per core, at most MAX_LANES; 0: decode on this thread). */
+ * Web Workers (null: one per core but one, at least one, at most MAX_LANES; 0: decode on
+ * this thread). */
 function decodeLanes(asked) {
   if (lanes) return lanes;
-  const count = asked ?? Math.max(1, Math.min(self.navigator?.hardwareConcurrency || 2, MAX_LANES));
+  const cores = self.navigator?.hardwareConcurrency || 2;
+  const count = asked ?? Math.max(1, Math.min(cores - 1, MAX_LANES));
   if (count === 0) {
     lanes = [new LocalLane()];
     return lanes;

@@ -7,7 +7,8 @@
  * the canvas fills the window), ``scene=URL`` and ``layers=color|color,semantic`` override
  * the server's /config.json; ``hashes=1`` has the worker hash every decoded array
  * (``state.hashes``, compared with the Python decoder's by the tests); ``lanes=N`` decodes on
- * N Web Workers (0: on the decode worker's own thread; default one per core, at most 4).
+ * N Web Workers (0: on the decode worker's own thread; default one per core but one, at
+ * most 4).
  *
  * ``window.csgsViewer`` is the page's state for scripts (the browser tests read it):
  * ``state`` (phase, timings, counts, error, selection), ``setCamera(camera)``,
@@ -163,6 +164,7 @@ function open(source, name, layers) {
   scene = null;
   semantic = null;
   drawing = Promise.resolve();
+  bands = null;
   $('selection').textContent = '';
   setMessage('');
   $('title').textContent = name || 'csgs viewer';
@@ -172,11 +174,18 @@ function open(source, name, layers) {
 
 /** The drawing of the scene so far: messages that change the splats wait for it in turn. */
 let drawing = Promise.resolve();
+/** SH bands (sh_rest) received and not drawn yet. */
+let bands = null;
 
 /** Draw ``next`` (the whole scene, or its splats with the base color) and note the time. */
 async function showScene(next, complete, id) {
   await viewReady;
   if (id !== requestId) return;
+  if (!complete && bands) { // the SH bands came while the renderer loaded: one drawing
+    next = { ...next, sh_rest: bands };
+    complete = true;
+  }
+  bands = null;
   const first = scene === null || state.firstFrameMs === null;
   scene = next;
   view.show(scene);
@@ -195,9 +204,10 @@ async function showScene(next, complete, id) {
   showStatus();
 }
 
-/** Draw the scene shown again with its SH bands (sh_rest N x R x 3). */
+/** Draw the scene shown again with its SH bands (sh_rest N x R x 3), unless showScene
+ * drew them already. */
 async function showBands(shRest, id) {
-  if (id !== requestId || !scene) return;
+  if (id !== requestId || !scene || state.colorShown) return;
   scene = { ...scene, sh_rest: shRest };
   view.updateSH(shRest);
   drawAgain();
@@ -226,6 +236,7 @@ worker.onmessage = (event) => {
     drawing = drawing.then(() => showScene(message.scene, message.complete, id));
   } else if (message.kind === 'sh') {
     state.shDecodeMs = message.decodeMs;
+    bands = message.sh_rest;
     drawing = drawing.then(() => showBands(message.sh_rest, id));
   } else if (message.kind === 'semantic') {
     semantic = message.semantic ? { features: message.semantic, channels: message.channels, names: message.names } : null;
