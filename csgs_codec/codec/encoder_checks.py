@@ -10,7 +10,11 @@ from __future__ import annotations
 import numpy as np
 
 from csgs_codec.codec.decoder import MAX_GAUSSIANS, MAX_GAUSSIANS_PER_BYTE
-from csgs_codec.codec.payloads import MAX_FLOAT_STREAM_CHANNELS, MAX_NAME_BYTES
+from csgs_codec.codec.payloads import (
+    MAX_FLOAT_STREAM_CHANNELS,
+    MAX_NAME_BYTES,
+    semantic_name_problem,
+)
 from csgs_codec.errors import InputError
 from csgs_codec.format import Chunk, write_container
 from csgs_codec.format.layout import Layer
@@ -52,7 +56,9 @@ def check_count(count: int) -> None:
 
 def check_semantic_names(names: tuple[str, ...], max_channels: int) -> None:
     """InputError when the semantic layer cannot carry ``names``: more than
-    ``max_channels`` of them, one that is not UTF-8 text, or one over 256 UTF-8 bytes."""
+    ``max_channels`` of them, one that is not UTF-8 text or over 256 UTF-8 bytes, or one that
+    breaks the name rule (payloads.SEMANTIC_NAME_RULE: a PLY-safe ``sem_*``/``ins_feat_*``
+    identifier, each name once)."""
     if len(names) > max_channels:
         raise InputError(f"{len(names)} semantic channels; the semantic layer carries at most "
                          f"{max_channels}", property=names[max_channels])
@@ -66,6 +72,10 @@ def check_semantic_names(names: tuple[str, ...], max_channels: int) -> None:
             raise InputError(f"semantic property name is {size} bytes long; the semantic "
                              f"layer carries names of at most {MAX_NAME_BYTES} bytes",
                              property=name[:40] + "...")
+    for i, name in enumerate(names):
+        problem = semantic_name_problem(name, names[:i])
+        if problem:
+            raise InputError(problem, property=name if name.isprintable() else repr(name))
 
 
 def _check_log_scales(scene: GaussianScene) -> None:

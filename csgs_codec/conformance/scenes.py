@@ -129,12 +129,34 @@ def generate(out_dir: Path) -> None:
     _write(out_dir, f"truncated_opacity_payload{r}", bad,
            "semantic_small_r2 with the OPAC payload cut in half (frame and CRC rewritten)",
            _reads(bad))
+    _semantic_name_vectors(out_dir)
     _color_prior_vectors(out_dir, donut)
     _far_point_vectors(out_dir, donut)
     _view_pruned_vectors(out_dir, donut)
     _tiled_vectors(out_dir, donut)
     _derived_steps_vectors(out_dir, donut)
     _scored_steps_vectors(out_dir, donut)
+
+
+def _semantic_name_vectors(out_dir: Path) -> None:
+    """The frozen vector semantic_small with one semantic channel name broken (§12.16's name
+    rule): its SEMF payload is the count (1 byte) then names of 1 + 10 bytes
+    (``ins_feat_0``..``_2``). The color layer still reads; the semantic layer is refused at
+    the broken name."""
+    data = (out_dir / "semantic_small.csgs").read_bytes()
+    name_at = lambda k, i: 1 + 11 * k + 1 + i  # noqa: E731 - byte i of name k in the payload
+    cases = [
+        ("semantic_name_duplicate", (1, 9, ord("0")), "its second name made 'ins_feat_0' too"),
+        ("semantic_name_newline", (1, 8, ord("\n")),
+         "its second name made 'ins_feat\\n1', which would end a PLY header early"),
+        ("semantic_name_no_prefix", (2, 0, ord("x")),
+         "its third name made 'xns_feat_2', which a PLY reader would not keep"),
+    ]
+    for name, (k, i, value), what in cases:
+        bad = _invalid(data, patch=("SEMF", name_at(k, i), value))
+        _write(out_dir, name, bad, f"semantic_small with {what} (frame and CRC rewritten): "
+               "the color layer reads, the semantic layer is refused at that name",
+               _reads(bad))
 
 
 def _color_prior_vectors(out_dir: Path, donut: GaussianScene) -> None:

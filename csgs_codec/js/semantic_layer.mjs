@@ -5,6 +5,10 @@ import { checkFinite, single } from './chunks.mjs';
 import { readFloatStream } from './float_stream.mjs';
 import { decodeSymbols } from './residual.mjs';
 
+/** A semantic channel name (§12.16): a PLY-safe identifier a 3DGS reader keeps as a semantic
+ * channel. */
+const SEMANTIC_NAME = /^(sem_|ins_feat_)[A-Za-z0-9_]+$/;
+
 /** Decode SEMF and SEML when present into ``scene`` (semantic, semanticNames, labels). */
 export function decodeSemantic(container, header, scene, family) {
   const present = new Set(container.toc.entries.map((e) => e.type));
@@ -15,8 +19,13 @@ export function decodeSemantic(container, header, scene, family) {
     const names = [];
     const decoder = new TextDecoder('utf-8', { fatal: true });
     for (let i = 0; i < count; i++) {
+      const at = r.offset;
       const raw = r.byteString('channel_name', 256);
-      try { names.push(decoder.decode(raw)); } catch { throw r.error('channel name is not UTF-8'); }
+      let name;
+      try { name = decoder.decode(raw); } catch { throw r.error('channel name is not UTF-8'); }
+      if (!SEMANTIC_NAME.test(name)) throw r.error(`semantic channel name ${JSON.stringify(name)} is not a PLY-safe semantic identifier (sem_ or ins_feat_ followed by ASCII letters, digits or underscores)`, at);
+      if (names.includes(name)) throw r.error(`semantic channel name ${JSON.stringify(name)} appears twice`, at);
+      names.push(name);
     }
     const values = readFloatStream(r, header.count, names.length, null, family);
     r.expectEnd('the semantic feature stream');

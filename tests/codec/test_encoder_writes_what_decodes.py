@@ -71,7 +71,7 @@ def test_a_semantic_name_of_257_bytes_is_refused_before_coding():
 
 def test_a_semantic_name_of_256_bytes_decodes():
     scene = random_scene(40, semantic=2)
-    scene.semantic_names = ("é" * 128, "b")
+    scene.semantic_names = ("ins_feat_" + "a" * 247, "sem_b")  # the longest name allowed
     result = Encoder(hyperprior=False).encode_with_report(scene)
     decoded = Decoder().decode(result.data, layers="color,semantic")
     assert decoded.semantic_names == scene.semantic_names
