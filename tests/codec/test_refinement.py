@@ -16,7 +16,7 @@ from csgs_codec.render.view_distribution import default_distribution
 from csgs_codec.scene.ply_io import read_ply, write_ply
 from tests.conftest import SAMPLE
 
-STEPS = 15
+STEPS = 4  # 1.35 dB held-out gain on this head (15 steps: 1.30 dB, five times the time)
 
 
 @pytest.fixture(scope="module")
@@ -77,7 +77,7 @@ def test_refinement_lowers_the_render_error_on_views_it_did_not_use(head, pair):
 
 def test_refinement_is_deterministic(head):
     small = head.subset(np.arange(1000))
-    first, second = (Encoder(quality=3, hyperprior=False, refine=4).encode(small)
+    first, second = (Encoder(quality=3, hyperprior=False, refine=2).encode(small)
                      for _ in range(2))
     assert first == second
 

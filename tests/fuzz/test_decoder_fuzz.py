@@ -18,7 +18,7 @@ from tests.fuzz.oracle import error_stage, memory_bound, run_decoder
 from tests.fuzz.seeds import build_seeds
 
 #: Inputs of the default run; every second one has its heap peak traced.
-DEFAULT_INPUTS = 3000
+DEFAULT_INPUTS = 1500
 TRACE_EVERY = 2
 SLOW_INPUTS = 100_000
 OPERATORS = {"payload_bit_flip", "payload_byte_set", "payload_resize", "payload_varint",
