@@ -21,7 +21,9 @@ SSIM_C2 = 0.03**2
 
 
 def _gaussian_taps(dtype: torch.dtype, device: torch.device) -> torch.Tensor:
-    x = torch.arange(SSIM_WINDOW, dtype=torch.float64) - (SSIM_WINDOW - 1) / 2
+    """The [SSIM_WINDOW] Gaussian window on ``device``, computed in float64 on the CPU so
+    that every device gets the same taps."""
+    x = torch.arange(SSIM_WINDOW, dtype=torch.float64, device="cpu") - (SSIM_WINDOW - 1) / 2
     taps = torch.exp(-0.5 * (x / SSIM_SIGMA) ** 2)
     return (taps / taps.sum()).to(dtype=dtype, device=device)
 

@@ -129,16 +129,18 @@ def _step_value(j: torch.Tensor) -> torch.Tensor:
 
 class _Prior(torch.nn.Module):
     def __init__(self, in_width: int, targets: list[AttributeTarget], groups: int,
-                 settings: FitSettings) -> None:
+                 settings: FitSettings, *, device: torch.device) -> None:
         super().__init__()
         self.targets = targets
         # Per target: (base step index, lowest and highest step index the fit may use).
         self.step_bounds = [_step_bounds(t) for t in targets]
         widths = [2 * t.channels + 1 for t in targets]
-        self.hyper = mlp([in_width, settings.hidden, settings.hidden, sum(widths)])
+        self.hyper = mlp([in_width, settings.hidden, settings.hidden, sum(widths)],
+                         device=device)
         self.bounds = group_bounds(targets[0].channels, groups) if groups > 1 else []
         self.carm = torch.nn.ModuleList(
-            mlp([lo, settings.carm_hidden, 2 * (hi - lo)]) for lo, hi in self.bounds[1:])
+            mlp([lo, settings.carm_hidden, 2 * (hi - lo)], device=device)
+            for lo, hi in self.bounds[1:])
         last = self.hyper[-1]
         with torch.no_grad():
             last.weight.mul_(0.1)
@@ -149,10 +151,10 @@ class _Prior(torch.nn.Module):
                 mean = (t.values * w).sum(axis=0) / count
                 std = np.sqrt(((t.values - mean) ** 2 * w).sum(axis=0) / count) + 1e-6
                 j0 = step_index_of(t.base_step)
-                q0 = float(_step_value(torch.tensor(float(j0))))
+                q0 = float(_step_value(torch.tensor(float(j0), device=device)))
                 idx = scale_index_for_std(std / q0)
-                last.bias[col:col + c] = torch.from_numpy(mean)
-                last.bias[col + c:col + 2 * c] = torch.from_numpy(idx / INDEX_UNIT)
+                last.bias[col:col + c] = torch.as_tensor(mean, device=device)
+                last.bias[col + c:col + 2 * c] = torch.as_tensor(idx / INDEX_UNIT, device=device)
                 last.bias[col + 2 * c] = j0 / INDEX_UNIT
                 col += 2 * c + 1
             for net in self.carm:
@@ -170,7 +172,7 @@ class _Prior(torch.nn.Module):
             _, j_lo, j_hi = self.step_bounds[i]
             j = torch.clamp(out[:, col + 2 * c] * INDEX_UNIT, j_lo, j_hi)
             q = _step_value(j)[:, None]
-            noise = torch.rand(values[i].shape, generator=gen) - 0.5
+            noise = torch.rand(values[i].shape, generator=gen, device=values[i].device) - 0.5
             if i == 0 and self.carm:
                 recon_f = values[i] + noise * q
                 means, scales = [mean[:, :self.bounds[0][1]]], [scale[:, :self.bounds[0][1]]]
@@ -277,7 +279,7 @@ def fit_prior(cells: np.ndarray, pos_bits: int, targets: list[AttributeTarget], 
             _warn(f"the {name} fit failed again ({problem}); falling back to the "
                   "factorized prior (per-channel means and scales, no position dependence, "
                   "no CARM prediction): the file decodes exactly but is larger")
-            prior = _Prior(emb.shape[1], targets, carm_groups, settings)
+            prior = _Prior(emb.shape[1], targets, carm_groups, settings, device=emb.device)
             prior.make_factorized()
             return (_hyper_export(prior, calib_cells, pos_bits, num_freqs),
                     _carm_export(prior, grid))
@@ -295,19 +297,21 @@ def _warn(message: str) -> None:
 
 def _train(emb: torch.Tensor, targets: list[AttributeTarget], carm_groups: int,
            settings: FitSettings) -> _Prior:
-    """Train a :class:`_Prior` on embeddings ``emb`` (M, 6L); _DivergedError if it blows up."""
+    """Train a :class:`_Prior` on embeddings ``emb`` (M, 6L), on their device; _DivergedError
+    if it blows up."""
+    device = emb.device
     torch.manual_seed(settings.seed)
-    gen = torch.Generator().manual_seed(settings.seed)
-    prior = _Prior(emb.shape[1], targets, carm_groups, settings)
-    values = [torch.from_numpy(t.values).float() for t in targets]
-    weights = [torch.from_numpy(t.weights).float() for t in targets]
+    gen = torch.Generator(device=device).manual_seed(settings.seed)
+    prior = _Prior(emb.shape[1], targets, carm_groups, settings, device=device)
+    values = [torch.as_tensor(t.values, device=device).float() for t in targets]
+    weights = [torch.as_tensor(t.weights, device=device).float() for t in targets]
     lams = [6.0 / (math.log(2.0) * t.base_step ** 2) for t in targets]
     optimizer = Adam(prior.parameters(), lr=settings.learning_rate)
     m = emb.shape[0]
     for step in range(settings.steps):
         if step == settings.steps * 3 // 4:
             optimizer.lr = settings.learning_rate / 4
-        rows = torch.randint(0, m, (min(settings.batch, m),), generator=gen)
+        rows = torch.randint(0, m, (min(settings.batch, m),), generator=gen, device=device)
         optimizer.zero_grad()
         loss = prior.loss(emb[rows], [v[rows] for v in values], [w[rows] for w in weights],
                           lams, gen)

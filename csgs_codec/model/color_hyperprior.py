@@ -92,18 +92,20 @@ class ColorPriorFit:
         self.scales = np.array([2.0 ** mean_bits] * t + [INDEX_UNIT] * t)
         self.out_lo = np.array([-mean_limit] * t + [0] * t)
         self.out_hi = np.array([mean_limit] * t + [SCALE_MAX] * t)
+        device = self.emb.device
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(s.seed)
             # It starts as the factorized model: per-channel mean and scale in the output
             # biases, small output weights.
-            self.net = mlp([self.emb.shape[1], s.hidden, s.hidden, 2 * t])
+            self.net = mlp([self.emb.shape[1], s.hidden, s.hidden, 2 * t], device=device)
             with torch.no_grad():
                 self.net[-1].weight.mul_(0.1)
-                self.net[-1].bias[:t] = torch.from_numpy(np.median(values, axis=0))
-                self.net[-1].bias[t:] = torch.from_numpy(
-                    scale_index_for_std(values.std(axis=0)) / INDEX_UNIT)
-        self.values = torch.from_numpy(values).float()
-        self.gen = torch.Generator().manual_seed(s.seed)
+                self.net[-1].bias[:t] = torch.as_tensor(np.median(values, axis=0),
+                                                        device=device)
+                self.net[-1].bias[t:] = torch.as_tensor(
+                    scale_index_for_std(values.std(axis=0)) / INDEX_UNIT, device=device)
+        self.values = torch.as_tensor(values, device=device).float()
+        self.gen = torch.Generator(device=device).manual_seed(s.seed)
         self.optimizer = Adam(self.net.parameters(), lr=s.learning_rate)
         self.steps_done = 0
 
@@ -122,7 +124,8 @@ class ColorPriorFit:
             for step in range(self.steps_done, min(until, s.steps)):
                 if step == s.steps * 3 // 4:
                     self.optimizer.lr = s.learning_rate / 4
-                rows = torch.randint(0, n, (min(s.batch, n),), generator=self.gen)
+                rows = torch.randint(0, n, (min(s.batch, n),), generator=self.gen,
+                                     device=self.values.device)
                 self.optimizer.zero_grad()
                 out = self.net(self.emb[rows])
                 bits = gaussian_bin_bits(self.values[rows], out[:, :t],

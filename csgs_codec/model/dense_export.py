@@ -30,7 +30,8 @@ def export_position_mlp(mlp: torch.nn.Module, *, pos_bits: int, num_freqs: int,
     linears = _linear_layers(mlp)
     if len(weight_bits) != len(linears):
         raise ModelError(f"{len(weight_bits)} weight widths for {len(linears)} layers")
-    x = float_embedding(calibration_positions, pos_bits, num_freqs).double()
+    x = float_embedding(calibration_positions, pos_bits, num_freqs,
+                        linears[0].weight.device).double()
     layers = quantize_layers(linears, x, SINE_AMPLITUDE_BITS, weight_bits, act_bits)
     try:
         return IntMLP(pos_bits, num_freqs, act_bits, tuple(layers),
@@ -64,7 +65,8 @@ def export_dense_mlp(mlp: torch.nn.Module, *, input_shift: int, input_bits: int,
         raise ModelError(f"{len(weight_bits)} weight widths for {len(linears)} layers")
     top = (1 << input_bits) - 1
     x_int = np.clip(np.asarray(calibration_inputs, dtype=np.int64) >> input_shift, -top, top)
-    x = torch.from_numpy(np.ldexp(x_int.astype(np.float64), -input_frac_bits))
+    x = torch.as_tensor(np.ldexp(x_int.astype(np.float64), -input_frac_bits),
+                        device=linears[0].weight.device)
     layers = quantize_layers(linears, x, input_frac_bits, weight_bits, act_bits)
     try:
         return IntDenseMLP(linears[0].in_features, input_shift, input_bits, act_bits,

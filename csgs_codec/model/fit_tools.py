@@ -20,11 +20,11 @@ INDEX_UNIT = 8.0
 GRAD_CLIP_NORM = 1000.0
 
 
-def mlp(sizes: list[int]) -> torch.nn.Sequential:
-    """``Linear, ReLU, ..., Linear`` through the layer widths ``sizes``."""
+def mlp(sizes: list[int], *, device: torch.device | str) -> torch.nn.Sequential:
+    """``Linear, ReLU, ..., Linear`` through the layer widths ``sizes``, on ``device``."""
     layers: list[torch.nn.Module] = []
     for i in range(len(sizes) - 1):
-        layers.append(torch.nn.Linear(sizes[i], sizes[i + 1]))
+        layers.append(torch.nn.Linear(sizes[i], sizes[i + 1], device=device))
         if i < len(sizes) - 2:
             layers.append(torch.nn.ReLU())
     return torch.nn.Sequential(*layers)
@@ -107,7 +107,8 @@ def clip_gradients(params: list[torch.Tensor], max_norm: float) -> float:
 def scaled_outputs(net: torch.nn.Sequential, row_scale: np.ndarray) -> torch.nn.Sequential:
     """A copy of ``net`` whose last layer outputs ``row_scale`` (O,) times the original."""
     out = copy.deepcopy(net)
-    scale = torch.from_numpy(np.asarray(row_scale, dtype=np.float64)).float()
+    scale = torch.as_tensor(np.asarray(row_scale, dtype=np.float64),
+                            device=out[-1].weight.device).float()
     with torch.no_grad():
         out[-1].weight.mul_(scale[:, None])
         out[-1].bias.mul_(scale)

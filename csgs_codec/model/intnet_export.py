@@ -20,14 +20,17 @@ from csgs_codec.entropy.tables import SINE_AMPLITUDE_BITS
 from csgs_codec.errors import ModelError
 
 
-def float_embedding(positions: np.ndarray, pos_bits: int, num_freqs: int) -> torch.Tensor:
-    """The embedding a torch hyperprior trains on: (N, 3) int -> (N, 6L) float32 in [-1, 1].
+def float_embedding(positions: np.ndarray, pos_bits: int, num_freqs: int,
+                    device: torch.device | str = "cpu") -> torch.Tensor:
+    """The embedding a torch hyperprior trains on: (N, 3) int -> (N, 6L) float32 in [-1, 1],
+    on ``device``.
 
     It is the decoder's integer embedding divided by 2^14, so training sees exactly what the
     integer network will see.
     """
     emb = positional_embedding(positions, pos_bits, num_freqs)
-    return torch.from_numpy(np.ldexp(emb.astype(np.float64), -SINE_AMPLITUDE_BITS)).float()
+    return torch.as_tensor(np.ldexp(emb.astype(np.float64), -SINE_AMPLITUDE_BITS),
+                           device=device).float()
 
 
 def _linear_layers(mlp: torch.nn.Module) -> list[torch.nn.Linear]:
@@ -65,7 +68,7 @@ def quantize_layers(linears: list[torch.nn.Linear], x: torch.Tensor, frac_in: in
             w_limit = (1 << (weight_bits[i] - 1)) - 1
             w = linear.weight.detach().double()
             b = (linear.bias.detach().double() if linear.bias is not None
-                 else torch.zeros(w.shape[0], dtype=torch.float64))
+                 else torch.zeros(w.shape[0], dtype=torch.float64, device=w.device))
             last = i == len(linears) - 1
             x = x @ w.T + b
             if last:
@@ -86,8 +89,8 @@ def quantize_layers(linears: list[torch.nn.Linear], x: torch.Tensor, frac_in: in
                 raise ModelError(f"layer {i}: weights cannot reach the output scale within "
                                  f"{weight_bits[i]} bits", index=i)
             shift = frac_w + frac_in - frac_out
-            w_int = torch.round(w * 2.0 ** frac_w).numpy().astype(np.int64)
-            b_scaled = (b * 2.0 ** (frac_w + frac_in)).numpy()
+            w_int = torch.round(w * 2.0 ** frac_w).cpu().numpy().astype(np.int64)
+            b_scaled = (b * 2.0 ** (frac_w + frac_in)).cpu().numpy()
             if not np.all(np.abs(b_scaled) < 2.0 ** 52):
                 raise ModelError(f"layer {i}: bias does not fit 52 bits at its scale", index=i)
             layers.append(IntLayer(w_int, np.rint(b_scaled).astype(np.int64), int(shift),
@@ -120,7 +123,8 @@ def export_mlp(mlp: torch.nn.Module, *, pos_bits: int, num_freqs: int,
                          f"has {6 * num_freqs}")
     if not 2 <= weight_bits <= 24 or not 1 <= act_bits <= 30:
         raise ModelError(f"weight_bits {weight_bits} / act_bits {act_bits} out of range")
-    x = float_embedding(calibration_positions, pos_bits, num_freqs).double()
+    x = float_embedding(calibration_positions, pos_bits, num_freqs,
+                        linears[0].weight.device).double()
     layers = quantize_layers(linears, x, SINE_AMPLITUDE_BITS, (weight_bits,) * len(linears),
                              act_bits, output_frac_bits)
     try:

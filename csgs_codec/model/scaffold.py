@@ -29,9 +29,10 @@ SH_C0 = 0.28209479177387814
 MAX_OPACITY = 1.0 - 2.0**-24
 
 
-def _head(in_dim: int, hidden: int, out_dim: int, activation: nn.Module | None) -> nn.Sequential:
-    layers: list[nn.Module] = [nn.Linear(in_dim, hidden), nn.ReLU(True),
-                               nn.Linear(hidden, out_dim)]
+def _head(in_dim: int, hidden: int, out_dim: int, activation: nn.Module | None,
+          device: torch.device | str) -> nn.Sequential:
+    layers: list[nn.Module] = [nn.Linear(in_dim, hidden, device=device), nn.ReLU(True),
+                               nn.Linear(hidden, out_dim, device=device)]
     if activation is not None:
         layers.append(activation)
     return nn.Sequential(*layers)
@@ -51,26 +52,29 @@ class ScaffoldMLPs(nn.Module):
             (HAC and CSGaussian: all True; Scaffold-GS defaults: all False).
         appearance_count, appearance_dim: size of the per-camera appearance embedding table
             (0 for none); its vector is appended to the color head's input.
+        device: where the parameters are made.
     """
 
     def __init__(self, feat_dim: int = 50, n_offsets: int = 10, hidden: int | None = None, *,
                  opacity_dist: bool = True, cov_dist: bool = True, color_dist: bool = True,
-                 appearance_count: int = 0, appearance_dim: int = 0) -> None:
+                 appearance_count: int = 0, appearance_dim: int = 0,
+                 device: torch.device | str = "cpu") -> None:
         super().__init__()
         hidden = feat_dim if hidden is None else hidden
         self.feat_dim, self.n_offsets = feat_dim, n_offsets
         self.opacity_dist, self.cov_dist, self.color_dist = opacity_dist, cov_dist, color_dist
-        self.opacity = _head(feat_dim + 3 + opacity_dist, hidden, n_offsets, nn.Tanh())
-        self.cov = _head(feat_dim + 3 + cov_dist, hidden, 7 * n_offsets, None)
+        self.opacity = _head(feat_dim + 3 + opacity_dist, hidden, n_offsets, nn.Tanh(), device)
+        self.cov = _head(feat_dim + 3 + cov_dist, hidden, 7 * n_offsets, None, device)
         self.color = _head(feat_dim + 3 + color_dist + appearance_dim, hidden, 3 * n_offsets,
-                           nn.Sigmoid())
-        self.appearance = (nn.Embedding(appearance_count, appearance_dim)
+                           nn.Sigmoid(), device)
+        self.appearance = (nn.Embedding(appearance_count, appearance_dim, device=device)
                            if appearance_count and appearance_dim else None)
 
     @classmethod
-    def from_weights(cls, weights: ScaffoldMLPWeights, feat_dim: int,
-                     n_offsets: int) -> ScaffoldMLPs:
-        """Modules holding exactly ``weights`` (validated against F and K first).
+    def from_weights(cls, weights: ScaffoldMLPWeights, feat_dim: int, n_offsets: int, *,
+                     device: torch.device | str = "cpu") -> ScaffoldMLPs:
+        """Modules holding exactly ``weights`` (validated against F and K first), on
+        ``device``.
 
         Raises:
             InputError: the weights do not fit F and K.
@@ -82,20 +86,20 @@ class ScaffoldMLPs(nn.Module):
                      cov_dist=weights.uses_distance("cov", feat_dim),
                      color_dist=weights.uses_distance("color", feat_dim),
                      appearance_count=0 if appearance is None else appearance.shape[0],
-                     appearance_dim=weights.appearance_dim)
+                     appearance_dim=weights.appearance_dim, device=device)
         for name, head in weights.heads().items():
             seq = getattr(module, name)
             if seq[0].out_features != head.w1.shape[0] or seq[2].in_features != head.w2.shape[1]:
-                seq[0] = nn.Linear(head.in_dim, head.w1.shape[0])
-                seq[2] = nn.Linear(head.w1.shape[0], head.out_dim)
+                seq[0] = nn.Linear(head.in_dim, head.w1.shape[0], device=device)
+                seq[2] = nn.Linear(head.w1.shape[0], head.out_dim, device=device)
             with torch.no_grad():
-                seq[0].weight.copy_(torch.from_numpy(head.w1))
-                seq[0].bias.copy_(torch.from_numpy(head.b1))
-                seq[2].weight.copy_(torch.from_numpy(head.w2))
-                seq[2].bias.copy_(torch.from_numpy(head.b2))
+                seq[0].weight.copy_(torch.as_tensor(head.w1, device=device))
+                seq[0].bias.copy_(torch.as_tensor(head.b1, device=device))
+                seq[2].weight.copy_(torch.as_tensor(head.w2, device=device))
+                seq[2].bias.copy_(torch.as_tensor(head.b2, device=device))
         if module.appearance is not None:
             with torch.no_grad():
-                module.appearance.weight.copy_(torch.from_numpy(appearance))
+                module.appearance.weight.copy_(torch.as_tensor(appearance, device=device))
         return module.eval()
 
     def to_weights(self) -> ScaffoldMLPWeights:
@@ -234,7 +238,8 @@ class ScaffoldDecoder:
 
     Args:
         scene: the anchors (validated here).
-        mlps: the heads; default: built from ``scene.mlps``.
+        mlps: the heads; default: built from ``scene.mlps`` on the CPU. The anchors are
+            decoded on the heads' device.
         appearance_index: training camera whose appearance embedding the color head uses
             (None: the mean embedding, a neutral choice for novel views).
 
@@ -251,9 +256,10 @@ class ScaffoldDecoder:
                 raise ModelError("the anchor scene has no Scaffold-GS MLPs", property="mlps")
             mlps = ScaffoldMLPs.from_weights(scene.mlps, scene.feat_dim, scene.n_offsets)
         self.scene, self.mlps, self.appearance_index = scene, mlps.eval(), appearance_index
-        self._tensors = [torch.from_numpy(a) for a in (scene.positions, scene.features,
-                                                        scene.offsets, scene.scaling,
-                                                        scene.offset_mask)]
+        self._device = next(mlps.parameters()).device
+        self._tensors = [torch.as_tensor(a, device=self._device)
+                         for a in (scene.positions, scene.features, scene.offsets,
+                                   scene.scaling, scene.offset_mask)]
 
     def scene_center(self) -> np.ndarray:
         """(3,) float64 centre of the anchors' bounding box (origin for an empty scene)."""
@@ -265,23 +271,23 @@ class ScaffoldDecoder:
     def decode(self, view_origin: np.ndarray) -> DecodedView:
         """The neural Gaussians seen from the point ``view_origin`` ((3,) world units)."""
         origin = torch.as_tensor(np.asarray(view_origin, np.float64).reshape(3),
-                                 dtype=torch.float32)
+                                 dtype=torch.float32, device=self._device)
         with torch.no_grad():
             g = neural_gaussians(self.mlps, *self._tensors, origin, self.appearance_index)
-        anchor_index = g.anchor_index.numpy()
-        opacity = np.minimum(g.opacities.numpy().astype(np.float64), MAX_OPACITY)
+        anchor_index = g.anchor_index.cpu().numpy()
+        opacity = np.minimum(g.opacities.cpu().numpy().astype(np.float64), MAX_OPACITY)
         s = self.scene
         scene = GaussianScene(
-            positions=g.positions.numpy().astype(np.float32),
-            sh_dc=((g.colors.numpy() - 0.5) / SH_C0).astype(np.float32),
+            positions=g.positions.cpu().numpy().astype(np.float32),
+            sh_dc=((g.colors.cpu().numpy() - 0.5) / SH_C0).astype(np.float32),
             sh_rest=np.zeros((len(anchor_index), 0, 3), np.float32),
             opacity=(np.log(opacity) - np.log1p(-opacity)).astype(np.float32),
-            scales=g.log_scales.numpy().astype(np.float32),
-            rotations=g.rotations.numpy().astype(np.float32),
+            scales=g.log_scales.cpu().numpy().astype(np.float32),
+            rotations=g.rotations.cpu().numpy().astype(np.float32),
             semantic=None if s.semantic is None else s.semantic[anchor_index],
             semantic_names=s.semantic_names if s.semantic is not None else (),
             labels=None if s.labels is None else s.labels[anchor_index])
-        return DecodedView(scene, anchor_index, g.offset_index.numpy())
+        return DecodedView(scene, anchor_index, g.offset_index.cpu().numpy())
 
     def to_gaussians(self, camera: Camera) -> GaussianScene:
         """The neural Gaussians for ``camera`` (view direction and distance from its centre)."""

@@ -90,9 +90,9 @@ def _select_band(order: torch.Tensor, boxes: torch.Tensor, packed: tuple[torch.T
                  width: int) -> list[tuple[torch.Tensor, torch.Tensor]]:
     """The contributing pairs of one band, as (gaussian [P], pixel [P]) per depth chunk."""
     n_pix = centres[0].shape[0]
-    dtype = centres[0].dtype
-    log_t = torch.zeros(n_pix, dtype=dtype)
-    done = torch.zeros(n_pix, dtype=torch.bool)
+    dtype, device = centres[0].dtype, centres[0].device
+    log_t = torch.zeros(n_pix, dtype=dtype, device=device)
+    done = torch.zeros(n_pix, dtype=torch.bool, device=device)
     selected = []
     for chunk in depth_chunks(order, boxes, row0, row1, CHUNK_BUDGET):
         if selected:
@@ -115,8 +115,8 @@ def _composite_band(pairs: list[tuple[torch.Tensor, torch.Tensor]],
     ``values_t`` is [C, N]; returns (accumulated [C, n_pix], transmittance [n_pix]).
     """
     n_pix = centres[0].shape[0]
-    acc = torch.zeros(values_t.shape[0], n_pix, dtype=values_t.dtype)
-    log_t = torch.zeros(n_pix, dtype=values_t.dtype)
+    acc = torch.zeros(values_t.shape[0], n_pix, dtype=values_t.dtype, device=values_t.device)
+    log_t = torch.zeros(n_pix, dtype=values_t.dtype, device=values_t.device)
     for g, pixel in pairs:
         weights, log_keep, _, _ = _pair_terms(g, pixel, packed, centres, log_t)
         per_pair = torch.stack(gather(tuple(values_t.unbind(0)), g)) * weights
@@ -156,7 +156,7 @@ def composite(order: torch.Tensor, means2d: torch.Tensor, conics: torch.Tensor,
     acc_parts, t_parts = [], []
     stored_pairs = 0
     for row0, row1 in row_bands(boxes[order], height, pair_budget):
-        centres = pixel_centres(row0, row1 - row0, width, dtype)
+        centres = pixel_centres(row0, row1 - row0, width, dtype, device=values.device)
         with torch.no_grad():
             pairs = _select_band(order, boxes, tuple(t.detach() for t in packed), centres,
                                  row0, row1, width)

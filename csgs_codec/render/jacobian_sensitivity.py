@@ -84,19 +84,21 @@ def jacobian_sensitivity(scene: GaussianScene, cameras: Sequence[Camera], *, pro
     start = time.perf_counter()
     n = len(scene)
     axis, rest = quaternion_to_smallest_three(scene.rotations)
+    device = torch.device("cpu")  # cpu: numpy scene in, numpy sensitivities out
     params = {
-        "position": torch.tensor(scene.positions, dtype=torch.float32),
-        "scale": torch.tensor(scene.scales, dtype=torch.float32),
-        "opacity": torch.tensor(scene.opacity.reshape(n, 1), dtype=torch.float32),
-        "rotation": torch.tensor(rest, dtype=torch.float32),
+        "position": torch.tensor(scene.positions, dtype=torch.float32, device=device),
+        "scale": torch.tensor(scene.scales, dtype=torch.float32, device=device),
+        "opacity": torch.tensor(scene.opacity.reshape(n, 1), dtype=torch.float32,
+                                device=device),
+        "rotation": torch.tensor(rest, dtype=torch.float32, device=device),
         "sh": torch.tensor(np.concatenate([scene.sh_dc[:, None, :], scene.sh_rest], axis=1),
-                           dtype=torch.float32),
+                           dtype=torch.float32, device=device),
     }
     for tensor in params.values():
         tensor.requires_grad_(True)
-    axis_t = torch.as_tensor(axis.astype(np.int64))
+    axis_t = torch.as_tensor(axis.astype(np.int64), device=device)
     sums = {name: np.zeros(tuple(t.shape), np.float64) for name, t in params.items()}
-    generator = torch.Generator().manual_seed(seed)
+    generator = torch.Generator(device=device).manual_seed(seed)
     for done, camera in enumerate(cameras, start=1):
         for _ in range(probes):
             quats = quaternions_from_smallest_three(axis_t, params["rotation"])
@@ -106,7 +108,7 @@ def jacobian_sensitivity(scene: GaussianScene, cameras: Sequence[Camera], *, pro
             if not image.requires_grad:  # nothing in view: every J2 of this view is 0
                 continue
             probe = torch.randint(0, 2, tuple(image.shape), generator=generator,
-                                  dtype=torch.int64).to(image.dtype) * 2 - 1
+                                  dtype=torch.int64, device=image.device).to(image.dtype) * 2 - 1
             grads = torch.autograd.grad((image * probe).sum(), list(params.values()),
                                         allow_unused=True)
             for name, grad in zip(params, grads):

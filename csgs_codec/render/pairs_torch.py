@@ -34,7 +34,7 @@ def pixel_boxes(means2d: torch.Tensor, extents: torch.Tensor, width: int,
 def row_bands(boxes: torch.Tensor, height: int, budget: int) -> list[tuple[int, int]]:
     """Split rows 0..height into bands whose pair counts stay under ``budget`` if possible."""
     widths = boxes[:, 1] - boxes[:, 0]
-    per_row_delta = torch.zeros(height + 1, dtype=torch.int64)
+    per_row_delta = torch.zeros(height + 1, dtype=torch.int64, device=boxes.device)
     per_row_delta.index_add_(0, boxes[:, 2], widths)
     per_row_delta.index_add_(0, boxes[:, 3], -widths)
     per_row = torch.cumsum(per_row_delta, 0)[:height].tolist()
@@ -64,11 +64,13 @@ def gather(columns: tuple[torch.Tensor, ...], index: torch.Tensor) -> list[torch
     return [col.index_select(0, index) for col in columns]
 
 
-def pixel_centres(row0: int, rows: int, width: int,
-                   dtype: torch.dtype) -> tuple[torch.Tensor, torch.Tensor]:
-    """Centre x [rows * W] and y [rows * W] of every pixel of a band, row-major."""
-    ys, xs = torch.meshgrid(torch.arange(row0, row0 + rows, dtype=dtype) + 0.5,
-                            torch.arange(width, dtype=dtype) + 0.5, indexing="ij")
+def pixel_centres(row0: int, rows: int, width: int, dtype: torch.dtype, *,
+                  device: torch.device) -> tuple[torch.Tensor, torch.Tensor]:
+    """Centre x [rows * W] and y [rows * W] of every pixel of a band, row-major, on
+    ``device``."""
+    ys, xs = torch.meshgrid(torch.arange(row0, row0 + rows, dtype=dtype, device=device) + 0.5,
+                            torch.arange(width, dtype=dtype, device=device) + 0.5,
+                            indexing="ij")
     return xs.flatten(), ys.flatten()
 
 
@@ -89,11 +91,13 @@ def band_pairs(order: torch.Tensor, boxes: torch.Tensor, packed: tuple[torch.Ten
     v0 = b[:, 2].clamp(min=row0)
     heights = b[:, 3].clamp(max=row1) - v0
     n_rows = int(heights.sum())
-    empty = torch.zeros(0, dtype=torch.int64)
+    device = order.device
+    empty = torch.zeros(0, dtype=torch.int64, device=device)
     if n_rows == 0:
         return empty, empty
-    owner = torch.repeat_interleave(torch.arange(sub.numel()), heights)
-    row = v0[owner] + torch.arange(n_rows) - (torch.cumsum(heights, 0) - heights)[owner]
+    owner = torch.repeat_interleave(torch.arange(sub.numel(), device=device), heights)
+    row = (v0[owner] + torch.arange(n_rows, device=device)
+           - (torch.cumsum(heights, 0) - heights)[owner])
     g = sub[owner]
     mx, my, a, bb, c, op = (col.to(torch.float64) for col in gather(packed, g))
     k = 2.0 * torch.log(torch.clamp(op / ALPHA_THRESHOLD, min=1.0))
@@ -110,9 +114,9 @@ def band_pairs(order: torch.Tensor, boxes: torch.Tensor, packed: tuple[torch.Ten
     total = int(widths.sum())
     if total == 0:
         return empty, empty
-    owner = torch.repeat_interleave(torch.arange(n_rows), widths)
+    owner = torch.repeat_interleave(torch.arange(n_rows, device=device), widths)
     start = (row - row0) * width + lo - (torch.cumsum(widths, 0) - widths)
-    pixel = start[owner] + torch.arange(total)
+    pixel = start[owner] + torch.arange(total, device=device)
     g = g.index_select(0, owner)
     if done is not None:
         open_pair = ~done.index_select(0, pixel)
@@ -145,7 +149,7 @@ def still_open(gaussians: torch.Tensor, boxes: torch.Tensor, done: torch.Tensor,
     summed-area table answers each box with four lookups.
     """
     rows = done.numel() // width
-    table = torch.zeros(rows + 1, width + 1, dtype=torch.int64)
+    table = torch.zeros(rows + 1, width + 1, dtype=torch.int64, device=done.device)
     table[1:, 1:] = torch.cumsum(torch.cumsum((~done).reshape(rows, width).to(torch.int64),
                                               0), 1)
     b = boxes[gaussians]

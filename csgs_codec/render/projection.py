@@ -80,9 +80,10 @@ def quaternions_from_smallest_three(axis: torch.Tensor, rest: torch.Tensor) -> t
     c = rest / math.sqrt(2.0)
     big = torch.sqrt(torch.clamp(1 - (c * c).sum(1), min=1e-12))
     n = rest.shape[0]
-    columns = torch.arange(4)[None, :].expand(n, 4)
+    columns = torch.arange(4, device=axis.device)[None, :].expand(n, 4)
     others = columns[columns != axis[:, None]].reshape(n, 3)
-    out = torch.zeros((n, 4), dtype=rest.dtype).scatter(1, axis[:, None], big[:, None])
+    out = torch.zeros((n, 4), dtype=rest.dtype, device=rest.device).scatter(
+        1, axis[:, None], big[:, None])
     return out.scatter(1, others, c)
 
 

@@ -1,4 +1,4 @@
-"""The differentiable reference rasterizer (pure torch, on CPU tensors).
+"""The differentiable reference rasterizer (pure torch, on the device of its inputs).
 
 Use :func:`rasterize_gaussians` for training: every output is differentiable with respect to
 means, log-scales, quaternions, opacity logits, SH coefficients (or colors) and features.
@@ -130,8 +130,8 @@ def rasterize_gaussians(means: torch.Tensor, log_scales: torch.Tensor, quats: to
     order = depth_order(proj.depths, proj.visible)
     acc, transmittance = composite(order, proj.means2d, proj.conics, proj.opacities,
                                    proj.extents, values, camera.width, camera.height)
-    bg = torch.zeros(3, dtype=dtype) if background is None else torch.as_tensor(background,
-                                                                               dtype=dtype)
+    bg = (torch.zeros(3, dtype=dtype, device=means.device) if background is None
+          else torch.as_tensor(background, dtype=dtype, device=means.device))
     image = acc[..., :3] + transmittance[..., None] * bg
     alpha = 1.0 - transmittance
     has_alpha = alpha > 0

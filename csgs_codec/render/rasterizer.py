@@ -128,7 +128,8 @@ def render(scene: GaussianScene, camera: Camera, *,
     _check_inputs(scene, camera, features, background)
     chosen = resolve_backend(backend)
     tensors = scene_tensors(scene)
-    feats = None if features is None else torch.as_tensor(np.asarray(features, np.float32))
+    feats = None if features is None else torch.as_tensor(np.asarray(features, np.float32),
+                                                         device=tensors["means"].device)
     if chosen == "gsplat":
         return rasterize_gsplat(**tensors, camera=camera, features=feats,
                                 background=background, near_plane=camera.near_plane)

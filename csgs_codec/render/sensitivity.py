@@ -79,7 +79,7 @@ def blend_sensitivity(scene: GaussianScene, cameras: list[Camera],
     weight_sum = np.zeros(n, np.float64)
     tensors = scene_tensors(scene)
     # Color does not change where a Gaussian lands or its weights: DC alone is enough.
-    colors = torch.zeros((n, 3), dtype=tensors["means"].dtype)
+    colors = torch.zeros((n, 3), dtype=tensors["means"].dtype, device=tensors["means"].device)
     for done, camera in enumerate(cameras, start=1):
         with torch.no_grad():
             prepared = prepare_gaussians(tensors["means"], tensors["log_scales"],

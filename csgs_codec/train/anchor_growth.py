@@ -31,6 +31,9 @@ from csgs_codec.model.scaffold import NeuralGaussians
 from csgs_codec.scene.camera import Camera
 from csgs_codec.train.anchor_model import AnchorModel
 
+#: Where :class:`GrowthStats` accumulate, whatever the training device.
+STATS_DEVICE = torch.device("cpu")  # cpu: CUDA's index_add_ is not deterministic
+
 
 def view_counts(positions: np.ndarray, cameras: list[Camera]) -> np.ndarray:
     """(M,) int64 number of ``cameras`` whose image holds each (M, 3) position (in front of
@@ -51,8 +54,9 @@ def view_counts(positions: np.ndarray, cameras: list[Camera]) -> np.ndarray:
 
 @dataclass
 class GrowthStats:
-    """Accumulators of one growth interval (module notes), float64/int64 on the CPU whatever
-    the training device (CUDA's index_add_ is not deterministic).
+    """Accumulators of one growth interval (module notes), float64/int64 on
+    :data:`STATS_DEVICE` (the CPU) whatever the training device (CUDA's index_add_ is not
+    deterministic).
 
     Attributes:
         grad_sum: (M * K,) summed screen-space gradient norms of each slot's centre, in loss
@@ -71,31 +75,34 @@ class GrowthStats:
     def empty(cls, anchors: int, n_offsets: int) -> GrowthStats:
         """Zeroed accumulators for ``anchors`` anchors of ``n_offsets`` slots."""
         slots = anchors * n_offsets
-        return cls(torch.zeros(slots, dtype=torch.float64), torch.zeros(slots, dtype=torch.int64),
-                   torch.zeros(anchors, dtype=torch.float64),
-                   torch.zeros(anchors, dtype=torch.int64))
+        return cls(torch.zeros(slots, dtype=torch.float64, device=STATS_DEVICE),
+                   torch.zeros(slots, dtype=torch.int64, device=STATS_DEVICE),
+                   torch.zeros(anchors, dtype=torch.float64, device=STATS_DEVICE),
+                   torch.zeros(anchors, dtype=torch.int64, device=STATS_DEVICE))
 
     def record(self, gaussians: NeuralGaussians, camera: Camera, n_offsets: int,
                seen: np.ndarray) -> None:
         """Add one view: ``gaussians.positions.grad`` must hold dL/d(centre) (N, 3);
         ``seen`` (M,) bool anchors inside the view."""
         with torch.no_grad():
+            device = self.visits.device
             grad = gaussians.positions.grad
-            anchors = gaussians.anchor_index.cpu()
-            slots = anchors * n_offsets + gaussians.offset_index.cpu()
-            visible = torch.from_numpy(np.asarray(seen, bool))[anchors]
+            anchors = gaussians.anchor_index.to(device)
+            slots = anchors * n_offsets + gaussians.offset_index.to(device)
+            visible = torch.as_tensor(np.asarray(seen, bool), device=device)[anchors]
             if grad is not None and bool(visible.any()):
-                positions = gaussians.positions.detach().cpu().double()
-                depth = (positions @ torch.from_numpy(camera.world_to_camera[:3, :3]).T
-                         + torch.from_numpy(camera.world_to_camera[:3, 3]))[:, 2].abs()
+                positions = gaussians.positions.detach().to(device).double()
+                w2c = torch.as_tensor(camera.world_to_camera, device=device)
+                depth = (positions @ w2c[:3, :3].T + w2c[:3, 3])[:, 2].abs()
                 # |dL/d pixel| ~ |dL/d centre| * z / f for motion across the image plane.
-                pixel_grad = grad.detach().cpu().double().norm(dim=1) * depth / camera.fx
+                pixel_grad = grad.detach().to(device).double().norm(dim=1) * depth / camera.fx
                 self.grad_sum.index_add_(0, slots[visible], pixel_grad[visible])
                 self.grad_count.index_add_(0, slots[visible],
-                                           torch.ones(int(visible.sum()), dtype=torch.int64))
+                                           torch.ones(int(visible.sum()), dtype=torch.int64,
+                                                      device=device))
             self.opacity_sum.index_add_(0, anchors,
-                                        gaussians.opacities.detach().cpu().double())
-            self.visits += torch.from_numpy(np.asarray(seen).astype(np.int64))
+                                        gaussians.opacities.detach().to(device).double())
+            self.visits += torch.as_tensor(np.asarray(seen).astype(np.int64), device=device)
 
 
 def grow_and_prune(model: AnchorModel, stats: GrowthStats, *, grow_fraction: float,
@@ -111,7 +118,7 @@ def grow_and_prune(model: AnchorModel, stats: GrowthStats, *, grow_fraction: flo
     m, k = model.count, model.n_offsets
     seen_slots = stats.grad_count > 0
     grown_cells = np.zeros((0, 3), np.int64)
-    parents = torch.zeros(0, dtype=torch.int64)
+    parents = torch.zeros(0, dtype=torch.int64, device=stats.grad_count.device)
     room = max_anchors - m
     if bool(seen_slots.any()) and room > 0 and grow_fraction > 0:
         mean_grad = torch.where(seen_slots, stats.grad_sum / stats.grad_count.clamp_min(1), 0.0)
@@ -128,7 +135,8 @@ def grow_and_prune(model: AnchorModel, stats: GrowthStats, *, grow_fraction: flo
         cells = model.grid.cells_of(centres)
         if accept is not None and len(cells):
             allowed = np.asarray(accept(model.grid.centres(cells)), bool)
-            cells, candidates = cells[allowed], candidates[torch.from_numpy(allowed)]
+            cells = cells[allowed]
+            candidates = candidates[torch.as_tensor(allowed, device=candidates.device)]
         existing = {tuple(c) for c in model.cells.cpu().numpy().tolist()}
         chosen, chosen_parents = [], []
         for cell, slot in zip(cells.tolist(), candidates.tolist()):
@@ -142,7 +150,8 @@ def grow_and_prune(model: AnchorModel, stats: GrowthStats, *, grow_fraction: flo
                 break
         if chosen:
             grown_cells = np.asarray(chosen, np.int64)
-            parents = torch.as_tensor(chosen_parents, dtype=torch.int64)
+            parents = torch.as_tensor(chosen_parents, dtype=torch.int64,
+                                      device=candidates.device)
     prune = prune_mask(stats, min_opacity)
     pruned = int(prune.sum())
     if pruned or len(grown_cells):

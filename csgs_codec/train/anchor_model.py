@@ -32,6 +32,10 @@ INITIAL_MASK_LOGIT = 1.0
 INITIAL_OFFSET_SPREAD = 0.5
 #: Opacities are clamped into [eps, 1 - eps] before the logit the rasterizer takes.
 OPACITY_EPS = 1e-6
+#: Seeded initial values (MLP weights, offsets) are drawn here, then moved to the model's
+#: device: a seed gives the same starting anchors on every device, and the offset generator's
+#: state, which checkpoints keep, carries over between devices.
+INIT_DEVICE = torch.device("cpu")  # cpu: seeded initial values equal on every device
 
 
 @dataclass(frozen=True)
@@ -94,35 +98,40 @@ class AnchorModel(nn.Module):
         initial_log_scale: the initial anchors' log scaling (default: log of the voxel; stage
             1 starts coarse anchors on a finer grid, so that growth can add anchors between
             them, and gives them the coarse voxel's scale). Grown anchors get the grid's.
+        device: where the parameters and buffers live (random initial values are drawn on
+            :data:`INIT_DEVICE` first, so they do not depend on it).
     """
 
     def __init__(self, cells: np.ndarray, grid: AnchorGrid, *, feat_dim: int = 32,
-                 n_offsets: int = 10, seed: int = 0,
-                 initial_log_scale: float | None = None) -> None:
+                 n_offsets: int = 10, seed: int = 0, initial_log_scale: float | None = None,
+                 device: torch.device | str = "cpu") -> None:
         super().__init__()
         if len(cells) == 0:
             raise InputError("stage 1 needs at least one anchor", property="anchors")
         self.grid = grid
         self.feat_dim, self.n_offsets = feat_dim, n_offsets
-        generator = torch.Generator().manual_seed(seed)
+        generator = torch.Generator(device=INIT_DEVICE).manual_seed(seed)
         # nn.Linear initialisation draws from the global generator: seed it inside a fork so
         # the caller's random state is left alone.
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(seed)
-            self.mlps = ScaffoldMLPs(feat_dim, n_offsets)
+            self.mlps = ScaffoldMLPs(feat_dim, n_offsets, device=INIT_DEVICE).to(device)
         m = len(cells)
-        self.register_buffer("cells", torch.from_numpy(np.asarray(cells, np.int64)))
-        self.register_buffer("positions", torch.from_numpy(grid.centres(cells)))
-        self.features = nn.Parameter(torch.zeros(m, feat_dim))
-        self.offsets = nn.Parameter(self._initial_offsets(m, generator))
+        self.register_buffer("cells", torch.as_tensor(np.asarray(cells, np.int64),
+                                                      device=device))
+        self.register_buffer("positions", torch.as_tensor(grid.centres(cells), device=device))
+        self.features = nn.Parameter(torch.zeros(m, feat_dim, device=device))
+        self.offsets = nn.Parameter(self._initial_offsets(m, generator).to(device))
         log_scale = math.log(grid.voxel) if initial_log_scale is None else initial_log_scale
-        self.scaling = nn.Parameter(torch.full((m, 6), float(log_scale)))
-        self.mask_logits = nn.Parameter(torch.full((m, n_offsets), INITIAL_MASK_LOGIT))
+        self.scaling = nn.Parameter(torch.full((m, 6), float(log_scale), device=device))
+        self.mask_logits = nn.Parameter(torch.full((m, n_offsets), INITIAL_MASK_LOGIT,
+                                                   device=device))
         self.generator = generator
 
     def _initial_offsets(self, m: int, generator: torch.Generator) -> torch.Tensor:
-        return (torch.rand(m, self.n_offsets, 3, generator=generator) * 2 - 1) \
-            * INITIAL_OFFSET_SPREAD
+        """(m, K, 3) random initial offsets, on ``generator``'s device."""
+        return (torch.rand(m, self.n_offsets, 3, generator=generator,
+                           device=generator.device) * 2 - 1) * INITIAL_OFFSET_SPREAD
 
     @property
     def count(self) -> int:
@@ -179,20 +188,22 @@ class AnchorModel(nn.Module):
         (``parents`` (A,) int64 indices into the current anchors) as Scaffold-GS grows."""
         with torch.no_grad():
             a = len(new_cells)
+            device = self.positions.device
             additions = {
                 "features": self.features[parents.to(self.features.device)].clone(),
                 "offsets": self._initial_offsets(a, self.generator),
-                "scaling": torch.full((a, 6), math.log(self.grid.voxel)),
-                "mask_logits": torch.full((a, self.n_offsets), INITIAL_MASK_LOGIT),
+                "scaling": torch.full((a, 6), math.log(self.grid.voxel), device=device),
+                "mask_logits": torch.full((a, self.n_offsets), INITIAL_MASK_LOGIT,
+                                          device=device),
             }
-            device = self.positions.device
+            keep = keep.to(device)
             for name, tensor in self.anchor_tensors().items():
                 addition = additions[name].to(device=device, dtype=tensor.dtype)
                 setattr(self, name, nn.Parameter(torch.cat([tensor.detach()[keep], addition])))
-            cells = torch.cat([self.cells.cpu()[keep.cpu()],
-                               torch.from_numpy(new_cells.astype(np.int64))])
-            self.cells = cells.to(device)
-            self.positions = torch.from_numpy(self.grid.centres(cells.numpy())).to(device)
+            self.cells = torch.cat([self.cells[keep],
+                                    torch.as_tensor(new_cells.astype(np.int64), device=device)])
+            self.positions = torch.as_tensor(self.grid.centres(self.cells.cpu().numpy()),
+                                             device=device)
 
     def to_anchor_scene(self) -> AnchorScene:
         """The trained anchors as an :class:`AnchorScene` (masks hardened, MLP weights

@@ -53,11 +53,13 @@ class RateEstimate:
 
 
 def cell_embedding(cells: torch.Tensor) -> torch.Tensor:
-    """(M, 6L) float32 embedding of (M, 3) int64 cells, shifted to start at 0."""
+    """(M, 6L) float32 embedding of (M, 3) int64 cells, shifted to start at 0, on the cells'
+    device."""
     c = cells.cpu().numpy()
     c = c - c.min(axis=0) if len(c) else c
     bits = max(int(c.max()).bit_length(), 1) if c.size else 1
-    return float_embedding(c.astype(np.int64), bits, min(EMBEDDING_OCTAVES, max(bits - 1, 1)))
+    return float_embedding(c.astype(np.int64), bits, min(EMBEDDING_OCTAVES, max(bits - 1, 1)),
+                           cells.device)
 
 
 class AnchorRateModel(nn.Module):
@@ -67,21 +69,24 @@ class AnchorRateModel(nn.Module):
         feat_dim: F; n_offsets: K; groups: CARM feature groups (1: none).
         steps: attribute name -> quantization step, value units.
         hidden: width of the hidden layers.
+        device: where the parameters are made.
     """
 
     def __init__(self, feat_dim: int, n_offsets: int, steps: dict[str, float], *,
-                 groups: int = 5, hidden: int = 32) -> None:
+                 groups: int = 5, hidden: int = 32,
+                 device: torch.device | str = "cpu") -> None:
         super().__init__()
         self.widths = {"features": feat_dim, "offsets": 3 * n_offsets, "scaling": 6}
         self.steps = {name: float(steps[name]) for name in ATTRIBUTES}
         in_width = 6 * EMBEDDING_OCTAVES
         out = 2 * sum(self.widths.values())
-        self.hyper = nn.Sequential(nn.Linear(in_width, hidden), nn.ReLU(),
-                                   nn.Linear(hidden, hidden), nn.ReLU(), nn.Linear(hidden, out))
+        self.hyper = nn.Sequential(nn.Linear(in_width, hidden, device=device), nn.ReLU(),
+                                   nn.Linear(hidden, hidden, device=device), nn.ReLU(),
+                                   nn.Linear(hidden, out, device=device))
         self.bounds = group_bounds(feat_dim, max(1, min(groups, feat_dim)))
         self.carm = nn.ModuleList(
-            nn.Sequential(nn.Linear(start, hidden // 2), nn.ReLU(),
-                          nn.Linear(hidden // 2, 2 * (end - start)))
+            nn.Sequential(nn.Linear(start, hidden // 2, device=device), nn.ReLU(),
+                          nn.Linear(hidden // 2, 2 * (end - start), device=device))
             for start, end in self.bounds[1:])
 
     def _embedding(self, cells: torch.Tensor) -> torch.Tensor:

@@ -38,7 +38,8 @@ def save_checkpoint(state: ColorStageState, path: str | Path) -> None:
         "format": CHECKPOINT_FORMAT,
         "settings": settings,
         "step": state.step,
-        "grid_origin": torch.from_numpy(np.asarray(state.model.grid.origin, np.float64)),
+        "grid_origin": torch.as_tensor(np.asarray(state.model.grid.origin, np.float64),
+                                       device="cpu"),  # cpu: checkpoints hold CPU tensors
         "grid_voxel": float(state.model.grid.voxel),
         "model": {k: v.detach().cpu() for k, v in state.model.state_dict().items()},
         "rate_model": {k: v.detach().cpu() for k, v in state.rate_model.state_dict().items()},
@@ -102,12 +103,13 @@ def _state_from(document: dict, device: str | None) -> ColorStageState:
     grid = AnchorGrid(document["grid_origin"].numpy(), float(document["grid_voxel"]))
     weights = document["model"]
     model = AnchorModel(weights["cells"].numpy(), grid, feat_dim=settings.feat_dim,
-                        n_offsets=settings.n_offsets, seed=settings.seed)
+                        n_offsets=settings.n_offsets, seed=settings.seed,
+                        device=settings.device)
     model.load_state_dict(weights)
-    rate_model = AnchorRateModel(settings.feat_dim, settings.n_offsets, settings.steps())
+    rate_model = AnchorRateModel(settings.feat_dim, settings.n_offsets, settings.steps(),
+                                 device=settings.device)
     rate_model.load_state_dict(document["rate_model"])
-    state = ColorStageState(model.to(settings.device), rate_model.to(settings.device), settings,
-                            step=int(document["step"]))
+    state = ColorStageState(model, rate_model, settings, step=int(document["step"]))
     make_optimizers(state)
     state.anchor_optimizer.load_state_dict(document["anchor_optimizer"])
     state.shared_optimizer.load_state_dict(document["shared_optimizer"])

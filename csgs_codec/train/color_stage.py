@@ -38,7 +38,7 @@ from csgs_codec.train.anchor_growth import (
     prune_mask,
     view_counts,
 )
-from csgs_codec.train.anchor_model import AnchorGrid, AnchorModel, grid_for_points
+from csgs_codec.train.anchor_model import INIT_DEVICE, AnchorGrid, AnchorModel, grid_for_points
 from csgs_codec.train.anchor_rate import AnchorRateModel
 from csgs_codec.train.losses import photometric_loss
 from csgs_codec.train.quantization import add_quantization_noise
@@ -174,10 +174,17 @@ class StageProgress:
     anchors: int
 
 
+def _order_generator() -> torch.Generator:
+    """A generator for the view order: on the CPU, so the order is the same on every device
+    and a checkpoint's generator state resumes on any."""
+    return torch.Generator(device="cpu")  # cpu: the view order is the same on every device
+
+
 @dataclass
 class ColorStageState:
     """Everything stage 1 needs to continue: the model, its rate model, optimisers, the
-    random generators and the step reached (checkpoints save and restore this)."""
+    random generators and the step reached (checkpoints save and restore this). The noise
+    generator must live on the training device (:func:`initial_state` puts it there)."""
 
     model: AnchorModel
     rate_model: AnchorRateModel
@@ -185,8 +192,8 @@ class ColorStageState:
     step: int = 0
     anchor_optimizer: torch.optim.Optimizer | None = None
     shared_optimizer: torch.optim.Optimizer | None = None
-    view_generator: torch.Generator = field(default_factory=torch.Generator)
-    noise_generator: torch.Generator = field(default_factory=torch.Generator)
+    view_generator: torch.Generator = field(default_factory=_order_generator)
+    noise_generator: torch.Generator = field(default_factory=_order_generator)
     order: list[int] = field(default_factory=list)
     stats: GrowthStats | None = None
     history: dict[str, list[float]] = field(default_factory=lambda: {
@@ -217,11 +224,13 @@ def initial_state(views: list[TrainingView], points: np.ndarray,
     grid = AnchorGrid(coarse.origin, coarse.voxel / refine)
     model = AnchorModel(cells[seen] * refine, grid, feat_dim=settings.feat_dim,
                         n_offsets=settings.n_offsets, seed=settings.seed,
-                        initial_log_scale=math.log(coarse.voxel))
+                        initial_log_scale=math.log(coarse.voxel), device=settings.device)
     with torch.random.fork_rng(devices=[]):  # seeded initial weights, caller's RNG untouched
         torch.manual_seed(settings.seed + 3)
-        rate_model = AnchorRateModel(settings.feat_dim, settings.n_offsets, settings.steps())
-    state = ColorStageState(model.to(settings.device), rate_model.to(settings.device), settings)
+        # Drawn on INIT_DEVICE, then moved: the same initial weights on every device.
+        rate_model = AnchorRateModel(settings.feat_dim, settings.n_offsets, settings.steps(),
+                                     device=INIT_DEVICE)
+    state = ColorStageState(model, rate_model.to(settings.device), settings)
     state.view_names = [view.name for view in views]
     state.view_generator.manual_seed(settings.seed + 1)
     state.noise_generator = torch.Generator(device=settings.device).manual_seed(
@@ -279,7 +288,9 @@ def _set_learning_rates(state: ColorStageState) -> None:
 
 def _next_view(state: ColorStageState, count: int) -> int:
     if not state.order:
-        state.order = torch.randperm(count, generator=state.view_generator).tolist()
+        generator = state.view_generator
+        state.order = torch.randperm(count, generator=generator,
+                                     device=generator.device).tolist()
     return state.order.pop()
 
 
@@ -323,7 +334,7 @@ def _train_steps(views: list[TrainingView], state: ColorStageState,
                          "views this stage-1 state was trained on (a checkpoint resumes only "
                          "with the same dataset and options)", property="views")
     device = torch.device(s.device)
-    targets = [torch.from_numpy(v.image).to(device) for v in views]
+    targets = [torch.as_tensor(v.image, device=device) for v in views]
     seen_cache: dict[int, np.ndarray] = {}
     began = time.perf_counter()
     end = s.iterations if stop_at is None else min(stop_at, s.iterations)

@@ -19,12 +19,14 @@ class FactorizedGaussianPrior(nn.Module):
     Args:
         dim: number of channels D.
         sigma: initial sigma of every channel, in quantization steps.
+        device: where the parameters are made.
     """
 
-    def __init__(self, dim: int, sigma: float = 2.0) -> None:
+    def __init__(self, dim: int, sigma: float = 2.0, *,
+                 device: torch.device | str = "cpu") -> None:
         super().__init__()
-        self.mean = nn.Parameter(torch.zeros(dim))
-        self.log_sigma = nn.Parameter(torch.full((dim,), float(sigma)).log())
+        self.mean = nn.Parameter(torch.zeros(dim, device=device))
+        self.log_sigma = nn.Parameter(torch.full((dim,), float(sigma), device=device).log())
 
     def forward(self, features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """(mean, sigma), each [G, D] like ``features`` [G, D] (broadcast from the channels)."""

@@ -106,13 +106,15 @@ class TrainResult:
 
 class PositionalFeaturePrior(nn.Module):
     """Stage 3's rate model of s: an MLP on each anchor's cell embedding predicting a mean and
-    sigma per channel (the "second hyperprior"), in quantization steps."""
+    sigma per channel (the "second hyperprior"), in quantization steps. Its parameters are
+    made on the device of ``cells``."""
 
     def __init__(self, cells: torch.Tensor, dim: int, hidden: int = 32) -> None:
         super().__init__()
+        device = cells.device
         self.register_buffer("embedding", cell_embedding(cells))
-        self.net = nn.Sequential(nn.Linear(self.embedding.shape[1], hidden), nn.ReLU(),
-                                 nn.Linear(hidden, 2 * dim))
+        self.net = nn.Sequential(nn.Linear(self.embedding.shape[1], hidden, device=device),
+                                 nn.ReLU(), nn.Linear(hidden, 2 * dim, device=device))
         self.dim = dim
 
     def forward(self, features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -230,7 +232,8 @@ def _semantic_steps(views: list[TrainingView], color: AnchorEncodeResult,
         decoded = decoder.decode(view.camera.position)
         matrix = contribution_matrix(decoded.gaussians, view.camera, decoded.anchor_index,
                                      group_count=m)
-        prepared.append(SemanticView(matrix, torch.from_numpy(view.mask.astype(np.int64))))
+        prepared.append(SemanticView(matrix, torch.as_tensor(view.mask.astype(np.int64),
+                                                             device=matrix.device)))
     device = settings.color.device
     seed = settings.color.seed
     base = ANCHOR_BASE_STEPS["f"] * MULTIPLIERS[settings.color.quality]
@@ -241,8 +244,9 @@ def _semantic_steps(views: list[TrainingView], color: AnchorEncodeResult,
                                      device=device, step_range=step_range,
                                      margin=settings.contrastive_margin)
     if settings.stage3_iterations > 0:
-        cells = torch.from_numpy(np.rint((scene.positions - scene.positions.min(axis=0))
-                                         / _voxel(scene)).astype(np.int64))
+        cells = torch.as_tensor(np.rint((scene.positions - scene.positions.min(axis=0))
+                                        / _voxel(scene)).astype(np.int64),
+                                device="cpu")  # cpu: seeded prior weights equal on every device
         with torch.random.fork_rng(devices=[]):  # seeded weights, caller's RNG untouched
             torch.manual_seed(seed + 4)
             prior = PositionalFeaturePrior(cells, settings.semantic_dim)

@@ -97,13 +97,16 @@ def quality_aware_weights(color_steps: torch.Tensor | np.ndarray,
             that range, log scale; None: min-max over the anchors.
 
     Returns:
-        (N,) weights in [0, 1], no gradient (the steps are fixed by stage 1); dtype float32
-        for numpy input, else the input's.
+        (N,) weights in [0, 1], no gradient (the steps are fixed by stage 1), on the input
+        tensor's device (the CPU for numpy input); dtype float32 for numpy input, else the
+        input's.
 
     Raises:
         InputError: a step that is not finite.
     """
-    steps = torch.as_tensor(color_steps).detach()
+    device = (color_steps.device if torch.is_tensor(color_steps)
+              else torch.device("cpu"))  # cpu: numpy steps are in host memory
+    steps = torch.as_tensor(color_steps, device=device).detach()
     if not steps.dtype.is_floating_point:
         steps = steps.to(torch.float32)
     if steps.ndim != 1:

@@ -54,7 +54,7 @@ class SemanticView:
     Attributes:
         contributions: sparse COO (H * W, G) float32, the summed alpha * T of each group's
             Gaussians at each pixel (row-major pixels).
-        mask: (H, W) int64 instance ids.
+        mask: (H, W) int64 instance ids (any device: training moves both to its own).
     """
 
     contributions: torch.Tensor
@@ -83,7 +83,8 @@ class SemanticResult:
 def contribution_matrix(scene: GaussianScene, camera: Camera, groups: np.ndarray | None = None,
                         *, group_count: int | None = None, chunk: int = 128,
                         backend: str = "auto") -> torch.Tensor:
-    """Sparse (H * W, G) float32 matrix of each group's rendered weight at each pixel.
+    """Sparse (H * W, G) float32 matrix of each group's rendered weight at each pixel, on the
+    CPU (the renders it sums are numpy arrays).
 
     Rendering a feature map of the scene with per-Gaussian features v gives
     ``(contributions @ v_groups).reshape(H, W, D)`` when Gaussians of a group share v.
@@ -122,11 +123,14 @@ def contribution_matrix(scene: GaussianScene, camera: Camera, groups: np.ndarray
         rows.append(pixel)
         cols.append(column + start)
         values.append(weights[pixel, column])
-    indices = torch.from_numpy(np.stack([np.concatenate(rows), np.concatenate(cols)])
-                               if rows else np.zeros((2, 0), np.int64)).to(torch.int64)
-    data = torch.from_numpy(np.concatenate(values) if values else np.zeros(0, np.float32))
+    host = torch.device("cpu")  # cpu: built from numpy renders; training moves it
+    indices = torch.as_tensor(np.stack([np.concatenate(rows), np.concatenate(cols)])
+                              if rows else np.zeros((2, 0), np.int64), device=host)
+    indices = indices.to(torch.int64)
+    data = torch.as_tensor(np.concatenate(values) if values else np.zeros(0, np.float32),
+                           device=host)
     return torch.sparse_coo_tensor(indices, data, (camera.width * camera.height, count),
-                                   check_invariants=True).coalesce()
+                                   check_invariants=True, device=host).coalesce()
 
 
 def prepare_semantic_views(scene: GaussianScene, views: list[TrainingView],
@@ -149,7 +153,8 @@ def prepare_semantic_views(scene: GaussianScene, views: list[TrainingView],
                              file=view.name or None, index=i, property="mask")
         matrix = contribution_matrix(scene, view.camera, groups, group_count=group_count,
                                      backend=backend)
-        prepared.append(SemanticView(matrix, torch.from_numpy(view.mask.astype(np.int64))))
+        prepared.append(SemanticView(matrix, torch.as_tensor(view.mask.astype(np.int64),
+                                                             device=matrix.device)))
     return prepared
 
 
@@ -209,25 +214,28 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
                              "groups", index=i, property="contributions")
         partitions.append(MaskPartition.from_mask(view.mask.to(device), ignore_id))
     matrices = [view.contributions.to(device) for view in views]
-    weights = (torch.ones(group_count) if color_steps is None
+    weights = (torch.ones(group_count, device=device) if color_steps is None
                else quality_aware_weights(np.asarray(color_steps, np.float32),
                                              step_range=step_range))
     if weights.shape != (group_count,):
         raise InputError(f"color_steps must be ({group_count},)", property="color_steps")
     weights = weights.to(device)
     # The initial features come from a CPU generator so every device starts from the same s.
-    start = initial_scale * torch.randn(group_count, dim,
-                                        generator=torch.Generator().manual_seed(seed))
+    initial_generator = torch.Generator(device="cpu")  # cpu: the same s on every device
+    initial_generator.manual_seed(seed)
+    start = initial_scale * torch.randn(group_count, dim, generator=initial_generator,
+                                        device=initial_generator.device)
     if initial_features is not None:
         initial = np.asarray(initial_features, np.float32)
         if initial.shape != (group_count, dim) or not np.isfinite(initial).all():
             raise InputError(f"initial features must be finite ({group_count}, {dim}), got "
                              f"{initial.shape}", property="initial_features")
-        start = torch.from_numpy(initial.copy())
+        # A copy: training updates it in place, and the caller's array must stay as it is.
+        start = torch.as_tensor(initial.copy(), device=device)
     features = start.to(device).requires_grad_(True)
     generator = torch.Generator(device=device).manual_seed(seed + 1)
     if rate_model is None and rate_weight > 0:
-        rate_model = FactorizedGaussianPrior(dim)
+        rate_model = FactorizedGaussianPrior(dim, device=device)
     if rate_model is not None and not noise_step > 0:
         raise InputError("the rate term needs a quantization step noise_step > 0",
                          property="noise_step")
