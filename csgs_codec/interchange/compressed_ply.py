@@ -61,6 +61,8 @@ def parse_compressed_ply(data: bytes, source: str = "<bytes>"
     for el in header.elements:
         if el.has_list:
             raise raw.error(f"element '{el.name}' has list properties", offset=offset)
+        if not el.properties:
+            raise raw.error(f"element '{el.name}' has no properties", offset=offset)
         raw.need(offset, el.count * el.row_bytes, f"element '{el.name}' ({el.count} rows)")
         rows = np.frombuffer(data, el.dtype("<"), count=el.count, offset=offset)
         columns[el.name] = rows

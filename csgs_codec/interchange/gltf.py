@@ -34,6 +34,7 @@ from csgs_codec.interchange.binary import (
 )
 from csgs_codec.interchange.source import SceneSource
 from csgs_codec.scene.gaussian_scene import GaussianScene
+from csgs_codec.untrusted import load_json
 
 GLB_MAGIC = b"glTF"
 JSON_CHUNK = 0x4E4F534A
@@ -150,10 +151,8 @@ def parse_glb(data: bytes, source: str = "<bytes>") -> tuple[GaussianScene, Scen
     if kind != JSON_CHUNK or json_length > MAX_JSON_BYTES:
         raise raw.error("the first chunk is not a JSON chunk of a sane size", offset=12)
     raw.need(20, json_length, "the JSON chunk")
-    try:
-        document = json.loads(data[20:20 + json_length])
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise raw.error(f"the JSON chunk is not JSON ({exc})", offset=20) from None
+    document = load_json(data[20:20 + json_length], file=source, what="the JSON chunk",
+                         offset=20)
     at = 20 + json_length
     binary, binary_offset = b"", at + 8
     if at < len(data):
@@ -169,30 +168,57 @@ def parse_glb(data: bytes, source: str = "<bytes>") -> tuple[GaussianScene, Scen
                               lossy=reader.lossy)
 
 
+def _is_int(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
 class _Document:
+    """The parsed glTF JSON with the GLB's binary chunk: every field is checked for its JSON
+    type before use, so a malformed document is an InputError naming the field."""
+
     def __init__(self, document, binary: bytes, binary_offset: int, raw: Bytes) -> None:
         if not isinstance(document, dict):
             raise raw.error("the JSON chunk is not an object", offset=20)
         self.doc, self.binary, self.binary_offset, self.raw = document, binary, binary_offset, raw
         self.lossy = False
-        used = set(document.get("extensionsRequired", []) or [])
-        unknown = used - {EXTENSION}
+        required = document.get("extensionsRequired", []) or []
+        if not isinstance(required, list) or not all(isinstance(e, str) for e in required):
+            raise raw.error("expected a list of extension names", property="extensionsRequired")
+        unknown = set(required) - {EXTENSION}
         if unknown:
             raise UnsupportedError(f"required glTF extensions {sorted(unknown)}",
                                    file=raw.source, property="extensionsRequired")
 
-    def _list(self, key: str) -> list:
-        value = self.doc.get(key, [])
+    def _list(self, key: str, node: dict | None = None, name: str | None = None) -> list:
+        """``node[key]`` (default: the document's), [] when absent; InputError unless a list."""
+        value = (self.doc if node is None else node).get(key, [])
         if not isinstance(value, list):
-            raise self.raw.error("expected a list", property=key)
+            raise self.raw.error("expected a list", property=name or key)
+        return value
+
+    def _item(self, key: str, index, name: str) -> dict:
+        """Object ``index`` of the document's list ``key``; InputError naming ``name``."""
+        items = self._list(key)
+        if not _is_int(index) or not 0 <= index < len(items):
+            raise self.raw.error(f"{key}[{index!r}] does not exist", property=name)
+        if not isinstance(items[index], dict):
+            raise self.raw.error(f"{key}[{index}] is not an object", property=name)
+        return items[index]
+
+    def _size(self, node: dict, key: str, name: str, default: int | None = 0) -> int:
+        """The non-negative integer ``node[key]`` (``default`` when absent)."""
+        value = node.get(key, default)
+        if not _is_int(value) or value < 0:
+            raise self.raw.error(f"{key} {value!r} is not a non-negative integer", property=name)
         return value
 
     def primitive(self) -> dict:
         for m, mesh in enumerate(self._list("meshes")):
-            for p, primitive in enumerate(mesh.get("primitives", []) if isinstance(mesh, dict)
-                                          else []):
-                if isinstance(primitive, dict) and EXTENSION in (primitive.get("extensions")
-                                                                 or {}):
+            if not isinstance(mesh, dict):
+                continue
+            for p, primitive in enumerate(self._list("primitives", mesh, f"meshes[{m}]")):
+                extensions = primitive.get("extensions") if isinstance(primitive, dict) else None
+                if isinstance(extensions, dict) and EXTENSION in extensions:
                     if primitive.get("mode", 4) != 0:
                         raise self.raw.error("a KHR_gaussian_splatting primitive must have mode "
                                              "POINTS (0)", property=f"meshes[{m}].primitives[{p}]")
@@ -200,45 +226,43 @@ class _Document:
         raise self.raw.error(f"no mesh primitive uses {EXTENSION}", property="meshes")
 
     def accessor(self, index, name: str, kind: str) -> np.ndarray:
-        accessors = self._list("accessors")
-        if not isinstance(index, int) or not 0 <= index < len(accessors):
-            raise self.raw.error(f"accessor {index!r} does not exist", property=name)
-        a = accessors[index]
+        a = self._item("accessors", index, name)
         if "sparse" in a:
             raise UnsupportedError("sparse accessors", file=self.raw.source, property=name)
-        if a.get("type") != kind or a.get("componentType") not in DTYPES:
+        component = a.get("componentType")
+        if a.get("type") != kind or not _is_int(component) or component not in DTYPES:
             raise self.raw.error(f"expected a {kind} accessor of float or (normalized) "
                                  "integers", property=name)
-        dtype = np.dtype(DTYPES[a["componentType"]])
+        dtype = np.dtype(DTYPES[component])
         count, width = a.get("count"), COMPONENTS[kind]
-        if not isinstance(count, int) or count <= 0:
+        if not _is_int(count) or count <= 0:
             raise self.raw.error(f"accessor count {count!r}", property=name)
-        views = self._list("bufferViews")
-        v = a.get("bufferView")
-        if not isinstance(v, int) or not 0 <= v < len(views):
-            raise self.raw.error(f"bufferView {v!r} does not exist", property=name)
-        view = views[v]
+        view = self._item("bufferViews", a.get("bufferView"), name)
         buffers = self._list("buffers")
+        if buffers and not isinstance(buffers[0], dict):
+            raise self.raw.error("buffers[0] is not an object", property=name)
         if view.get("buffer", 0) != 0 or (buffers and "uri" in buffers[0]):
             raise UnsupportedError("buffers outside the GLB's binary chunk", file=self.raw.source,
                                    property=name)
         if "extensions" in view:
-            raise UnsupportedError(f"compressed buffer views ({sorted(view['extensions'])})",
+            extensions = view["extensions"]
+            names = sorted(extensions) if isinstance(extensions, dict) else extensions
+            raise UnsupportedError(f"compressed buffer views ({names!r:.80})",
                                    file=self.raw.source, property=name)
         element = dtype.itemsize * width
-        stride = view.get("byteStride") or element
-        start = int(view.get("byteOffset", 0)) + int(a.get("byteOffset", 0))
-        end_view = int(view.get("byteOffset", 0)) + int(view.get("byteLength", 0))
+        stride = self._size(view, "byteStride", name, None) if view.get("byteStride") else element
+        start = self._size(view, "byteOffset", name) + self._size(a, "byteOffset", name)
+        end_view = self._size(view, "byteOffset", name) + self._size(view, "byteLength", name)
         end = start + stride * (count - 1) + element
-        if stride < element or end > end_view or end_view > len(self.binary) or start < 0:
+        if stride < element or end > end_view or end_view > len(self.binary):
             raise self.raw.error(f"accessor {index} reaches byte {end} of a {len(self.binary)}"
-                                 "-byte binary chunk", offset=self.binary_offset + max(start, 0),
+                                 "-byte binary chunk", offset=self.binary_offset + start,
                                  property=name)
         rows = np.lib.stride_tricks.as_strided(
             np.frombuffer(self.binary, np.uint8, count=end - start, offset=start),
             shape=(count, element), strides=(stride, 1))
         values = np.ascontiguousarray(rows).view(dtype).reshape(count, width).astype(np.float64)
-        if a["componentType"] != FLOAT:
+        if component != FLOAT:
             self.lossy = True
             if a.get("normalized"):
                 values = np.maximum(values / np.iinfo(dtype).max, -1.0)
@@ -246,6 +270,8 @@ class _Document:
 
     def scene(self) -> GaussianScene:
         attributes = self.primitive().get("attributes", {})
+        if not isinstance(attributes, dict):
+            raise self.raw.error("expected an object", property="attributes")
         for node in self._list("nodes"):
             if isinstance(node, dict) and any(k in node for k in ("matrix", "translation",
                                                                   "rotation", "scale")):

@@ -10,6 +10,7 @@ from csgs_codec.errors import InputError, UnsupportedError
 from csgs_codec.format import MAGIC as CSGS_MAGIC
 from csgs_codec.interchange.source import SceneSource
 from csgs_codec.scene.gaussian_scene import GaussianScene
+from csgs_codec.untrusted import open_regular, read_regular
 
 #: How many leading bytes :func:`detect_format` looks at.
 SNIFF_BYTES = 64
@@ -21,13 +22,12 @@ READABLE = ("3DGS PLY, PlayCanvas compressed PLY, .splat, .ksplat, SPZ, SOG (.so
 
 
 def _head(path: Path) -> bytes:
-    try:
-        with open(path, "rb") as fh:
+    """The first :data:`SNIFF_BYTES` bytes of the regular file at ``path``."""
+    with open_regular(path) as fh:
+        try:
             return fh.read(SNIFF_BYTES)
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror or exc}", file=path) from None
+        except OSError as exc:
+            raise InputError(f"cannot read: {exc.strerror or exc}", file=path) from None
 
 
 def detect_format(path: str | os.PathLike) -> str:
@@ -41,7 +41,8 @@ def detect_format(path: str | os.PathLike) -> str:
     named (that format has no header).
 
     Raises:
-        InputError: a missing or empty file, a folder without ``meta.json``.
+        InputError: a missing or empty file, a folder without ``meta.json``, a path that is
+            no regular file (a device, FIFO or socket) or holds a NUL byte.
         UnsupportedError: bytes that are none of the formats.
     """
     from csgs_codec.interchange import ksplat, spz
@@ -80,13 +81,6 @@ def detect_format(path: str | os.PathLike) -> str:
                            f"reads ({READABLE})", file=path, offset=0)
 
 
-def _read_bytes(path: Path) -> bytes:
-    try:
-        return path.read_bytes()
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror or exc}", file=path) from None
-
-
 def read_interchange(path: str | os.PathLike, *, sanitize: bool = False
                      ) -> tuple[GaussianScene, SceneSource]:
     """Read the scene in ``path`` in any format :func:`detect_format` names but ``.csgs``
@@ -119,7 +113,7 @@ def read_interchange(path: str | os.PathLike, *, sanitize: bool = False
         scene, info = _read_ply(path, sanitize)
     else:
         parse = _PARSERS[kind]()
-        scene, info = parse(_read_bytes(path), source)
+        scene, info = parse(read_regular(path), source)
     scene.validate(source)
     return scene, info
 
@@ -129,7 +123,7 @@ def _read_ply(path: Path, sanitize: bool) -> tuple[GaussianScene, SceneSource]:
     from csgs_codec.scene.ply_header import MAX_HEADER_BYTES, parse_header
     from csgs_codec.scene.ply_reader import parse_ply_bytes
 
-    data = _read_bytes(path)
+    data = read_regular(path)
     header = parse_header(data[:MAX_HEADER_BYTES], str(path))
     if is_compressed_ply(header):
         return parse_compressed_ply(data, str(path))

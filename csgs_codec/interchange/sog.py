@@ -21,7 +21,6 @@ WebP decoding needs Pillow (the ``formats`` extra).
 from __future__ import annotations
 
 import io
-import json
 import zipfile
 from pathlib import Path
 
@@ -36,17 +35,27 @@ from csgs_codec.interchange.binary import (
 )
 from csgs_codec.interchange.source import SceneSource
 from csgs_codec.scene.gaussian_scene import GaussianScene
+from csgs_codec.untrusted import load_json, open_regular, read_regular
 
 ZIP_MAGIC = b"PK\x03\x04"
 MAX_META_BYTES = 16 << 20
 #: Largest image or zip member accepted, bytes once decoded.
 MAX_MEMBER_BYTES = 1 << 30
 MAX_GAUSSIANS = 1 << 27
+#: Largest ratio of a zip member's declared size to its compressed size (deflate reaches
+#: about 1032), and of an image's decoded RGBA bytes to its file's (beyond
+#: IMAGE_ALLOWANCE): more is refused before anything is inflated or decoded. Real SOG
+#: images, noisy attribute data, decode to a few times their size.
+MAX_RATIO = 1100
+IMAGE_ALLOWANCE = 1 << 20
 V1_CENTROID_WIDTHS = {192: 1, 512: 2, 960: 3}
 
 
 class _Files:
-    """The members of a SOG: a zip's entries or a folder's files, read with size limits."""
+    """The members of a SOG: a zip's entries or a folder's files, read with size limits.
+
+    Use as a context manager: it closes the zip archive it opened.
+    """
 
     def __init__(self, path: Path) -> None:
         self.path = path
@@ -57,39 +66,51 @@ class _Files:
             self.folder = path.parent
         else:
             self.folder = None
+            handle = open_regular(path)
             try:
-                self.zip = zipfile.ZipFile(path)
-            except (zipfile.BadZipFile, OSError) as exc:
+                self.zip = zipfile.ZipFile(handle)
+            except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
+                handle.close()
                 raise InputError(f"not a readable zip archive ({exc})", file=path,
                                  offset=0) from None
+            self._handle = handle
+
+    def __enter__(self) -> _Files:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self.zip is not None:
+            self.zip.close()
+            self._handle.close()
 
     def read(self, name: str, limit: int = MAX_MEMBER_BYTES) -> bytes:
-        where = f"{self.path}:{name}" if self.zip else str(self.folder / name)
-        if "/" in name or "\\" in name or name.startswith("."):
+        """The bytes of member ``name``: at most ``limit``, and for a zip member at most its
+        declared size, itself at most :data:`MAX_RATIO` times its compressed size."""
+        if "/" in name or "\\" in name or name.startswith(".") or "\0" in name:
             raise InputError(f"meta.json names the file {name!r}, which is not a plain file "
                              "name", file=self.path)
-        if self.zip is not None:
-            try:
-                info = self.zip.getinfo(name)
-            except KeyError:
-                raise InputError(f"the archive has no {name}", file=self.path) from None
-            if info.file_size > limit:
-                raise InputError(f"{name} declares {info.file_size:,} bytes (limit "
-                                 f"{limit:,})", file=self.path, offset=info.header_offset)
-            try:
-                return self.zip.read(info)
-            except (zipfile.BadZipFile, OSError, EOFError, ValueError) as exc:
-                raise InputError(f"{name}: corrupt zip member ({exc})", file=self.path,
-                                 offset=info.header_offset) from None
-        file = self.folder / name
+        if self.zip is None:
+            return read_regular(self.folder / name, limit, what="a SOG member")
         try:
-            if file.stat().st_size > limit:
-                raise InputError(f"larger than {limit:,} bytes", file=file)
-            return file.read_bytes()
-        except FileNotFoundError:
-            raise InputError("file not found (named by meta.json)", file=where) from None
-        except OSError as exc:
-            raise InputError(f"cannot read: {exc.strerror or exc}", file=where) from None
+            info = self.zip.getinfo(name)
+        except KeyError:
+            raise InputError(f"the archive has no {name}", file=self.path) from None
+        if info.file_size > limit or info.file_size > MAX_RATIO * max(info.compress_size, 1):
+            raise InputError(f"{name} declares {info.file_size:,} bytes from "
+                             f"{info.compress_size:,} compressed (limits: {limit:,} bytes, "
+                             f"{MAX_RATIO} times the compressed size)", file=self.path,
+                             offset=info.header_offset)
+        try:
+            # Read no more than the declared size, whatever the compressed stream holds.
+            with self.zip.open(info) as member:
+                data = member.read(info.file_size + 1)
+        except Exception as exc:  # zipfile raises many types for a corrupt member (zlib.error...)
+            raise InputError(f"{name}: corrupt zip member ({exc})", file=self.path,
+                             offset=info.header_offset) from None
+        if len(data) != info.file_size:
+            raise InputError(f"{name} holds {len(data):,} bytes, {info.file_size:,} declared",
+                             file=self.path, offset=info.header_offset)
+        return data
 
 
 def read_sog(path: str | Path) -> tuple[GaussianScene, SceneSource]:
@@ -97,28 +118,26 @@ def read_sog(path: str | Path) -> tuple[GaussianScene, SceneSource]:
 
     Raises:
         InputError: a missing or malformed ``meta.json`` entry (named as the property), an
-            image missing, too small for the count or not decodable.
+            image missing, too small for the count or not decodable; a member (or the
+            ``.sog``) that is no regular file.
         UnsupportedError: an unknown meta version; Pillow missing.
     """
     path = Path(path)
-    files = _Files(path)
-    try:
-        meta = json.loads(files.read("meta.json", MAX_META_BYTES))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise InputError(f"meta.json is not JSON ({exc})", file=path) from None
-    if not isinstance(meta, dict):
-        raise InputError("meta.json is not a JSON object", file=path)
-    version = meta.get("version")
-    if version is None:
-        scene = _read_v1(meta, files, path)
-        label_version = "1"
-    elif version == 2:
-        scene = _read_v2(meta, files, path)
-        label_version = "2"
-    else:
-        raise UnsupportedError(f"SOG meta.json version {version!r} (csgs reads 1 and 2)",
-                               file=path, property="version")
-    details = {"container": "zip" if files.zip else "folder"}
+    with _Files(path) as files:
+        meta = load_json(files.read("meta.json", MAX_META_BYTES), file=path, what="meta.json")
+        if not isinstance(meta, dict):
+            raise InputError("meta.json is not a JSON object", file=path)
+        version = meta.get("version")
+        if version is None:
+            scene = _read_v1(meta, files, path)
+            label_version = "1"
+        elif version == 2:
+            scene = _read_v2(meta, files, path)
+            label_version = "2"
+        else:
+            raise UnsupportedError(f"SOG meta.json version {version!r} (csgs reads 1 and 2)",
+                                   file=path, property="version")
+        details = {"container": "zip" if files.zip else "folder"}
     return scene, SceneSource("sog", "PlayCanvas SOG", label_version, lossy=True,
                               details=details)
 
@@ -172,6 +191,10 @@ def _image(files: _Files, meta: dict, key: str, index: int, path: Path, minimum:
                 raise InputError(f"{names[index]} is {width}x{height}; it must hold "
                                  f"{minimum:,} to {maximum:,} pixels", file=path,
                                  property=f"{key}.files")
+            if 4 * width * height > MAX_RATIO * len(data) + IMAGE_ALLOWANCE:
+                raise InputError(f"{names[index]} is {width}x{height} pixels in {len(data):,} "
+                                 f"bytes: more than {MAX_RATIO} times its size once decoded",
+                                 file=path, property=f"{key}.files")
             pixels = np.asarray(image.convert("RGBA"), np.uint8).reshape(-1, 4)
     except InputError:
         raise

@@ -27,6 +27,7 @@ from csgs_codec.errors import CsgsWarning, InputError
 from csgs_codec.scene.anchor_scene import AnchorScene
 from csgs_codec.scene.ply_reader import read_vertex_columns
 from csgs_codec.scene.ply_writer import vertex_ply_bytes
+from csgs_codec.untrusted import read_regular
 
 #: Placeholder values the official trainer writes for the unused anchor opacity and rotation.
 PLACEHOLDER_OPACITY = np.float32(np.log(0.1 / 0.9))
@@ -134,19 +135,9 @@ def _columns_to_anchors(columns: dict[str, np.ndarray], names: list[str],
 
 
 def read_bytes(path: str | Path, limit: int | None = None) -> bytes:
-    """The bytes of ``path`` (at most ``limit``); InputError naming the file otherwise."""
-    try:
-        with open(path, "rb") as fh:
-            data = fh.read(-1 if limit is None else limit + 1)
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    except IsADirectoryError:
-        raise InputError("is a directory, not a file", file=path) from None
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror or exc}", file=path) from None
-    if limit is not None and len(data) > limit:
-        raise InputError(f"larger than the {limit} bytes allowed for this file", file=path)
-    return data
+    """The bytes of the regular file ``path`` (at most ``limit``); InputError naming the
+    file otherwise (see :func:`csgs_codec.untrusted.read_regular`)."""
+    return read_regular(path, limit)
 
 
 # =========================================================================== writing

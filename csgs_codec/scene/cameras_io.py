@@ -21,7 +21,6 @@ Formats:
 
 from __future__ import annotations
 
-import json
 import math
 import warnings
 from pathlib import Path
@@ -31,6 +30,7 @@ import numpy as np
 from csgs_codec.errors import CsgsWarning, InputError
 from csgs_codec.scene.camera import MAX_CAMERA_FILE_BYTES, MAX_IMAGE_SIDE, Camera
 from csgs_codec.scene.colmap_io import is_colmap_path, load_colmap_cameras
+from csgs_codec.untrusted import load_json, open_regular, read_regular, refuse_non_regular
 
 #: OpenGL camera axes (x right, y up, z back) to OpenCV (x right, y down, z forward).
 OPENGL_TO_OPENCV = np.diag([1.0, -1.0, -1.0, 1.0])
@@ -48,8 +48,9 @@ def load_cameras(path: str | Path) -> list[Camera]:
         InputError: unreadable file, unknown format or a malformed field (named).
     """
     path = Path(path)
-    if not path.exists():
+    if "\0" not in str(path) and not path.exists():
         raise InputError("no such file or folder", file=path)
+    refuse_non_regular(path, directory_ok=True)  # a NUL byte, a device or FIFO: refused
     if is_colmap_path(path):
         return load_colmap_cameras(path)
     if path.is_dir():
@@ -144,18 +145,14 @@ def rigid_inverse(transform: np.ndarray) -> np.ndarray:
 
 # --------------------------------------------------------------------------- field checks
 def _read_json(path: Path):
+    """The parsed JSON of the camera file ``path`` (a regular file of at most
+    MAX_CAMERA_FILE_BYTES bytes, UTF-8)."""
+    data = read_regular(path, MAX_CAMERA_FILE_BYTES, what="a camera file")
     try:
-        size = path.stat().st_size
-        if size > MAX_CAMERA_FILE_BYTES:
-            raise InputError(f"camera file too large ({size} bytes)", file=path)
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as err:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as err:
         raise InputError(f"cannot read camera file: {err}", file=path) from None
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError as err:
-        raise InputError(f"invalid JSON at line {err.lineno} column {err.colno}: {err.msg}",
-                         file=path) from None
+    return load_json(text, file=path, what="the camera file")
 
 
 def _field(entry: dict, key: str, source, where: str):
@@ -224,13 +221,13 @@ def _size_from_image_file(folder: Path, file_path) -> dict[str, int]:
         return {}
     image = folder / file_path
     candidates = [image] if image.suffix else [image.with_suffix(".png"), image]
+    from PIL import Image
+
     for candidate in candidates:
         try:
-            from PIL import Image
-
-            with Image.open(candidate) as handle:
+            with open_regular(candidate) as file, Image.open(file) as handle:
                 return {"w": handle.width, "h": handle.height}
-        except (OSError, ValueError):
+        except (OSError, ValueError, InputError, Image.DecompressionBombError):
             continue
     return {}
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from csgs_codec.errors import CsgsWarning, InputError, UnsupportedError
 from csgs_codec.scene.camera import MAX_CAMERA_FILE_BYTES, MAX_IMAGE_SIDE, Camera
+from csgs_codec.untrusted import read_regular, refuse_non_regular
 
 #: model id -> (name, parameter count, focal layout): "f" = one focal, "fxfy" = two.
 COLMAP_MODELS = {
@@ -47,9 +48,11 @@ def load_colmap_cameras(path: str | Path) -> list[Camera]:
     """Cameras of a COLMAP model: a folder (or ``sparse/0`` below it) or one of its files.
 
     Raises:
-        InputError: missing file, malformed line or record (names the file and field).
+        InputError: missing file, a device or FIFO, malformed line or record (names the file
+            and field).
         UnsupportedError: a camera model this loader does not know.
     """
+    refuse_non_regular(path, directory_ok=True)
     files = _model_files(Path(path))
     if files is None:
         raise InputError("no COLMAP cameras + images files found", file=path)
@@ -113,13 +116,8 @@ def _model_files(path: Path) -> tuple[Path, Path, bool] | None:
 
 
 def _read_bytes(path: Path) -> bytes:
-    try:
-        size = path.stat().st_size
-        if size > MAX_CAMERA_FILE_BYTES:
-            raise InputError(f"file too large ({size} bytes)", file=path)
-        return path.read_bytes()
-    except OSError as err:
-        raise InputError(f"cannot read: {err}", file=path) from None
+    """The bytes of the regular file ``path``, at most MAX_CAMERA_FILE_BYTES."""
+    return read_regular(path, MAX_CAMERA_FILE_BYTES, what="a COLMAP file")
 
 
 # --------------------------------------------------------------------------- intrinsics

@@ -19,6 +19,7 @@ from csgs_codec.errors import CsgsWarning, InputError
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.scene.ply_header import MAX_HEADER_BYTES, parse_header
 from csgs_codec.scene.ply_reader import _columns_to_scene
+from csgs_codec.untrusted import open_regular
 
 #: Rows read at a time by :meth:`MappedPly.positions`.
 BLOCK_ROWS = 1 << 20
@@ -37,18 +38,26 @@ class MappedPly:
 
     def __init__(self, path: str | os.PathLike) -> None:
         self.path = str(path)
-        try:
-            with open(path, "rb") as handle:
+        with open_regular(path) as handle:
+            try:
                 head = handle.read(MAX_HEADER_BYTES)
-            size = os.path.getsize(path)
-        except OSError as exc:
-            raise InputError(f"cannot read: {exc.strerror or exc}", file=path) from None
+                size = os.fstat(handle.fileno()).st_size
+            except OSError as exc:
+                raise InputError(f"cannot read: {exc.strerror or exc}", file=path) from None
+            self._map(handle, head, size)
+
+    def _map(self, handle, head: bytes, size: int) -> None:
+        """Check the header in ``head`` against the file ``size`` and map the vertex rows of
+        the open regular file ``handle``."""
+        path = self.path
         header = parse_header(head, self.path)
         if header.byte_order is None:
             raise InputError("an ASCII PLY cannot be memory-mapped", file=path)
         vertex = header.element("vertex")
         if vertex is None:
             raise InputError("no 'vertex' element", file=path)
+        if not vertex.properties:
+            raise InputError("element 'vertex' has no properties", file=path)
         offset, end = header.header_bytes, header.header_bytes
         for el in header.elements:
             if el.has_list:
@@ -64,7 +73,7 @@ class MappedPly:
         self.properties = [p.name for p in vertex.properties]
         self._vertex = vertex
         self._format = header.format
-        self._rows = np.memmap(path, dtype=vertex.dtype(header.byte_order), mode="r",
+        self._rows = np.memmap(handle, dtype=vertex.dtype(header.byte_order), mode="r",
                                offset=offset, shape=(vertex.count,)) if vertex.count else None
 
     def positions(self) -> np.ndarray:

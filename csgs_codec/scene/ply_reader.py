@@ -5,13 +5,13 @@ the number of ``f_rest_*`` properties, keeps semantic properties (``ins_feat_*``
 ``label``) and drops other unknown properties with one warning. It never allocates more than
 the file can hold: element counts are checked against the file size before the body is read.
 Nothing is read loosely: every ASCII row must hold one value per property, written as a PLY
-number (C's strtod syntax, or nan/inf), and the body must end where the header's counts say
-(rows or bytes beyond them are an error, not ignored).
+number (C's strtod syntax, or nan/inf) that fits the property's type, every element must have
+the rows its count declares (:mod:`csgs_codec.scene.ply_ascii`), and the body must end where
+the header's counts say (rows or bytes beyond them are an error, not ignored).
 """
 
 from __future__ import annotations
 
-import contextlib
 import os
 import re
 import warnings
@@ -22,7 +22,9 @@ import numpy as np
 
 from csgs_codec.errors import CsgsWarning, DataLossWarning, InputError
 from csgs_codec.scene.gaussian_scene import SH_DEGREE_OF_REST, GaussianScene
+from csgs_codec.scene.ply_ascii import read_ascii_vertex_columns
 from csgs_codec.scene.ply_header import MAX_HEADER_BYTES, PlyElement, PlyHeader, parse_header
+from csgs_codec.untrusted import read_regular
 
 REQUIRED = ("x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
             "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3")
@@ -92,15 +94,8 @@ def parse_ply_bytes(data: bytes, *, source: str | None = None, sanitize: bool = 
 
 
 def _read_file(path: str | Path) -> bytes:
-    try:
-        with open(path, "rb") as fh:
-            return fh.read()
-    except FileNotFoundError:
-        raise InputError("file not found", file=path) from None
-    except IsADirectoryError:
-        raise InputError("is a directory, not a PLY file", file=path) from None
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror or exc}", file=path) from None
+    """The bytes of the regular file ``path`` (devices, FIFOs and directories refused)."""
+    return read_regular(path)
 
 
 # --------------------------------------------------------------------------- body
@@ -119,6 +114,8 @@ def read_vertex_columns(data: bytes, source: str | None = None
     vertex = header.element("vertex")
     if vertex is None:
         raise InputError("no 'vertex' element", file=source)
+    if not vertex.properties:
+        raise InputError("element 'vertex' has no properties", file=source)
     for prop in vertex.properties:
         if prop.type_code == "list":
             raise InputError("list properties are not supported in the vertex element",
@@ -129,7 +126,7 @@ def read_vertex_columns(data: bytes, source: str | None = None
 def _read_vertex_columns(data: bytes, header: PlyHeader, vertex: PlyElement,
                          source: str | None) -> dict[str, np.ndarray]:
     if header.byte_order is None:
-        return _read_ascii_columns(data, header, vertex, source)
+        return read_ascii_vertex_columns(data, header, vertex, source)
     offset = header.header_bytes
     columns = None
     for el in header.elements:
@@ -154,72 +151,6 @@ def _read_vertex_columns(data: bytes, header: PlyHeader, vertex: PlyElement,
                          "declares (a header count smaller than the body, or trailing data)",
                          file=source, offset=offset)
     return columns
-
-
-def _read_ascii_columns(data: bytes, header: PlyHeader, vertex: PlyElement,
-                        source: str | None) -> dict[str, np.ndarray]:
-    body = data[header.header_bytes:]
-    skip = 0
-    for el in header.elements:
-        if el is vertex:
-            break
-        skip += el.count
-    total = sum(el.count for el in header.elements)
-    n_props = len(vertex.properties)
-    # Each value takes at least two bytes (a digit and a separator): a cheap bound on the
-    # count before splitting anything.
-    if (skip + vertex.count * n_props) * 2 > len(body) + 1:
-        raise InputError(f"element 'vertex' declares {vertex.count} rows but the body has only "
-                         f"{len(body)} bytes (truncated body or wrong count)", file=source,
-                         offset=header.header_bytes)
-    lines = body.split(b"\n", total)
-    rows = lines[skip:skip + vertex.count]
-    if len(rows) < vertex.count:
-        raise InputError(f"element 'vertex' declares {vertex.count} rows, the body has "
-                         f"{len(rows)}", file=source, offset=len(data))
-    if len(lines) > total and lines[total].strip():
-        extra = lines[total]
-        raise InputError("data follows the last row the header declares (a header count "
-                         "smaller than the body, or trailing data)", file=source,
-                         offset=len(data) - len(extra))
-    tokens = []
-    for i, row in enumerate(rows):
-        values = row.split()
-        if len(values) != n_props:
-            raise InputError(f"vertex row {i} has {len(values)} values, expected {n_props}",
-                             file=source, index=i)
-        tokens += values
-    return _ascii_numbers(tokens, vertex, source)
-
-
-#: A PLY ASCII number as C's strtod reads it (decimal), or nan/inf: Python's float() also
-#: takes "1_000", which no PLY writer means.
-_ASCII_NUMBER = re.compile(rb"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|nan|inf|infinity)",
-                           re.IGNORECASE)
-
-
-def _ascii_numbers(tokens: list[bytes], vertex: PlyElement, source: str | None
-                   ) -> dict[str, np.ndarray]:
-    """The vertex columns of the ASCII ``tokens`` (rows of len(properties) values);
-    InputError naming the row and property of the first token that is not a number."""
-    n_props = len(vertex.properties)
-    suspicious = b"_" in b"".join(tokens)
-    values = None
-    if not suspicious:
-        with contextlib.suppress(ValueError):
-            values = np.array(tokens, dtype=np.float64)
-    if values is None:
-        for at, token in enumerate(tokens):
-            if not _ASCII_NUMBER.fullmatch(token):
-                row, col = divmod(at, n_props)
-                raise InputError(f"non-numeric value {token.decode('ascii', 'replace')!r}",
-                                 file=source, property=vertex.properties[col].name, index=row)
-        try:
-            values = np.array(tokens, dtype=np.float64)
-        except ValueError as exc:
-            raise InputError(f"non-numeric value in vertex data ({exc})", file=source) from None
-    values = values.reshape(vertex.count, n_props)
-    return {p.name: values[:, i] for i, p in enumerate(vertex.properties)}
 
 
 # --------------------------------------------------------------------------- mapping

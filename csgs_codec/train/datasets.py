@@ -36,6 +36,7 @@ from csgs_codec.train.image_files import (
 )
 from csgs_codec.train.segmentation import segment_image
 from csgs_codec.train.views import TrainingView
+from csgs_codec.untrusted import open_regular
 
 #: Camera files looked for, in order, in a dataset folder.
 CAMERA_FILE_NAMES = ("transforms.json", "transforms_train.json", "cameras.json")
@@ -140,7 +141,7 @@ def _is_transforms_file(camera_path: Path) -> bool:
     """True for a transforms.json-style file (a JSON object; INRIA files hold a list)."""
     if not camera_path.is_file() or camera_path.suffix.lower() != ".json":
         return False
-    with camera_path.open("rb") as handle:
+    with open_regular(camera_path) as handle:
         head = handle.read(4096).lstrip()
     return head.startswith(b"{") or head.startswith(b"\xef\xbb\xbf{")
 

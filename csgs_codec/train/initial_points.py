@@ -13,15 +13,15 @@ Looked for in this order (:func:`find_initial_points`):
 
 from __future__ import annotations
 
-import json
 import struct
 from pathlib import Path
 
 import numpy as np
 
 from csgs_codec.errors import InputError
-from csgs_codec.scene.camera import Camera
+from csgs_codec.scene.camera import MAX_CAMERA_FILE_BYTES, Camera
 from csgs_codec.train.datasets import find_camera_file
+from csgs_codec.untrusted import load_json, read_regular
 
 #: File name of the ground-truth scene a synthetic dataset carries.
 SCENE_FILE = "scene.ply"
@@ -40,10 +40,7 @@ def read_ply_points(path: str | Path) -> np.ndarray:
     from csgs_codec.scene.ply_reader import read_vertex_columns
 
     path = Path(path)
-    try:
-        data = path.read_bytes()
-    except OSError as error:
-        raise InputError(f"cannot read points: {error.strerror or error}", file=path) from None
+    data = read_regular(path, what="a point file")
     _, _, columns = read_vertex_columns(data, source=str(path))
     for axis in "xyz":
         if axis not in columns:
@@ -78,7 +75,7 @@ def read_colmap_points(model: str | Path) -> np.ndarray:
 
 
 def _colmap_points_bin(path: Path) -> np.ndarray:
-    data = path.read_bytes()
+    data = read_regular(path, what="points3D.bin")
     if len(data) < 8:
         raise InputError("file shorter than its point count", file=path, offset=0)
     (count,) = struct.unpack_from("<Q", data, 0)
@@ -101,7 +98,8 @@ def _colmap_points_bin(path: Path) -> np.ndarray:
 
 def _colmap_points_txt(path: Path) -> np.ndarray:
     rows = []
-    for number, line in enumerate(path.read_text(errors="replace").splitlines(), start=1):
+    text = read_regular(path, what="points3D.txt").decode("utf-8", errors="replace")
+    for number, line in enumerate(text.splitlines(), start=1):
         line = line.strip()
         if not line or line.startswith("#"):
             continue
@@ -160,9 +158,10 @@ def find_initial_points(dataset: str | Path, cameras: list[Camera], *,
     folder = camera_file.parent
     if camera_file.suffix == ".json":
         try:
-            document = json.loads(camera_file.read_text())
-        except (OSError, ValueError):
-            document = None
+            document = load_json(read_regular(camera_file, MAX_CAMERA_FILE_BYTES,
+                                              what="a camera file"), file=camera_file)
+        except InputError:
+            document = None  # find_camera_file's reader reports what is wrong with it
         if isinstance(document, dict) and isinstance(document.get("ply_file_path"), str):
             candidate = folder / document["ply_file_path"]
             if candidate.is_file():
