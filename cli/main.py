@@ -58,7 +58,67 @@ def build_parser() -> argparse.ArgumentParser:
                            parents=[sub_common])
         module.add_arguments(p)
         p.set_defaults(_run=module.run)
+    parser.command_parsers = dict(sub.choices)
     return parser
+
+
+def attach_dash_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
+    """``argv`` with each value that starts with '-' joined to the option before it that
+    takes one value (``--region -1,-1,-1,1,1,1`` becomes ``--region=-1,-1,-1,1,1,1``, and
+    ``--up -z`` ``--up=-z``), so both spellings work. argparse alone takes such a value for
+    an option and stops with "expected one argument". A word that is one of the command's
+    own options (``-o -q``: a missing value) is left alone, and so is everything after
+    ``--``."""
+    words = list(argv)
+    command = next((i for i, word in enumerate(words) if not word.startswith("-")), None)
+    sub = None if command is None else parser.command_parsers.get(words[command])
+    if sub is None:
+        return words
+    options = _option_strings(sub)
+    one_value = {name for name, takes_one in options.items() if takes_one}
+    out, i = words[:command + 1], command + 1
+    while i < len(words):
+        word = words[i]
+        if word == "--":
+            return out + words[i:]
+        following = words[i + 1] if i + 1 < len(words) else None
+        if (_resolve(word, options) in one_value and following is not None
+                and following.startswith("-") and following != "-"
+                and not _is_option(following, options)):
+            out.append(f"{word}={following}")
+            i += 2
+            continue
+        out.append(word)
+        i += 1
+    return out
+
+
+def _option_strings(parser: argparse.ArgumentParser) -> dict[str, bool]:
+    """Every option string of ``parser`` -> whether it takes exactly one value."""
+    # argparse has no public list of a parser's actions; _actions is read, never changed.
+    return {name: action.nargs is None
+            for action in parser._actions for name in action.option_strings}
+
+
+def _resolve(word: str, options: dict[str, bool]) -> str | None:
+    """The option string ``word`` names: itself, or the one long option it is a unique
+    prefix of (argparse's abbreviations); None for anything else."""
+    if word in options:
+        return word
+    if word.startswith("--") and "=" not in word:
+        matches = [name for name in options if name.startswith(word)]
+        if len(matches) == 1:
+            return matches[0]
+    return None
+
+
+def _is_option(word: str, options: dict[str, bool]) -> bool:
+    """Whether argparse would read ``word`` as one of the options: an option string, one
+    with ``=VALUE``, an abbreviation, or a short option with its value attached."""
+    name = word.split("=", 1)[0]
+    if word == "--" or _resolve(name, options) is not None:
+        return True
+    return not word.startswith("--") and len(word) > 2 and word[:2] in options
 
 
 def _print_warning(message, category, filename, lineno, file=None, line=None):
@@ -70,7 +130,8 @@ def _print_warning(message, category, filename, lineno, file=None, line=None):
 def main(argv: list[str] | None = None) -> int:
     """Run ``csgs`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = parser.parse_args(attach_dash_values(parser, argv))
     if not getattr(args, "_run", None):
         # No command is a usage error: help goes where errors go, with the error's exit code.
         parser.print_help(sys.stderr)

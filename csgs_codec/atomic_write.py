@@ -60,15 +60,17 @@ def write_atomically(path: PathLike, data: bytes,
     """Write ``data`` to ``path`` through a temporary file in the same folder and a rename.
 
     A symlink ``path`` is written through: its target is replaced and the link kept. The
-    temporary file is flushed to disk before the rename and gets the ordinary mode (0666
-    less the umask). On any failure, Ctrl-C or SIGTERM it is removed and ``path`` is left as
-    it was.
+    temporary file is flushed to disk before the rename. A file it replaces passes on its
+    mode, and its owner and group where this process may set them (silently kept as they
+    come otherwise); a new file gets the ordinary mode (0666 less the umask). On any
+    failure, Ctrl-C or SIGTERM the temporary file is removed and ``path`` is left as it was.
 
     Raises:
         InputError: naming ``path`` when the folder is missing or not writable, the target is
             not a regular file, or it is one of ``inputs`` (see :func:`check_output`).
     """
     target = check_output(path, inputs)
+    replaced = _existing(target)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     except OSError as exc:
@@ -79,7 +81,7 @@ def write_atomically(path: PathLike, data: bytes,
                 fh.write(data)
                 fh.flush()
                 os.fsync(fh.fileno())
-            os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get normal modes
+            _take_mode(tmp, replaced)
             os.replace(tmp, target)
     except BaseException as exc:
         with contextlib.suppress(OSError):
@@ -106,6 +108,29 @@ def sigterm_as_interrupt():
         yield
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+def _existing(target: Path) -> os.stat_result | None:
+    """The status of the file ``target`` names, or None when there is none yet."""
+    try:
+        return os.stat(target)
+    except OSError:
+        return None
+
+
+def _take_mode(tmp: str, replaced: os.stat_result | None) -> None:
+    """Give the temporary file ``tmp`` the mode (and, where permitted, the owner and group)
+    of the file it replaces, or the ordinary mode of a new file: mkstemp makes it 0600."""
+    if replaced is None:
+        os.chmod(tmp, 0o666 & ~_umask())
+        return
+    # Owner first: chown clears set-user/group-ID bits, which the chmod then restores.
+    if hasattr(os, "chown"):
+        with contextlib.suppress(OSError):
+            os.chown(tmp, replaced.st_uid, -1)
+        with contextlib.suppress(OSError):
+            os.chown(tmp, -1, replaced.st_gid)
+    os.chmod(tmp, stat.S_IMODE(replaced.st_mode))
 
 
 def _umask() -> int:

@@ -24,8 +24,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--region", type=region_option, default=None,
                         metavar="XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX",
                         help="decode only the spatial tiles whose box meets this box (whole "
-                             "tiles; reads only their chunks). Write --region=-1,... when the "
-                             "first number is negative")
+                             "tiles; reads only their chunks); --region -1,... and "
+                             "--region=-1,... both work")
     parser.add_argument("--tiles", type=tiles_option, default=None, metavar="LIST",
                         help="decode only these tiles, e.g. 0,3,5")
 
@@ -110,6 +110,7 @@ def run(args) -> int:
         raise InputError("no tile meets the region (nothing to decode)", property="region",
                          file=args.bitstream)
     write_scene(scene, args.output, [args.bitstream])
+    note_semantic_left_out(args)
     extra = ""
     if scene.semantic is not None:
         extra += f", {scene.semantic.shape[1]} semantic channels"
@@ -121,6 +122,35 @@ def run(args) -> int:
     print(f"tiles {_tile_list(report.tiles)} of {report.tile_count}; read "
           f"{report.bytes_read:,} of {report.file_bytes:,} bytes ({share:.1f}%)")
     return 0
+
+
+def note_semantic_left_out(args) -> None:
+    """Warn (a CsgsWarning: one stderr line, hidden by --quiet) when the file has a semantic
+    layer that ``--layers`` left out, and say how to decode it."""
+    import warnings
+
+    from csgs_codec.errors import CsgsWarning
+
+    if "semantic" in args.layers.split(",") or not has_semantic_layer(args.bitstream):
+        return
+    warnings.warn(CsgsWarning(f"{args.bitstream} has a semantic layer, not decoded (the "
+                              "default is --layers color); add --layers color,semantic to "
+                              "decode it"), stacklevel=2)
+
+
+def has_semantic_layer(path: str) -> bool:
+    """Whether the .csgs file at ``path`` holds semantic-layer data (a critical chunk of
+    that layer), from its header and table of contents alone."""
+    from csgs_codec.format import Layer
+    from csgs_codec.format.source import open_source
+    from csgs_codec.format.toc import read_toc
+
+    source = open_source(path)
+    try:
+        entries = read_toc(source).entries
+    finally:
+        source.close()
+    return any(e.layer == Layer.SEMANTIC and e.critical for e in entries)
 
 
 def _tile_list(numbers: list[int]) -> str:
@@ -151,5 +181,6 @@ def _decode_anchors(args) -> int:
     else:
         write_scaffold(scene, args.output)
         kind = "checkpoint folder"
+    note_semantic_left_out(args)
     print(f"{args.output}: {len(scene):,} anchors ({kind}; decoded in {seconds:.2f} s)")
     return 0

@@ -16,7 +16,8 @@ from csgs_codec.codec.anchor_payloads import (
     AnchorHeader,
     mlps_from_bytes,
 )
-from csgs_codec.codec.container_access import parse_layers, single_payload
+from csgs_codec.codec.container_access import single_payload
+from csgs_codec.codec.decoder import check_layers
 from csgs_codec.codec.payloads import names_from_bytes
 from csgs_codec.entropy.anchor_attributes import (
     FRAC_BITS,
@@ -79,8 +80,10 @@ class AnchorDecoder:
 
         Raises:
             FormatError: a malformed, missing or inconsistent chunk, naming it and the offset.
+            InputError: ``layers`` is not one of the accepted values (see
+                :func:`csgs_codec.codec.decoder.check_layers`).
         """
-        wanted = parse_layers(layers)
+        wanted = check_layers(layers)
         try:
             container = read_layers(source, layers=wanted)
             return self._decode(container, wanted)

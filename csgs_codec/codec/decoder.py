@@ -59,7 +59,7 @@ class DecodeReport:
     """What :meth:`Decoder.decode_with_report` returns.
 
     Attributes:
-        scene: the decoded Gaussians (None when no tile was chosen).
+        scene: the decoded Gaussians (None when a region met no tile).
         tiles: the tile numbers decoded, increasing.
         tile_count: tiles in the file (1 for a file without a tile index).
         bytes_read: bytes read from the source (header, TOC, tile index and the chunks of
@@ -96,11 +96,34 @@ def check_region(region) -> tuple[float, ...] | None:
     return values
 
 
-def check_tiles(tiles) -> frozenset[int] | None:
-    """``tiles`` (an iterable of tile numbers) as a set, or None.
+#: What a ``layers`` argument may be, for error messages.
+LAYERS_ACCEPTED = ("'color' or 'color,semantic' (a comma-separated string, or a list of "
+                   "those names)")
+
+
+def check_layers(layers) -> set[str]:
+    """The layer names of a ``layers`` argument: a string such as "color" or
+    "color,semantic", or an iterable (list, tuple, set) of such names; the color layer is
+    always decoded.
 
     Raises:
-        InputError: something that is not a non-negative integer.
+        InputError: anything else (None, a number, bytes, a non-string name), an unknown
+            layer name, or no layer at all.
+    """
+    if isinstance(layers, str):
+        return parse_layers(layers)
+    if isinstance(layers, list | tuple | set | frozenset) and layers and all(
+            isinstance(name, str) for name in layers):
+        return parse_layers(layers)
+    raise InputError(f"layers must be {LAYERS_ACCEPTED}, got {layers!r}", property="layers")
+
+
+def check_tiles(tiles) -> frozenset[int] | None:
+    """``tiles`` (an iterable of tile numbers) as a set, or None (every tile).
+
+    Raises:
+        InputError: something that is not a non-negative integer, or no tile at all (an
+            empty list would decode nothing: pass None for every tile).
     """
     if tiles is None:
         return None
@@ -112,6 +135,9 @@ def check_tiles(tiles) -> frozenset[int] | None:
     for n in numbers:
         if isinstance(n, bool) or not isinstance(n, int | np.integer) or n < 0:
             raise InputError(f"tile number {n!r} is not an integer >= 0", property="tiles")
+    if not numbers:
+        raise InputError("no tile given (an empty list); give tile numbers, or None for "
+                         "every tile", property="tiles")
     return frozenset(int(n) for n in numbers)
 
 
@@ -150,9 +176,14 @@ class Decoder:
         Raises:
             FormatError: any malformed, missing or inconsistent chunk, naming it and the
                 byte offset.
-            InputError: a tile number the file does not have, or a malformed region.
+            InputError: a bad ``layers``, an empty or malformed tile list, a tile number the
+                file does not have, a malformed region, or a region that meets no tile.
         """
-        return self.decode_with_report(source, layers, tiles=tiles, region=region).scene
+        report = self.decode_with_report(source, layers, tiles=tiles, region=region)
+        if report.scene is None:
+            raise InputError("no tile meets the region (nothing to decode)", property="region",
+                             file=source if isinstance(source, str | os.PathLike) else None)
+        return report.scene
 
     def decode_with_report(self, source, layers="color", *, tiles=None, region=None,
                            progress=None) -> DecodeReport:
@@ -169,10 +200,14 @@ class Decoder:
             progress: called as ``progress(done, total)`` as tiles finish, or None.
 
         Returns:
-            A :class:`DecodeReport`: the scene (the chosen tiles' Gaussians, tile after tile),
-            the tile numbers, ``bytes_read`` (bytes fetched from the source) and the file size.
+            A :class:`DecodeReport`: the scene (the chosen tiles' Gaussians, tile after tile;
+            None when the region meets no tile), the tile numbers, ``bytes_read`` (bytes
+            fetched from the source) and the file size.
+
+        Raises:
+            As :meth:`decode`, but a region that meets no tile is no error here.
         """
-        wanted = parse_layers(layers)
+        wanted = check_layers(layers)
         box = check_region(region)
         chosen = check_tiles(tiles)
         src = CountingSource(open_source(source))
@@ -186,13 +221,10 @@ class Decoder:
                     raise InputError(f"tile {max(chosen)} is not in the file (it has one "
                                      "tile: 0)", property="tiles")
                 numbers, count = [0], 1
-                if chosen == frozenset():
-                    numbers, scene = [], None
-                else:
-                    container = _read_container(src, toc, toc.entries, wanted)
-                    scene = self._decode_container(container, wanted, self.threads)
-                    if progress is not None:
-                        progress(1, 1)
+                container = _read_container(src, toc, toc.entries, wanted)
+                scene = self._decode_container(container, wanted, self.threads)
+                if progress is not None:
+                    progress(1, 1)
         except FormatError as err:
             name_source(err, src.inner)
             if err.file is None and isinstance(source, (str, os.PathLike)):

@@ -124,6 +124,9 @@ class Encoder:
             (k-d cells, :mod:`csgs_codec.codec.tiling`), each coded on its own; None
             (default) tiles only scenes of more than 2,000,000 Gaussians, into tiles of at
             most 1,000,000. A scene that fits one tile is written exactly as without tiles.
+            A scene it would tile is refused (InputError, when encoding) below a tile size
+            of 1,000, or of a 16th of a scene under 16,000 Gaussians, or when it makes more
+            than 4,095 tiles (:func:`csgs_codec.codec.tiling.check_tiling`).
         workers: local processes coding tiles side by side (default 1: in this process).
             The file is the same for any count.
         ray: the address of a Ray cluster whose workers code the tiles instead

@@ -13,7 +13,11 @@
  * description) or null. Container mode (--container): the header, every TOC entry and the
  * size and SHA-256 of each payload read. On a rejection: {"ok": false, "error":
  * "FormatError" | "UnsupportedError", "chunk": ..., "offset": ..., "message": ...}, exit
- * status 2 (FormatError) or 3 (unsupported). --repeat N decodes N times and reports the
+ * status 2 (FormatError) or 3 (unsupported); a file that is missing, a folder or unreadable
+ * gives {"ok": false, "error": "InputError", "chunk": null, "offset": null, "message": ...}
+ * and exit status 2 (the other files are still decoded; the status is the highest). A bad
+ * command line (no file, an unknown option, a layer other than color and semantic, a missing
+ * or non-numeric value) prints one usage line on stderr and exits with 2. --repeat N decodes N times and reports the
  * fastest decode_s (wall) and decode_cpu_s (CPU time of the process), and first_decode_s,
  * the first decode (before the JIT has warmed up); tables are loaded once, outside the
  * timing. --threads N (default 2, as the Python decoder's) decodes on N worker threads
@@ -22,7 +26,7 @@
  */
 
 import { createHash } from 'node:crypto';
-import { readFileSync } from 'node:fs';
+import { readFileSync, statSync } from 'node:fs';
 import { performance } from 'node:perf_hooks';
 
 import { LAYERS, readLayers } from './container.mjs';
@@ -59,8 +63,36 @@ function containerSummary(data, layers) {
   };
 }
 
+const USAGE = 'usage: node decode_cli.mjs FILE... [--layers color|color,semantic] [--container] [--repeat N] [--threads N] [--range-coder wasm|js]';
+const LAYER_NAMES = ['color', 'semantic'];
+
+/** A bad command line: main prints its message and the usage on one line, exit status 2. */
+class UsageError extends Error {}
+
+/** The bytes of `file`, or null and the InputError result when it cannot be read. */
+function readInput(file) {
+  let info;
+  try {
+    info = statSync(file);
+  } catch (err) {
+    return [null, inputError(err.code === 'ENOENT' ? 'file not found' : `cannot read: ${err.code || err.message}`)];
+  }
+  // A folder or a FIFO is refused before reading: readFileSync would fail or block on it.
+  if (!info.isFile()) return [null, inputError(info.isDirectory() ? 'is a folder, not a file' : 'is not a regular file')];
+  try {
+    return [new Uint8Array(readFileSync(file)), null];
+  } catch (err) {
+    return [null, inputError(`cannot read: ${err.code || err.message}`)];
+  }
+}
+
+function inputError(message) {
+  return [2, { ok: false, error: 'InputError', chunk: null, offset: null, message }];
+}
+
 async function decodeFile(file, wanted, container, repeat, tables, lanes) {
-  const data = new Uint8Array(readFileSync(file));
+  const [data, failure] = readInput(file);
+  if (failure) return failure;
   try {
     if (container) return [0, { ok: true, ...containerSummary(data, wanted) }];
     let best = Infinity;
@@ -90,26 +122,58 @@ async function decodeFile(file, wanted, container, repeat, tables, lanes) {
   }
 }
 
-async function main(argv) {
-  const args = argv.slice(2);
-  const files = [];
-  let layers = ['color'];
-  let container = false;
-  let repeat = 1;
-  let threads = 2;
-  let rangeCoder = 'wasm';
+/** The value after option `args[i]`, or a UsageError when there is none. */
+function valueOf(args, i) {
+  if (i + 1 >= args.length || args[i + 1].startsWith('--')) throw new UsageError(`${args[i]} needs a value`);
+  return args[i + 1];
+}
+
+/** A positive integer option value, or a UsageError. */
+function countOf(name, text) {
+  if (!/^[0-9]+$/.test(text) || Number(text) < 1) throw new UsageError(`${name} must be a whole number >= 1, got '${text}'`);
+  return Number(text);
+}
+
+/**
+ * The layer names of a --layers value: color and/or semantic, comma-separated; an empty value
+ * is the base layer alone (container mode reads no other; the container vectors record it).
+ */
+function layersOf(text) {
+  const names = text.split(',').map((s) => s.trim()).filter(Boolean);
+  const unknown = names.filter((name) => !LAYER_NAMES.includes(name));
+  if (unknown.length) throw new UsageError(`--layers takes color or color,semantic, got '${text}'`);
+  return names;
+}
+
+/** The options of the command line `args` (process.argv without node and the script). */
+function parseArgs(args) {
+  const options = { files: [], layers: ['color'], container: false, repeat: 1, threads: 2, rangeCoder: 'wasm' };
   for (let i = 0; i < args.length; i++) {
-    if (args[i] === '--layers') layers = args[++i].split(',').map((s) => s.trim()).filter(Boolean);
-    else if (args[i] === '--container') container = true;
-    else if (args[i] === '--repeat') repeat = Math.max(1, parseInt(args[++i], 10));
-    else if (args[i] === '--threads') threads = Math.max(1, parseInt(args[++i], 10));
-    else if (args[i] === '--range-coder') rangeCoder = args[++i];
-    else files.push(args[i]);
+    const arg = args[i];
+    if (arg === '--layers') options.layers = layersOf(valueOf(args, i++));
+    else if (arg === '--container') options.container = true;
+    else if (arg === '--repeat') options.repeat = countOf(arg, valueOf(args, i++));
+    else if (arg === '--threads') options.threads = countOf(arg, valueOf(args, i++));
+    else if (arg === '--range-coder') {
+      options.rangeCoder = valueOf(args, i++);
+      if (!['wasm', 'js'].includes(options.rangeCoder)) throw new UsageError(`--range-coder takes wasm or js, got '${options.rangeCoder}'`);
+    } else if (arg.startsWith('--')) throw new UsageError(`unknown option ${arg}`);
+    else options.files.push(arg);
   }
-  if (!files.length) {
-    process.stderr.write('usage: node decode_cli.mjs FILE... [--layers color,semantic] [--container] [--repeat N] [--threads N] [--range-coder wasm|js]\n');
-    return 64;
+  if (!options.files.length) throw new UsageError('give at least one FILE');
+  return options;
+}
+
+async function main(argv) {
+  let options;
+  try {
+    options = parseArgs(argv.slice(2));
+  } catch (err) {
+    if (!(err instanceof UsageError)) throw err;
+    process.stderr.write(`decode_cli.mjs: error: ${err.message}; ${USAGE}\n`);
+    return 2;
   }
+  const { files, layers, container, repeat, threads, rangeCoder } = options;
   setRangeCoder(rangeCoder);
   setIntNetKernel(rangeCoder);
   const wanted = new Set(layers);

@@ -15,15 +15,23 @@ Routes:
   Content-Range, 416 past the end), so a page showing the color layer fetches only the
   header, TOC and base and color chunks.
 
+Every request must name this server in its Host header (``127.0.0.1:PORT``,
+``localhost:PORT``, ``[::1]:PORT`` or the address it listens on): any other name gets 403, so
+a web page whose own name was rebound to this machine's address (DNS rebinding) cannot read
+the scene. A request the handler cannot answer gets 400 or 500 with a one-line body, never a
+traceback.
+
 The server counts the scene bytes it sends (:attr:`ViewerServer.scene_bytes_sent`), which is
 how ``benchmarks/web_viewer.py`` measures what the page fetches.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import re
+import sys
 import threading
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -44,7 +52,7 @@ CONTENT_TYPES = {
 }
 SCENE_PATH = "/scene.csgs"
 _BLOCK = 1 << 16
-_RANGE = re.compile(r"bytes=(\d*)-(\d*)")
+_RANGE = re.compile(r"bytes=([0-9]*)-([0-9]*)")
 _VERSIONED = re.compile(r"/v/([0-9a-f]{16})(/.*)")
 _FOREVER = "public, max-age=31536000, immutable"
 _NEVER = "no-store"
@@ -90,13 +98,31 @@ def byte_range(header: str | None, size: int) -> tuple[int, int] | None | bool:
     if not match or (not match[1] and not match[2]):
         return None
     if not match[1]:  # the last N bytes
-        count = int(match[2])
+        count = _byte_number(match[2], size)
         return (max(size - count, 0), size - 1) if count and size else False
-    first = int(match[1])
-    last = int(match[2]) if match[2] else size - 1
+    first = _byte_number(match[1], size)
+    last = _byte_number(match[2], size) if match[2] else size - 1
     if first >= size or last < first:
         return False
     return first, min(last, size - 1)
+
+
+def _byte_number(digits: str, size: int) -> int:
+    """The value of a Range header's decimal ``digits``, or ``size + 1`` (past the end of the
+    file) for a number too long for the file: never converts thousands of digits, which
+    Python refuses (and which would take quadratic time)."""
+    digits = digits.lstrip("0") or "0"
+    if len(digits) > len(str(size)):
+        return size + 1
+    return int(digits)
+
+
+def allowed_hosts(host: str, port: int) -> frozenset[str]:
+    """The Host header values (lower case) a server listening on ``host``:``port`` answers:
+    the loopback names and the address it listens on, each with the port."""
+    names = {"127.0.0.1", "localhost", "[::1]", host.lower()}
+    return frozenset(f"[{name}]:{port}" if ":" in name and not name.startswith("[")
+                     else f"{name}:{port}" for name in names)
 
 
 class ViewerServer(ThreadingHTTPServer):
@@ -122,6 +148,9 @@ class ViewerServer(ThreadingHTTPServer):
         self._thread: threading.Thread | None = None
         self.tag = package_tag(self.package_root)
         super().__init__((host, port), _Handler)
+        bound_host, bound_port = self.server_address[:2]
+        self.allowed_hosts = allowed_hosts(host, bound_port) | allowed_hosts(bound_host,
+                                                                              bound_port)
 
     @property
     def url(self) -> str:
@@ -151,6 +180,15 @@ class ViewerServer(ThreadingHTTPServer):
                 "name": None if self.scene is None else self.scene.name,
                 "layers": list(self.layers)}
 
+    def handle_error(self, request, client_address) -> None:
+        """One line on stderr, not socketserver's traceback, for an error the handler did not
+        answer itself (a client that went away is no error)."""
+        error = sys.exc_info()[1]
+        if isinstance(error, (ConnectionError, TimeoutError)):
+            return
+        print(f"csgs view: request from {client_address[0]} failed: "
+              f"{type(error).__name__}: {error}", file=sys.stderr)
+
     def start(self) -> ViewerServer:
         """Serve on a background daemon thread; returns self."""
         self._thread = threading.Thread(target=self.serve_forever, name="csgs-web",
@@ -177,6 +215,8 @@ def package_file(url_path: str, root: Path = PACKAGE_ROOT) -> Path | None:
     """The file under ``root`` a URL path names under :data:`SERVED_FOLDERS`, or None
     (anything else, ``..`` tricks and unknown file types included)."""
     relative = unquote(url_path).lstrip("/")
+    if "\0" in relative:
+        return None
     if not relative.startswith(SERVED_FOLDERS) or Path(relative).suffix not in CONTENT_TYPES:
         return None
     path = (root / relative).resolve()
@@ -199,31 +239,71 @@ class _Handler(BaseHTTPRequestHandler):
         self._answer(send_body=True)
 
     def _answer(self, send_body: bool) -> None:
-        url = urlsplit(self.path)
-        path = url.path
+        """Answer one GET or HEAD; whatever goes wrong ends as a 400 or 500 answer."""
+        self._started = False
         try:
-            cache = _NEVER
-            versioned = _VERSIONED.fullmatch(path)
-            if versioned and versioned[1] == self.server.tag:
-                path, cache = versioned[2], _FOREVER
-            if path == "/":
-                self._redirect(f"/v/{self.server.tag}/web/index.html"
-                               + (f"?{url.query}" if url.query else ""))
-            elif path == "/config.json":
-                body = json.dumps(self.server.config()).encode()
-                self._send_bytes(body, "application/json", send_body)
-            elif path == SCENE_PATH and self.server.scene is not None:
-                self._send_scene(send_body)
-            else:
-                found = package_file(path, self.server.package_root)
-                if found is None:
-                    self._send_bytes(b"not found\n", "text/plain", send_body,
-                                     status=HTTPStatus.NOT_FOUND)
-                else:
-                    self._send_bytes(found.read_bytes(), CONTENT_TYPES[found.suffix],
-                                     send_body, cache=cache)
+            if self._host_refused(send_body):
+                return
+            self._route(send_body)
         except (BrokenPipeError, ConnectionResetError):
             pass  # the page went away mid-answer
+        except ValueError as exc:  # a request no route can read (odd bytes, bad numbers)
+            self._fail(HTTPStatus.BAD_REQUEST, exc, send_body)
+        except Exception as exc:  # noqa: BLE001 - a server answers, it does not crash
+            self._fail(HTTPStatus.INTERNAL_SERVER_ERROR, exc, send_body)
+
+    def _host_refused(self, send_body: bool) -> bool:
+        """Answer 400 (no Host header) or 403 (a name not this server's) and return True, or
+        return False for a request that names this server."""
+        host = self.headers.get("Host")
+        if host is None:
+            self._send_bytes(b"a Host header is required\n", "text/plain", send_body,
+                             status=HTTPStatus.BAD_REQUEST)
+            return True
+        if host.strip().lower() not in self.server.allowed_hosts:
+            self._send_bytes(b"forbidden: unknown Host\n", "text/plain", send_body,
+                             status=HTTPStatus.FORBIDDEN)
+            return True
+        return False
+
+    def _fail(self, status: HTTPStatus, error: Exception, send_body: bool) -> None:
+        """Answer ``status`` with a one-line body, unless an answer has already begun: then
+        close the connection, since its headers are out."""
+        self.close_connection = True
+        if self._started:
+            return
+        line = f"{status.phrase.lower()}: {type(error).__name__}\n".encode()
+        with contextlib.suppress(OSError):
+            self._send_bytes(line, "text/plain", send_body, status=status)
+
+    def send_response(self, code, message=None) -> None:
+        """As the base class, and remember that an answer has begun."""
+        self._started = True
+        super().send_response(code, message)
+
+    def _route(self, send_body: bool) -> None:
+        """Send what the request's path names."""
+        url = urlsplit(self.path)
+        path, cache = url.path, _NEVER
+        versioned = _VERSIONED.fullmatch(path)
+        if versioned and versioned[1] == self.server.tag:
+            path, cache = versioned[2], _FOREVER
+        if path == "/":
+            self._redirect(f"/v/{self.server.tag}/web/index.html"
+                           + (f"?{url.query}" if url.query else ""))
+        elif path == "/config.json":
+            body = json.dumps(self.server.config()).encode()
+            self._send_bytes(body, "application/json", send_body)
+        elif path == SCENE_PATH and self.server.scene is not None:
+            self._send_scene(send_body)
+        else:
+            found = package_file(path, self.server.package_root)
+            if found is None:
+                self._send_bytes(b"not found\n", "text/plain", send_body,
+                                 status=HTTPStatus.NOT_FOUND)
+            else:
+                self._send_bytes(found.read_bytes(), CONTENT_TYPES[found.suffix],
+                                 send_body, cache=cache)
 
     def _redirect(self, target: str) -> None:
         self.send_response(HTTPStatus.FOUND)

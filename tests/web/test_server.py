@@ -212,3 +212,98 @@ def test_package_files_have_cacheable_versioned_urls(server):
     assert "immutable" in headers["Cache-Control"]
     assert _get(f"{server.url}v/{'0' * 16}/js/scene.mjs")[0] == 404  # another version's
     assert _get(server.url + "js/scene.mjs")[1]["Cache-Control"] == "no-store"
+
+
+def _raw(server, path: str, headers: dict, host: str | None = "default"):
+    """GET ``path`` with exactly these headers (``host=None`` sends no Host header at all):
+    the status and body."""
+    import http.client
+
+    address, port = server.server_address[:2]
+    connection = http.client.HTTPConnection(address, port, timeout=30)
+    try:
+        connection.putrequest("GET", path, skip_host=True, skip_accept_encoding=True)
+        if host == "default":
+            host = f"127.0.0.1:{port}"
+        if host is not None:
+            connection.putheader("Host", host)
+        for name, value in headers.items():
+            connection.putheader(name, value)
+        connection.endheaders()
+        response = connection.getresponse()
+        return response.status, response.read()
+    finally:
+        connection.close()
+
+
+@pytest.mark.parametrize("host", ["attacker.example", "attacker.example:{port}",
+                                  "127.0.0.1:1", "127.0.0.1", "localhost.attacker.example:{port}"])
+def test_a_foreign_host_header_gets_403(server, host, capsys):
+    """DNS rebinding: a page whose name now points at 127.0.0.1 must not read the scene."""
+    port = server.server_address[1]
+    status, body = _raw(server, "/scene.csgs", {}, host=host.format(port=port))
+    assert status == 403 and CONTENT[:16] not in body and body.count(b"\n") == 1
+    assert _raw(server, "/config.json", {}, host=host.format(port=port))[0] == 403
+    assert server.scene_bytes_sent == 0
+    assert "Traceback" not in capsys.readouterr().err
+
+
+def test_a_request_without_a_host_header_is_refused(server):
+    status, body = _raw(server, "/scene.csgs", {}, host=None)
+    assert status in (400, 403) and CONTENT[:16] not in body
+
+
+@pytest.mark.parametrize("host", ["127.0.0.1:{port}", "localhost:{port}", "LocalHost:{port}",
+                                  "[::1]:{port}"])
+def test_loopback_host_headers_are_answered(server, host):
+    status, body = _raw(server, "/scene.csgs", {"Range": "bytes=0-7"},
+                        host=host.format(port=server.server_address[1]))
+    assert status == 206 and body == CONTENT[:8]
+
+
+def test_the_address_it_listens_on_is_an_accepted_host(tmp_path):
+    path = tmp_path / "scene.csgs"
+    path.write_bytes(CONTENT)
+    with ViewerServer(path, host="0.0.0.0") as running:
+        port = running.server_address[1]
+        assert f"0.0.0.0:{port}" in running.allowed_hosts
+        assert _raw(running, "/config.json", {}, host=f"0.0.0.0:{port}")[0] == 200
+        assert _raw(running, "/config.json", {}, host=f"127.0.0.1:{port}")[0] == 200
+        assert _raw(running, "/config.json", {}, host=f"192.0.2.1:{port}")[0] == 403
+
+
+@pytest.mark.parametrize(("header", "expected"), [
+    ("bytes=" + "9" * 5000 + "-", False), ("bytes=0-" + "9" * 5000, (0, 10239)),
+    ("bytes=-" + "9" * 5000, (0, 10239)), ("bytes=" + "0" * 5000 + "5-9", (5, 9)),
+    ("bytes=99999999999999999999-", False), ("bytes=\u0661-\u0662", None),
+])
+def test_byte_range_of_absurd_numbers(header, expected):
+    assert byte_range(header, len(CONTENT)) == expected
+
+
+def test_an_absurdly_long_range_gets_416_not_a_traceback(server, capsys):
+    status, body = _raw(server, "/scene.csgs", {"Range": "bytes=" + "9" * 5000 + "-"})
+    assert status == 416 and body == b""
+    assert _raw(server, "/scene.csgs", {"Range": "bytes=0-7"}) == (206, CONTENT[:8])
+    assert "Traceback" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("path", ["/web/index.html%00.png", "/js/%00", "/web/%00/../index.html",
+                                  "/%00", "/scene.csgs%00", "//[::1/x"])
+def test_odd_paths_get_a_short_4xx_not_a_traceback(server, path, capsys):
+    status, body = _raw(server, path, {})
+    assert status in (400, 404) and body.count(b"\n") == 1
+    assert _raw(server, "/config.json", {})[0] == 200  # still serving
+    assert "Traceback" not in capsys.readouterr().err
+
+
+def test_an_unexpected_error_in_a_route_gets_500_and_one_line(server, capsys, monkeypatch):
+    from csgs_codec.web import server as module
+
+    def broken(url_path, root):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(module, "package_file", broken)
+    status, body = _raw(server, "/web/index.html", {})
+    assert status == 500 and body.count(b"\n") == 1 and b"Traceback" not in body
+    assert "Traceback" not in capsys.readouterr().err
