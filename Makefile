@@ -19,11 +19,12 @@ $(STAMP): pyproject.toml setup.py scripts/system-deps.sh
 demo: $(STAMP)
 	bash scripts/demo.sh $(VENV) $(DEMO_OUT)
 
+# One test process per core (files kept whole, so module fixtures are built once).
 test: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto --dist loadfile
 
 test-slow: $(STAMP)
-	$(PY) -m pytest -q -m slow
+	$(PY) -m pytest -q -n auto --dist loadfile -m slow
 
 # Peer codecs for benchmarks/ (npm splat-transform, PyPI DracoPy); not needed to test.
 bench-deps: $(STAMP)
