@@ -46,12 +46,13 @@ class Mutant:
 
 
 # ---------------------------------------------------------------- payload helpers
-def _position(rng: random.Random, size: int) -> int:
-    """A byte position in [0, size), the first HEAD_BYTES drawn half the time."""
+def byte_position(rng: random.Random, size: int, head: int = HEAD_BYTES) -> int:
+    """A byte position in [0, size), the first ``head`` bytes drawn half the time (where
+    headers and counts sit)."""
     if size <= 0:
         return 0
     if rng.random() < 0.5:
-        return rng.randrange(min(size, HEAD_BYTES))
+        return rng.randrange(min(size, head))
     return rng.randrange(size)
 
 
@@ -66,7 +67,7 @@ def _flip_bits(rng: random.Random, data: bytes) -> bytes:
         return data
     out = bytearray(data)
     for _ in range(rng.choice((1, 1, 1, 2, 3, 4))):
-        at = _position(rng, len(out))
+        at = byte_position(rng, len(out))
         out[at] ^= 1 << rng.randrange(8)
     return bytes(out)
 
@@ -76,14 +77,14 @@ def _set_bytes(rng: random.Random, data: bytes) -> bytes:
         return data
     out = bytearray(data)
     for _ in range(rng.choice((1, 1, 2, 3))):
-        out[_position(rng, len(out))] = (rng.choice(INTERESTING_BYTES) if rng.random() < 0.7
+        out[byte_position(rng, len(out))] = (rng.choice(INTERESTING_BYTES) if rng.random() < 0.7
                                          else rng.randrange(256))
     return bytes(out)
 
 
 def _resize(rng: random.Random, data: bytes) -> bytes:
     kind = rng.randrange(4)
-    at = _position(rng, len(data) + 1)
+    at = byte_position(rng, len(data) + 1)
     if kind == 0:  # cut the payload short
         return data[:at]
     if kind == 1:  # append bytes
@@ -94,7 +95,7 @@ def _resize(rng: random.Random, data: bytes) -> bytes:
 
 
 def _write_varint(rng: random.Random, data: bytes) -> bytes:
-    at = _position(rng, len(data) + 1)
+    at = byte_position(rng, len(data) + 1)
     old = rng.choice((0, 1, 1, 2, 4))  # bytes the new varint replaces
     return data[:at] + encode_varint(_value(rng)) + data[at + old:]
 

@@ -28,6 +28,7 @@ import struct
 import zipfile
 from dataclasses import dataclass
 
+from tests.fuzz.mutators import byte_position
 from tests.fuzz.reader_seeds import FORMATS, ReaderSeed
 
 #: Bytes at the start of a file where most of the fields sit: half the edits land here.
@@ -60,11 +61,8 @@ class Mutant:
 
 # ------------------------------------------------------------------- byte operators
 def _position(rng: random.Random, size: int) -> int:
-    if size <= 0:
-        return 0
-    if rng.random() < 0.5:
-        return rng.randrange(min(size, HEAD_BYTES))
-    return rng.randrange(size)
+    """A byte position in [0, size), the first HEAD_BYTES drawn half the time."""
+    return byte_position(rng, size, HEAD_BYTES)
 
 
 def flip_bits(rng: random.Random, data: bytes) -> bytes:
