@@ -41,9 +41,8 @@ from tests.fuzz.reader_campaign import (  # noqa: E402
     MEMORY_FACTOR,
     SLOW_SECONDS,
     FormatTally,
-    run_one,
+    run_range,
 )
-from tests.fuzz.reader_mutators import mutant_at  # noqa: E402
 from tests.fuzz.reader_seeds import FORMATS, reader_seeds  # noqa: E402
 
 #: Inputs smaller than this are left out of the heap ratio (a few bytes of input against
@@ -86,7 +85,7 @@ class _Tally(FormatTally):
 
 
 def _save_crash(mutant, outcome) -> None:
-    if _CRASH_DIR is None:
+    if _CRASH_DIR is None or outcome.kind not in ("crash", "timeout"):
         return
     _CRASH_DIR.mkdir(parents=True, exist_ok=True)
     stem = _CRASH_DIR / f"crash_{outcome.index}"
@@ -103,16 +102,8 @@ def _save_crash(mutant, outcome) -> None:
 
 def _run_batch(bounds: tuple[int, int]) -> tuple[dict[str, _Tally], Counter]:
     start, count = bounds
-    tallies: dict[str, _Tally] = {}
-    operators: Counter = Counter()
-    for index in range(start, start + count):
-        mutant = mutant_at(_SEEDS, index, _CAMPAIGN)
-        outcome = run_one(mutant, index, _SCRATCH, _TIME_LIMIT)
-        tallies.setdefault(outcome.format, _Tally()).add(outcome)
-        operators.update(op.split(":")[0] for op in mutant.operators)
-        if outcome.kind in ("crash", "timeout"):
-            _save_crash(mutant, outcome)
-    return tallies, operators
+    return run_range(_SEEDS, start, count, _CAMPAIGN, _SCRATCH, _TIME_LIMIT, tally=_Tally,
+                     on_outcome=_save_crash)
 
 
 def _format_row(name: str, t: _Tally) -> dict:

@@ -181,13 +181,18 @@ def run_one(mutant: Mutant, index: int, scratch: Path, time_limit: float = 10.0)
 
 
 def run_range(seeds: list[ReaderSeed], start: int, count: int, campaign: int, scratch: Path,
-              time_limit: float = 10.0) -> tuple[dict[str, FormatTally], Counter]:
-    """Inputs ``start`` .. ``start + count - 1``: ({format: tally}, operator counts)."""
+              time_limit: float = 10.0, *, tally: type[FormatTally] = FormatTally,
+              on_outcome=None) -> tuple[dict[str, FormatTally], Counter]:
+    """Inputs ``start`` .. ``start + count - 1``: ({format: tally}, operator counts).
+    ``tally``: the class that counts a format's outcomes; ``on_outcome(mutant, outcome)``,
+    when given, sees every input (to keep the crashes, say)."""
     tallies: dict[str, FormatTally] = {}
     operators: Counter = Counter()
     for index in range(start, start + count):
         mutant = mutant_at(seeds, index, campaign)
         outcome = run_one(mutant, index, scratch, time_limit)
-        tallies.setdefault(outcome.format, FormatTally()).add(outcome)
+        tallies.setdefault(outcome.format, tally()).add(outcome)
         operators.update(op.split(":")[0] for op in mutant.operators)
+        if on_outcome is not None:
+            on_outcome(mutant, outcome)
     return tallies, operators
