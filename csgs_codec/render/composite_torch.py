@@ -174,3 +174,41 @@ def composite(order: torch.Tensor, means2d: torch.Tensor, conics: torch.Tensor,
         t_parts.append(trans)
     acc = torch.cat(acc_parts, dim=1).T.reshape(height, width, values.shape[1])
     return acc, torch.cat(t_parts).reshape(height, width)
+
+
+def composite_weights(order: torch.Tensor, means2d: torch.Tensor, conics: torch.Tensor,
+                      opacities: torch.Tensor, extents: torch.Tensor, width: int, height: int,
+                      *, pair_budget: int = PAIR_BUDGET
+                      ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Every contributing (pixel, Gaussian) pair of one view with its compositing weight.
+
+    The weight is alpha_i * T_i(p), so that :func:`composite` of any per-Gaussian values v is
+    ``sum over pairs of weight * v[gaussian]`` at each pixel: one pass gives the linear map
+    from per-Gaussian features to the rendered feature map (stages 2-3, geometry fixed).
+
+    Args:
+        order, means2d, conics, opacities, extents, width, height, pair_budget: as for
+            :func:`composite`.
+
+    Returns:
+        (pixel [P] int64 row-major index in the H x W image, gaussian [P] int64, weight [P]
+        dtype of ``means2d``), on the device of the inputs, without gradients.
+    """
+    dtype, device = means2d.dtype, means2d.device
+    with torch.no_grad():
+        packed = pack_columns(means2d, conics, opacities.to(dtype))
+        boxes = pixel_boxes(means2d, extents, width, height)
+        pixels, gaussians, weights = [], [], []
+        for row0, row1 in row_bands(boxes[order], height, pair_budget):
+            centres = pixel_centres(row0, row1 - row0, width, dtype, device=device)
+            log_t = torch.zeros(centres[0].shape[0], dtype=dtype, device=device)
+            for g, pixel in _select_band(order, boxes, packed, centres, row0, row1, width):
+                weight, log_keep, _, _ = _pair_terms(g, pixel, packed, centres, log_t)
+                log_t = log_t.index_add(0, pixel, log_keep)
+                pixels.append(pixel + row0 * width)
+                gaussians.append(g)
+                weights.append(weight)
+    if not pixels:
+        empty = torch.zeros(0, dtype=torch.int64, device=device)
+        return empty, empty.clone(), torch.zeros(0, dtype=dtype, device=device)
+    return torch.cat(pixels), torch.cat(gaussians), torch.cat(weights)

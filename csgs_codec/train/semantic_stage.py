@@ -24,21 +24,20 @@ import numpy as np
 import torch
 
 from csgs_codec.errors import InputError
-from csgs_codec.render.rasterizer import render
+from csgs_codec.render.composite_torch import composite_weights
+from csgs_codec.render.projection import project_gaussians
+from csgs_codec.render.rasterizer import scene_tensors
+from csgs_codec.render.tiles import depth_order
 from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.train.feature_prior import FactorizedGaussianPrior
-from csgs_codec.train.losses import (
-    CONTRASTIVE_MARGIN,
-    MaskPartition,
-    inter_mask_contrastive_loss,
-    intra_mask_smoothing_loss,
-)
+from csgs_codec.train.losses import CONTRASTIVE_MARGIN
 from csgs_codec.train.quantization import (
     add_quantization_noise,
     gaussian_rate_bits,
     quality_aware_weights,
 )
+from csgs_codec.train.semantic_batch import ViewBatch
 from csgs_codec.train.views import TrainingView
 
 #: Width D of the semantic feature s (docs/design.md, 'Training').
@@ -81,22 +80,23 @@ class SemanticResult:
 
 
 def contribution_matrix(scene: GaussianScene, camera: Camera, groups: np.ndarray | None = None,
-                        *, group_count: int | None = None, chunk: int = 128,
-                        backend: str = "auto") -> torch.Tensor:
-    """Sparse (H * W, G) float32 matrix of each group's rendered weight at each pixel, on the
-    CPU (the renders it sums are numpy arrays).
+                        *, group_count: int | None = None,
+                        device: str | torch.device = "cpu") -> torch.Tensor:
+    """Sparse (H * W, G) float32 matrix of each group's rendered weight at each pixel.
 
     Rendering a feature map of the scene with per-Gaussian features v gives
-    ``(contributions @ v_groups).reshape(H, W, D)`` when Gaussians of a group share v.
+    ``(contributions @ v_groups).reshape(H, W, D)`` when Gaussians of a group share v. One
+    pass of the reference compositor gives every contributing (pixel, Gaussian) pair and its
+    weight alpha * T (:func:`csgs_codec.render.composite_torch.composite_weights`), so the
+    cost is one render whatever N or G; weights below :data:`MIN_CONTRIBUTION` are dropped
+    after the Gaussians of a group are summed.
 
     Args:
         scene: the Gaussians as seen from this camera (e.g. an anchor scene decoded for it).
         camera: the view.
         groups: (N,) int, the group (anchor) of each Gaussian in [0, G); None: one per Gaussian.
         group_count: G (default: max(groups) + 1, or N).
-        chunk: groups rendered per pass (one-hot features of this width). The cost is
-            ceil(G / chunk) renders with ``chunk`` feature channels: meant for small scenes.
-        backend: rasterizer backend (see :func:`csgs_codec.render.rasterizer.render`).
+        device: where the projection, the compositing and the returned matrix live.
 
     Raises:
         InputError: groups of the wrong shape or out of range.
@@ -109,37 +109,34 @@ def contribution_matrix(scene: GaussianScene, camera: Camera, groups: np.ndarray
     count = (int(groups.max()) + 1 if n else 0) if group_count is None else int(group_count)
     if n and (groups.min() < 0 or groups.max() >= count):
         raise InputError(f"groups must lie in [0, {count})", property="groups")
-    rows, cols, values = [], [], []
-    for start in range(0, count, chunk):
-        stop = min(start + chunk, count)
-        members = np.flatnonzero((groups >= start) & (groups < stop))
-        if members.size == 0:
-            continue
-        one_hot = np.zeros((n, stop - start), np.float32)
-        one_hot[members, groups[members] - start] = 1.0
-        weights = render(scene, camera, features=one_hot, backend=backend).features
-        weights = weights.reshape(-1, stop - start)
-        pixel, column = np.nonzero(weights > MIN_CONTRIBUTION)
-        rows.append(pixel)
-        cols.append(column + start)
-        values.append(weights[pixel, column])
-    host = torch.device("cpu")  # cpu: built from numpy renders; training moves it
-    indices = torch.as_tensor(np.stack([np.concatenate(rows), np.concatenate(cols)])
-                              if rows else np.zeros((2, 0), np.int64), device=host)
-    indices = indices.to(torch.int64)
-    data = torch.as_tensor(np.concatenate(values) if values else np.zeros(0, np.float32),
-                           device=host)
-    return torch.sparse_coo_tensor(indices, data, (camera.width * camera.height, count),
-                                   check_invariants=True, device=host).coalesce()
+    pixel_count = camera.width * camera.height
+    tensors = scene_tensors(scene, device=device)
+    with torch.no_grad():
+        projected = project_gaussians(tensors["means"], tensors["log_scales"], tensors["quats"],
+                                      tensors["opacity_logits"], camera,
+                                      near_plane=camera.near_plane)
+        order = depth_order(projected.depths, projected.visible)
+        pixel, gaussian, weight = composite_weights(
+            order, projected.means2d, projected.conics, projected.opacities,
+            projected.extents, camera.width, camera.height)
+    group = torch.as_tensor(groups.astype(np.int64), device=gaussian.device)[gaussian]
+    # Indices come from the compositor and the checked groups, so they are in range.
+    matrix = torch.sparse_coo_tensor(torch.stack([pixel, group]), weight.to(torch.float32),
+                                     (pixel_count, count), check_invariants=False,
+                                     device=weight.device).coalesce()
+    keep = matrix.values() > MIN_CONTRIBUTION
+    return torch.sparse_coo_tensor(matrix.indices()[:, keep], matrix.values()[keep],
+                                   (pixel_count, count), is_coalesced=True,
+                                   check_invariants=False, device=weight.device)
 
 
 def prepare_semantic_views(scene: GaussianScene, views: list[TrainingView],
                            groups: np.ndarray | None = None, *, group_count: int | None = None,
-                           backend: str = "auto") -> list[SemanticView]:
+                           device: str | torch.device = "cpu") -> list[SemanticView]:
     """:class:`SemanticView` s of training views whose Gaussians stay ``scene`` in every view.
 
     Args:
-        scene: the Gaussians; groups, group_count, backend: as for
+        scene: the Gaussians; groups, group_count, device: as for
             :func:`contribution_matrix`.
         views: training views, each with a mask.
 
@@ -152,7 +149,7 @@ def prepare_semantic_views(scene: GaussianScene, views: list[TrainingView],
             raise InputError("stage 2 needs an instance mask for every view",
                              file=view.name or None, index=i, property="mask")
         matrix = contribution_matrix(scene, view.camera, groups, group_count=group_count,
-                                     backend=backend)
+                                     device=device)
         prepared.append(SemanticView(matrix, torch.as_tensor(view.mask.astype(np.int64),
                                                              device=matrix.device)))
     return prepared
@@ -205,15 +202,9 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
     """
     if not views:
         raise InputError("stage 2 needs at least one view", property="views")
-    partitions = []
-    for i, view in enumerate(views):
-        pixels = view.mask.shape[0] * view.mask.shape[1] if view.mask.ndim == 2 else -1
-        if tuple(view.contributions.shape) != (pixels, group_count):
-            raise InputError(f"view {i}: contributions {tuple(view.contributions.shape)} do "
-                             f"not match mask {tuple(view.mask.shape)} and {group_count} "
-                             "groups", index=i, property="contributions")
-        partitions.append(MaskPartition.from_mask(view.mask.to(device), ignore_id))
-    matrices = [view.contributions.to(device) for view in views]
+    batch = ViewBatch.from_views([view.contributions for view in views],
+                                 [view.mask for view in views], group_count,
+                                 ignore_id=ignore_id, device=device)
     weights = (torch.ones(group_count, device=device) if color_steps is None
                else quality_aware_weights(np.asarray(color_steps, np.float32),
                                              step_range=step_range))
@@ -250,13 +241,7 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
         optimizer.zero_grad()
         noisy = add_quantization_noise(features, noise_step, generator=generator)
         values = noisy * weights[:, None]
-        loss = torch.zeros((), device=device)
-        for matrix, partition in zip(matrices, partitions):
-            rendered = torch.sparse.mm(matrix, values)  # [H * W, D]
-            loss = loss + intra_mask_smoothing_loss(rendered, partition)
-            loss = loss + contrastive_weight * inter_mask_contrastive_loss(
-                rendered, partition, margin)
-        loss = loss / len(views)
+        loss = batch.loss(values, margin, contrastive_weight)
         if rate_model is not None:
             mean, sigma = rate_model(noisy)
             bits = gaussian_rate_bits(noisy, mean, sigma, noise_step).sum(dim=1).mean()

@@ -39,7 +39,7 @@ def test_contribution_matrix_reproduces_the_rendered_feature_map(dataset, monkey
     camera = dataset.views[0].camera
     features = np.random.default_rng(0).normal(size=(len(dataset.scene), 4)).astype(np.float32)
     expected = render(dataset.scene, camera, features=features).features
-    matrix = contribution_matrix(dataset.scene, camera, chunk=64)
+    matrix = contribution_matrix(dataset.scene, camera)
     got = torch.sparse.mm(matrix, torch.from_numpy(features)).numpy()
     np.testing.assert_allclose(got.reshape(expected.shape), expected, atol=1e-5)
 
@@ -49,7 +49,7 @@ def test_grouped_matrix_sums_the_columns_of_its_gaussians(dataset, monkeypatch):
     camera = dataset.views[1].camera
     groups = np.arange(len(dataset.scene)) // 5
     per_gaussian = contribution_matrix(dataset.scene, camera).to_dense()
-    grouped = contribution_matrix(dataset.scene, camera, groups, chunk=16).to_dense()
+    grouped = contribution_matrix(dataset.scene, camera, groups).to_dense()
     summed = torch.zeros_like(grouped).index_add(1, torch.from_numpy(groups), per_gaussian)
     torch.testing.assert_close(grouped, summed, atol=1e-6, rtol=1e-5)
 
