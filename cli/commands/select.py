@@ -1,5 +1,6 @@
-"""``csgs select SCENE --view CAMERA --click X,Y [--threshold T] [--mode M] -o object.ply``:
-the Gaussians whose semantic feature matches the one under a pixel, written as a PLY."""
+"""``csgs select SCENE --view CAMERA --click X,Y [--mode M] [--threshold T] -o object.ply``:
+the object under a pixel (its instance, or the Gaussians whose semantic feature matches the
+one under the pixel), written as a PLY."""
 
 from __future__ import annotations
 
@@ -11,8 +12,8 @@ from pathlib import Path
 from csgs_codec.errors import CsgsWarning, InputError
 
 NAME = "select"
-HELP = ("select the object under a pixel by its semantic feature and write its Gaussians "
-        "as a .ply")
+HELP = ("select the object under a pixel by its instance or semantic feature and write its "
+        "Gaussians as a .ply")
 DEFAULT_ORBIT_VIEWS = 16
 DEFAULT_ORBIT_SIZE = (800, 600)
 
@@ -35,8 +36,10 @@ def add_arguments(parser) -> None:
                         help="cosine similarity a Gaussian's feature needs with the clicked "
                              f"one, in [-1, 1] (default {DEFAULT_THRESHOLD})")
     parser.add_argument("--mode", choices=MODES, default="cosine",
-                        help="cosine: every Gaussian over the threshold; cluster: the k-means "
-                             "cluster of the clicked feature (default cosine)")
+                        help="instance: the instance (label, or distinct feature as 'csgs "
+                             "segment' writes) carrying the most weight at the pixel; cosine: "
+                             "every Gaussian over the threshold; cluster: the k-means cluster "
+                             "of the clicked feature (default cosine)")
     parser.add_argument("--clusters", type=int, default=DEFAULT_CLUSTERS, metavar="K",
                         help=f"k of the k-means in cluster mode, 1..{MAX_CLUSTERS} (default "
                              f"{DEFAULT_CLUSTERS})")
@@ -81,8 +84,10 @@ def run(args) -> int:
     write_ply(selected_gaussians(scene, result.mask, camera), output, [args.scene])
     if args.save_mask:
         write_mask(result.mask, args.save_mask)
-    print(f"selected {result.count:,} of {len(scene):,} Gaussians ({args.mode}, threshold "
-          f"{result.threshold:g}, pixel {result.pixel[0]},{result.pixel[1]} of "
+    rule = (f"instance from {result.instance_source}" if args.mode == "instance"
+            else f"{args.mode}, threshold {result.threshold:g}")
+    print(f"selected {result.count:,} of {len(scene):,} Gaussians ({rule}, pixel "
+          f"{result.pixel[0]},{result.pixel[1]} of "
           f"{camera.width}x{camera.height}); wrote {output}")
     return 0
 

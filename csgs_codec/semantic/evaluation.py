@@ -69,7 +69,9 @@ def click_object_ious(scene: GaussianScene | AnchorScene, camera: Camera,
     if labels is None or np.asarray(labels).shape != (len(scene),):
         raise InputError(f"need ({len(scene)},) ground-truth labels", property="labels")
     labels = np.asarray(labels)
-    feature_map = render_feature_map(scene, camera, backend=backend)
+    # "instance" mode composites the clicked pixel only (and may run on labels alone).
+    feature_map = None if mode == "instance" else render_feature_map(scene, camera,
+                                                                     backend=backend)
     ious = {}
     for label, (x, y) in object_click_points(scene.positions, labels, camera).items():
         try:

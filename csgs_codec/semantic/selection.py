@@ -1,9 +1,22 @@
 """Click selection: the Gaussians (or anchors) whose semantic feature matches the pixel clicked.
 
-The semantic features are rendered into a feature map for the camera (the same alpha
-compositing as color), the feature under the click is divided by the pixel's accumulated
-opacity and normalised, and each element is scored by the cosine between its own feature and
-that direction. Two rules turn scores into a selection:
+Three rules turn a click into a selection.
+
+* ``"instance"`` (the default): every element belongs to one instance, and the click selects
+  the instance that carries the most rendered weight at the clicked pixel (alpha * T of its
+  Gaussians, summed), with all its elements. Instances are the scene's labels when it has
+  them; else its features when they take at most :data:`MAX_INSTANCES` distinct values, at
+  most one per :data:`MIN_INSTANCE_SIZE` elements (what ``csgs segment`` writes: one
+  prototype per instance, coded exactly); else the spherical
+  k-means clusters of the features (``clusters``, fixed seed), the clusters whose centroid
+  has cosine >= ``threshold`` with the chosen one joining it. The rule never compares a
+  blended pixel feature with single Gaussians, which is what fails on real, translucent
+  scenes (the pixel mixes the object with what lies behind it).
+
+For the other two the semantic features are rendered into a feature map for the camera (the
+same alpha compositing as color), the feature under the click is divided by the pixel's
+accumulated opacity and normalised, and each element is scored by the cosine between its own
+feature and that direction:
 
 * ``"cosine"``: every element whose cosine is at least ``threshold``.
 * ``"cluster"``: spherical k-means (fixed seed) groups the elements' unit features into
@@ -38,8 +51,13 @@ from csgs_codec.semantic.clustering import spherical_kmeans, unit_rows
 
 #: Cosine similarity an element needs to be selected (both modes; see the module docstring).
 DEFAULT_THRESHOLD = 0.9
-#: Selection rules :func:`click_selection` knows.
-MODES = ("cosine", "cluster")
+#: Selection rules :func:`click_selection` knows; the first is the default.
+MODES = ("instance", "cosine", "cluster")
+#: Most distinct feature rows read as instances (more: the features are clustered).
+MAX_INSTANCES = 255
+#: Distinct feature rows are read as instances only when there are this many elements per
+#: distinct row on average (trained continuous features are distinct almost everywhere).
+MIN_INSTANCE_SIZE = 4
 #: k of the k-means in "cluster" mode.
 DEFAULT_CLUSTERS = 16
 #: Seed of the k-means in "cluster" mode.
@@ -61,10 +79,12 @@ class ClickSelection:
         clicked_feature: (S,) float32 unit semantic direction under the click.
         pixel: (column, row) of the pixel clicked.
         alpha: accumulated opacity at that pixel, in [0, 1).
-        mode: "cosine" or "cluster".
+        mode: "instance", "cosine" or "cluster".
         threshold: the cosine threshold used.
         clusters: (N,) int64 k-means cluster of each element in "cluster" mode (-1 for an
-            all-zero feature), else None.
+            all-zero feature), its instance in "instance" mode, else None.
+        instance_source: in "instance" mode where instances came from: "labels",
+            "features" or "clusters"; else None.
     """
 
     mask: np.ndarray
@@ -75,6 +95,7 @@ class ClickSelection:
     mode: str
     threshold: float
     clusters: np.ndarray | None = None
+    instance_source: str | None = None
 
     @property
     def count(self) -> int:
@@ -134,8 +155,9 @@ def click_selection(scene: GaussianScene | AnchorScene, camera: Camera, x: float
         camera: the view clicked in; (x, y) are its pixel coordinates.
         x, y: pixel coordinates (column, row), pixel (i, j) spanning [i, i + 1) x [j, j + 1).
         threshold: cosine similarity in [-1, 1] (default :data:`DEFAULT_THRESHOLD`).
-        mode: "cosine" or "cluster" (see the module docstring).
-        clusters: k of the k-means in "cluster" mode.
+        mode: "instance", "cosine" or "cluster" (see the module docstring).
+        clusters: k of the k-means in "cluster" mode and for continuous features in
+            "instance" mode.
         backend: rasterizer backend for the feature map ("numba" by default).
         feature_map: this scene's :func:`render_feature_map` for ``camera``, to click again
             without rendering again; None renders it.
@@ -150,6 +172,8 @@ def click_selection(scene: GaussianScene | AnchorScene, camera: Camera, x: float
         ModelError: an anchor scene without Scaffold-GS MLPs (it cannot be rendered).
     """
     check_selection_rule(mode, threshold)
+    if mode == "instance":
+        return _instance_selection(scene, camera, x, y, threshold, clusters)
     features = element_features(scene)
     column, row = click_pixel(camera, x, y)
     if feature_map is None:
@@ -279,6 +303,104 @@ def selected_gaussians(scene: GaussianScene | AnchorScene, mask: np.ndarray,
     origin = camera.position if camera is not None else decoder.scene_center()
     view = decoder.decode(origin)
     return view.gaussians.subset(mask[view.anchor_index])
+
+
+def element_instances(scene: GaussianScene | AnchorScene, *,
+                      clusters: int = DEFAULT_CLUSTERS
+                      ) -> tuple[np.ndarray, str, np.ndarray | None]:
+    """The instance of every selectable element (see the module docstring, "instance").
+
+    Returns:
+        ((N,) int64 instance per element, -1 for none (an all-zero clustered feature);
+        "labels", "features" or "clusters"; (k, S) unit cluster centroids for "clusters",
+        else None).
+
+    Raises:
+        InputError: the scene has neither labels nor semantic features.
+    """
+    labels = getattr(scene, "labels", None)
+    if labels is not None:
+        return np.asarray(labels, np.int64), "labels", None
+    features = element_features(scene)
+    rows, inverse = np.unique(features, axis=0, return_inverse=True)
+    if len(rows) <= MAX_INSTANCES and len(rows) * MIN_INSTANCE_SIZE <= len(features):
+        return inverse.reshape(-1).astype(np.int64), "features", None
+    units, valid = unit_rows(features)
+    ids = np.full(len(units), -1, np.int64)
+    centroids = np.zeros((0, units.shape[1]))
+    if valid.any():
+        centroids, ids[valid] = spherical_kmeans(units[valid], clusters, seed=CLUSTER_SEED)
+    return ids, "clusters", centroids
+
+
+def weights_at_pixel(gaussians: GaussianScene, camera: Camera, column: int, row: int
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Each Gaussian's compositing weight alpha * T at pixel (column, row), by the reference
+    rasterizer's rule: ((P,) int64 Gaussians with weight, (P,) float64 weights)."""
+    import dataclasses
+
+    import torch
+
+    from csgs_codec.render.composite_torch import composite_weights
+    from csgs_codec.render.projection import project_gaussians
+    from csgs_codec.render.rasterizer import scene_tensors
+    from csgs_codec.render.tiles import depth_order
+
+    # A 1 x 1 camera whose only pixel is the clicked one.
+    pixel_camera = dataclasses.replace(camera, width=1, height=1, cx=camera.cx - column,
+                                       cy=camera.cy - row)
+    t = scene_tensors(gaussians)
+    with torch.no_grad():
+        projected = project_gaussians(t["means"], t["log_scales"], t["quats"],
+                                      t["opacity_logits"], pixel_camera,
+                                      near_plane=camera.near_plane)
+        order = depth_order(projected.depths, projected.visible)
+        _, index, weight = composite_weights(order, projected.means2d, projected.conics,
+                                             projected.opacities, projected.extents, 1, 1)
+    return index.cpu().numpy(), weight.double().cpu().numpy()
+
+
+def _instance_selection(scene: GaussianScene | AnchorScene, camera: Camera, x: float,
+                        y: float, threshold: float, clusters: int) -> ClickSelection:
+    """"instance" mode (module notes)."""
+    if not isinstance(scene, GaussianScene | AnchorScene):
+        raise InputError(f"expected a GaussianScene or AnchorScene, got "
+                         f"{type(scene).__name__}", property="scene")
+    ids, source, centroids = element_instances(scene, clusters=clusters)
+    column, row = click_pixel(camera, x, y)
+    if isinstance(scene, GaussianScene):
+        gaussians, element = scene, np.arange(len(scene))
+    else:
+        from csgs_codec.model.scaffold import ScaffoldDecoder
+
+        view = ScaffoldDecoder(scene).decode(camera.position)
+        gaussians, element = view.gaussians, view.anchor_index
+    index, weight = weights_at_pixel(gaussians, camera, column, row)
+    alpha = float(weight.sum())
+    if not alpha >= MIN_CLICK_ALPHA:
+        raise InputError(f"nothing under the click at pixel ({column}, {row}): accumulated "
+                         f"opacity {alpha:.3g} is below {MIN_CLICK_ALPHA}", property="click")
+    hit = ids[element[index]]
+    carried = hit >= 0
+    if not carried.any():
+        raise InputError(f"the Gaussians under the click at pixel ({column}, {row}) belong to "
+                         "no instance (all-zero features)", property="semantic")
+    values, inverse = np.unique(hit[carried], return_inverse=True)
+    chosen = int(values[np.argmax(np.bincount(inverse, weights=weight[carried]))])
+    mask = ids == chosen
+    if centroids is not None:
+        joined = np.flatnonzero(centroids @ centroids[chosen] >= threshold)
+        mask = np.isin(ids, np.union1d(joined, [chosen]))
+    features = scene.semantic
+    direction = np.zeros(0, np.float32)
+    if features is not None and len(features):
+        summed = (np.asarray(features, np.float64)[element[index]] * weight[:, None]).sum(0)
+        norm = float(np.linalg.norm(summed))
+        direction = (summed / norm if norm > 0 else summed).astype(np.float32)
+    return ClickSelection(mask=mask, scores=mask.astype(np.float32), clicked_feature=direction,
+                          pixel=(column, row), alpha=alpha, mode="instance",
+                          threshold=float(threshold), clusters=ids,
+                          instance_source=source)
 
 
 def _cluster_selection(units: np.ndarray, valid: np.ndarray, direction: np.ndarray,

@@ -119,3 +119,16 @@ def test_select_missing_scene_and_folder_output_exit_2(files, tmp_path, capsys):
     assert main(["select", str(files["ply"]), "--view", "orbit:0", "--click", "1,1",
                  "-o", str(tmp_path)]) == 2
     assert "output is a folder" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("source", ["ply", "csgs"])
+def test_instance_mode_selects_the_clicked_label(files, tmp_path, capsys, source):
+    scene, camera = files["scene"], files["camera"]
+    out = tmp_path / "object.ply"
+    click = click_text(centre_pixel(scene, camera, 2))
+    assert main(["select", str(files[source]), "--view", f"{files['cameras']}#1",
+                 "--click", click, "--mode", "instance", "-o", str(out)]) == 0
+    selected = read_ply(out)
+    assert len(selected) == int(np.count_nonzero(scene.labels == 2))
+    assert set(np.unique(selected.labels)) == {2}
+    assert "instance from labels" in capsys.readouterr().out

@@ -199,3 +199,49 @@ def test_empty_view_has_nothing_under_any_click(objects):
     empty = scene.subset(np.zeros(len(scene), bool))
     with pytest.raises(InputError, match="nothing under the click"):
         select_at_click(empty, camera, 160, 120)
+
+
+def test_instance_mode_selects_labels_directly(objects):
+    import dataclasses
+
+    scene, camera = objects
+    bare = dataclasses.replace(scene, semantic=None, semantic_names=())
+    for label in range(OBJECTS):
+        result = click_selection(bare, camera, *centre_pixel(scene, camera, label),
+                                 mode="instance")
+        assert result.instance_source == "labels"
+        assert np.array_equal(result.mask, bare.labels == bare.labels[result.mask][0])
+        assert mask_iou(result.mask, label_mask(scene.labels, label)) == 1.0, label
+        assert result.clicked_feature.shape == (0,)
+
+
+def test_instance_mode_reads_distinct_features_as_instances(objects):
+    import dataclasses
+
+    scene, camera = objects
+    prototypes = np.random.default_rng(1).normal(size=(int(scene.labels.max()) + 1, 6))
+    snapped = dataclasses.replace(scene, labels=None,
+                                  semantic=prototypes[scene.labels].astype(np.float32))
+    for label in range(OBJECTS):
+        result = click_selection(snapped, camera, *centre_pixel(scene, camera, label),
+                                 mode="instance")
+        assert result.instance_source == "features"
+        assert mask_iou(result.mask, label_mask(scene.labels, label)) == 1.0, label
+
+
+def test_instance_mode_clusters_continuous_features(objects):
+    import dataclasses
+
+    scene, camera = objects
+    continuous = dataclasses.replace(scene, labels=None)
+    ious = click_object_ious(continuous, camera, scene.labels, mode="instance")
+    assert min(ious.values()) >= 0.9, ious
+    x, y = centre_pixel(scene, camera, 0)
+    assert click_selection(continuous, camera, x, y, mode="instance").instance_source == \
+        "clusters"
+
+
+def test_instance_mode_on_the_background_is_an_input_error(objects):
+    scene, camera = objects
+    with pytest.raises(InputError, match="nothing under the click"):
+        click_selection(scene, camera, *background_pixel(camera), mode="instance")
