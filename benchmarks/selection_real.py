@@ -41,13 +41,19 @@ finer than trained at quality 5, five bits a channel more for nothing. Cosine se
 not see the scale, so the uncompressed rows use s as trained; the coded rows differ from them
 by the rounding of s (and the lossy geometry), the same integers at every quality.
 
-Variants. ``stage2`` and ``stage2+3`` (trained features, labels left out of the file so they
-cannot leak); ``onehot``: the labels as features, one channel per class 0..K (scaled the same
-way, channel value 1 = one step); ``labels``: the labels coded directly (the semantic layer's
-label chunk), selected by "label under click": the label with the largest rendered weight at
-the clicked pixel, all Gaussians with that label selected (click selection has no label mode).
-Each variant is clicked uncompressed and after ``Encoder(quality=q)`` at qualities 3, 5 and 8,
-decoded with ``layers="color,semantic"``; bytes come from ``describe_bitstream``.
+Variants. ``segment``: ``csgs segment``'s library call (``segment_scene``) on the training
+views and masks: stage 2 for the same steps, instances lifted from the features and masks, each
+Gaussian's feature its instance's prototype, coded as they are (the encoder writes them exactly
+as a codebook, SEMC) and clicked in "instance" mode (the instance carrying the most rendered
+weight under the click). ``stage2`` and ``stage2+3`` (trained features, labels left out of the
+file so they cannot leak); ``onehot``: the labels as features, one channel per class 0..K
+(scaled the same way, channel value 1 = one step); ``labels``: the labels coded directly (the
+semantic layer's label chunk), selected by "label under click": the label with the largest
+rendered weight at the clicked pixel, all Gaussians with that label selected, and by the
+library's "instance" mode, which reads labels as instances (the same rule, computed at the
+clicked pixel only). Each variant is clicked uncompressed and after ``Encoder(quality=q)`` at
+qualities 3, 5 and 8, decoded with ``layers="color,semantic"``; bytes come from
+``describe_bitstream``.
 
 Clicks. In every held-out view, for every category visible in its ground-truth mask (at least
 ``--min-pixels`` pixels), the mask pixel nearest the mask's centroid is clicked (pixel
@@ -304,19 +310,21 @@ def evaluate_clicks(scene: GaussianScene, labels: np.ndarray, cameras: list,
                      "labels": []} for mode in modes}
     for view, view_clicks in by_view.items():
         camera, truth = cameras[view], masks[view]
+        selections = {}
         if "label" in modes:
-            selections = {"label": label_under_click(scene, scene.labels, camera, view_clicks)}
-        else:
-            feature_map = render_feature_map(scene, camera)
-            selections = {mode: [] for mode in modes}
+            selections["label"] = label_under_click(scene, scene.labels, camera, view_clicks)
+        rules = [mode for mode in modes if mode != "label"]
+        feature_map = (render_feature_map(scene, camera)
+                       if set(rules) & {"cosine", "cluster"} else None)
+        for mode in rules:
+            selections[mode] = []
             for click in view_clicks:
-                for mode in modes:
-                    try:
-                        selections[mode].append(click_selection(
-                            scene, camera, click.x, click.y, threshold=threshold, mode=mode,
-                            feature_map=feature_map).mask)
-                    except InputError:  # background or an all-zero feature under the click
-                        selections[mode].append(None)
+                try:
+                    selections[mode].append(click_selection(
+                        scene, camera, click.x, click.y, threshold=threshold, mode=mode,
+                        feature_map=feature_map if mode != "instance" else None).mask)
+                except InputError:  # background or an all-zero feature under the click
+                    selections[mode].append(None)
         for mode, picks in selections.items():
             row = scores[mode]
             for click, selected in zip(view_clicks, picks):
@@ -420,11 +428,35 @@ def train_features(scene: GaussianScene, cameras: list, masks: list[np.ndarray],
     return {"matrices": matrices, "stage2": stage2, "stage3": stage3, "seconds": seconds}
 
 
+def segment(scene: GaussianScene, cameras: list, masks: list[np.ndarray], protocol: Protocol
+            ) -> tuple[GaussianScene, dict]:
+    """``csgs segment``'s library call on the training views: the segmented scene and facts
+    (instances, their sizes, the stage-2 loss, seconds per phase)."""
+    from csgs_codec.train.segment import SegmentSettings, segment_scene
+    from csgs_codec.train.views import TrainingView
+
+    views = [TrainingView(np.zeros((c.height, c.width, 3), np.float32), c, m)
+             for c, m in zip(cameras, masks)]
+    result = segment_scene(scene, views, SegmentSettings(
+        iterations=protocol.stage2_iterations, margin=protocol.margin, seed=protocol.seed))
+    instances = result.instances
+    return result.scene, {
+        "instances": instances.count, "objects_before_empty_dropped": instances.objects,
+        "gaussians_per_instance": instances.counts.tolist(),
+        "stage2_final_loss": float(result.losses[-1]),
+        "seconds": result.seconds,
+    }
+
+
 def coded_rows(scene: GaussianScene, labels: np.ndarray, variant: str,
                features: np.ndarray | None, protocol: Protocol, cameras: list,
-               masks: list[np.ndarray], clicks: list[Click], seen: np.ndarray) -> list[dict]:
-    """The variant uncompressed and at every quality: bytes, seconds, click scores."""
-    modes = ("label",) if features is None else MODES
+               masks: list[np.ndarray], clicks: list[Click], seen: np.ndarray, *,
+               modes: tuple[str, ...] | None = None, scaled: bool = True) -> list[dict]:
+    """The variant uncompressed and at every quality: bytes, seconds, click scores.
+    ``scaled`` features are multiplied by the preset's semantic step (module notes, Scaling);
+    unscaled ones are coded as they are (``csgs segment``'s prototypes)."""
+    if modes is None:
+        modes = ("label", "instance") if features is None else MODES
     names = tuple(f"sem_{i}" for i in range(0 if features is None else features.shape[1]))
     rows = []
     for quality in (None, *protocol.qualities):
@@ -434,7 +466,7 @@ def coded_rows(scene: GaussianScene, labels: np.ndarray, variant: str,
             source = dataclasses.replace(scene, semantic=None, semantic_names=(),
                                          labels=labels.astype(np.int32))
         else:
-            step = 1.0 if quality is None else PRESETS[quality].semantic_step
+            step = 1.0 if quality is None or not scaled else PRESETS[quality].semantic_step
             source = dataclasses.replace(scene, labels=None, semantic_names=names,
                                          semantic=(features * np.float32(step)
                                                    ).astype(np.float32))
@@ -524,6 +556,13 @@ def measure(scene: GaussianScene, labels: np.ndarray, protocol: Protocol) -> tup
             for row in coded_rows(scene, labels, variant, trained[stage].features, protocol,
                                   cameras, masks, clicks, seen):
                 results.append({"masks": condition, **row})
+        print(f"{condition} masks: segment", file=sys.stderr)
+        segmented, segment_facts = segment(scene, train_cameras, train_masks, protocol)
+        seconds[condition]["segment"] = segment_facts.pop("seconds")
+        training[condition]["segment"] = segment_facts
+        for row in coded_rows(scene, labels, "segment", segmented.semantic, protocol, cameras,
+                              masks, clicks, seen, modes=("instance",), scaled=False):
+            results.append({"masks": condition, **row})
     one_hot = np.zeros((len(scene), categories + 1), np.float32)
     one_hot[np.arange(len(scene)), labels] = 1.0
     for variant, features in (("onehot", one_hot), ("labels", None)):

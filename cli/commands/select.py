@@ -35,11 +35,11 @@ def add_arguments(parser) -> None:
     parser.add_argument("--threshold", type=float, default=DEFAULT_THRESHOLD, metavar="T",
                         help="cosine similarity a Gaussian's feature needs with the clicked "
                              f"one, in [-1, 1] (default {DEFAULT_THRESHOLD})")
-    parser.add_argument("--mode", choices=MODES, default="cosine",
+    parser.add_argument("--mode", choices=MODES, default="instance",
                         help="instance: the instance (label, or distinct feature as 'csgs "
                              "segment' writes) carrying the most weight at the pixel; cosine: "
                              "every Gaussian over the threshold; cluster: the k-means cluster "
-                             "of the clicked feature (default cosine)")
+                             "of the clicked feature (default instance)")
     parser.add_argument("--clusters", type=int, default=DEFAULT_CLUSTERS, metavar="K",
                         help=f"k of the k-means in cluster mode, 1..{MAX_CLUSTERS} (default "
                              f"{DEFAULT_CLUSTERS})")

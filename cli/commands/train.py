@@ -82,39 +82,12 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
 
-def _downscale_for(data: str, resolution: int | None) -> float:
-    if resolution is None:
-        return 1.0
-    if resolution < 16:
-        raise InputError(f"--resolution must be at least 16 pixels, got {resolution}",
-                         property="resolution")
-    from csgs_codec.scene.cameras_io import load_cameras
-    from csgs_codec.train.datasets import find_camera_file
-
-    cameras = load_cameras(find_camera_file(Path(data)))
-    longest = max((max(c.width, c.height) for c in cameras), default=resolution)
-    return max(1.0, longest / resolution)
-
-
-def _check_output_folder(output: Path) -> None:
-    """InputError naming ``output`` when its folder is missing or not writable (checked
-    before training, so hours of work are not lost at the end)."""
-    import os
-
-    folder = output.parent if str(output.parent) else Path(".")
-    if not folder.is_dir():
-        raise InputError("the output's folder does not exist", file=output)
-    if not os.access(folder, os.W_OK):
-        raise InputError("the output's folder is not writable", file=output)
-    if output.is_dir():
-        raise InputError("the output is a folder", file=output)
-
-
 def run(args) -> int:
     """Load the dataset, train every stage, write the .csgs atomically and print a summary."""
     import torch
     from tqdm import tqdm
 
+    from csgs_cli.dataset_input import check_output_folder, downscale_for
     from csgs_codec.atomic_write import write_atomically
     from csgs_codec.codec.describe import describe_bitstream
     from csgs_codec.train.color_stage import ColorStageSettings
@@ -157,8 +130,8 @@ def run(args) -> int:
         option = OPTION_OF_SETTING.get(error.property, error.property or "")
         raise InputError(error.message.replace(error.property or "", option),
                          property=f"--{option.replace('_', '-')}") from None
-    _check_output_folder(Path(args.output))
-    views = load_dataset(args.data, downscale=_downscale_for(args.data, args.resolution),
+    check_output_folder(Path(args.output))
+    views = load_dataset(args.data, downscale=downscale_for(args.data, args.resolution),
                          masks=None if args.no_semantic else args.masks,
                          segment_missing=not args.no_semantic,
                          read_masks=not args.no_semantic)

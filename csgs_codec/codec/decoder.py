@@ -31,6 +31,7 @@ from csgs_codec.codec.payloads import (
     check_finite,
     names_from_bytes,
 )
+from csgs_codec.codec.semantic_codebook import read_codebook
 from csgs_codec.codec.streams import SceneStreams, join_streams
 from csgs_codec.codec.tile_index import TileIndex, TileInfo
 from csgs_codec.entropy.categorical import decode_categorical
@@ -428,6 +429,14 @@ class Decoder:
             r.expect_end("the semantic feature stream")
             check_finite(values, "SEMF")
             scene.semantic, scene.semantic_names = values, names
+        if "SEMC" in present:
+            data, offset = single_payload(container, "SEMC")
+            if "SEMF" in present:
+                raise FormatError("a tile holds both SEMF and SEMC", chunk="SEMC",
+                                  offset=offset)
+            r = ByteReader(data, base_offset=offset, chunk="SEMC")
+            scene.semantic_names, scene.semantic = read_codebook(r, header.count,
+                                                                 MAX_SEMANTIC_CHANNELS)
         if "SEML" in present:
             data, offset = single_payload(container, "SEML")
             r = ByteReader(data, base_offset=offset, chunk="SEML")

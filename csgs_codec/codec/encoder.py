@@ -43,6 +43,7 @@ from csgs_codec.codec.presets import (
     preset,
     scaled_preset,
 )
+from csgs_codec.codec.semantic_codebook import codebook_of, write_codebook
 from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
 from csgs_codec.codec.tiling import check_tile_size, effective_tile_size
 from csgs_codec.codec.view_pruning import DEFAULT_BUDGET, decide
@@ -489,7 +490,16 @@ class Encoder:
             reconstruction.semantic = write_float_stream(out, ordered.semantic,
                                                          settings.semantic_step)
             reconstruction.semantic_names = ordered.semantic_names
-            chunks.append(Chunk("SEMF", "semantic", out.getvalue()))
+            chunk = Chunk("SEMF", "semantic", out.getvalue())
+            codebook = codebook_of(ordered.semantic)
+            if codebook is not None:
+                # Few distinct feature rows (segmented scenes): exact, and kept when smaller.
+                exact = ByteWriter()
+                write_codebook(exact, ordered.semantic_names, *codebook)
+                if len(exact) <= len(chunk.payload):
+                    chunk = Chunk("SEMC", "semantic", exact.getvalue())
+                    reconstruction.semantic = ordered.semantic.astype(np.float32, copy=True)
+            chunks.append(chunk)
         if ordered.labels is not None:
             labels = ordered.labels.astype(np.int64)
             base = int(np.median(labels)) if labels.size else 0

@@ -130,6 +130,7 @@ def generate(out_dir: Path) -> None:
            "semantic_small_r2 with the OPAC payload cut in half (frame and CRC rewritten)",
            _reads(bad))
     _semantic_name_vectors(out_dir)
+    _semantic_codebook_vectors(out_dir)
     _color_prior_vectors(out_dir, donut)
     _far_point_vectors(out_dir, donut)
     _view_pruned_vectors(out_dir, donut)
@@ -157,6 +158,78 @@ def _semantic_name_vectors(out_dir: Path) -> None:
         _write(out_dir, name, bad, f"semantic_small with {what} (frame and CRC rewritten): "
                "the color layer reads, the semantic layer is refused at that name",
                _reads(bad))
+
+
+def _semantic_codebook_vectors(out_dir: Path) -> None:
+    """semantic_small's scene with each Gaussian's features its label's prototype (5
+    instances), so the encoder writes SEMC (§12.23), and damaged copies: a NaN prototype,
+    version 2, SEMF beside SEMC, and one instance (K = 1) with an id of 1. The color layer
+    reads in each; the semantic layer is refused."""
+    from dataclasses import replace
+
+    from csgs_codec.codec.semantic_codebook import write_codebook
+    from csgs_codec.format.primitives import ByteWriter
+
+    small = small_semantic_scene()
+    prototypes = np.array([[0.5, -1.25, 2.0], [0.0, 0.75, -0.5], [-2.5, 1.0, 0.25],
+                           [1.5, 1.5, -1.0], [-0.75, -0.25, 3.0]], np.float32)
+    scene = replace(small, semantic=prototypes[small.labels])
+    data = Encoder(quality=6, **UNIFORM).encode(scene)
+    _write(out_dir, "semantic_codebook", data,
+           "semantic_small's scene with every Gaussian's 3 features its label's prototype "
+           "(5 instances): coded exactly as a semantic codebook (SEMC), quality 6",
+           _reads(data), arrays=Decoder().decode(data, layers="color,semantic"))
+    names = small.semantic_names
+    nan = prototypes.copy()
+    nan[2, 1] = np.nan
+    one = ByteWriter()
+    write_codebook(one, names, prototypes[:1], np.r_[np.zeros(39, np.int64), 1])
+    cases = [
+        ("semantic_codebook_nan_prototype", _codebook_payload(names, nan, small.labels),
+         "prototype 2's second value made NaN"),
+        ("semantic_codebook_version_2", b"\x02" + _chunk_payload(data, "SEMC")[1:],
+         "its version byte made 2"),
+        ("semantic_codebook_id_out_of_range", one.getvalue(),
+         "one instance (K = 1) and the last Gaussian's id 1"),
+    ]
+    for name, payload, what in cases:
+        bad = _with_payload(data, "SEMC", payload)
+        _write(out_dir, name, bad, f"semantic_codebook with {what} (frame and CRC "
+               "rewritten): the color layer reads, the semantic layer is refused", _reads(bad))
+    features = Encoder(quality=6, **UNIFORM).encode(small)
+    both = _with_payload(data, "SEMF", _chunk_payload(features, "SEMF"), before="SEMC")
+    _write(out_dir, "semantic_codebook_with_semf", both,
+           "semantic_codebook with semantic_small's SEMF chunk added before its SEMC (a tile "
+           "holds one or the other): the color layer reads, the semantic layer is refused",
+           _reads(both))
+
+
+def _codebook_payload(names: tuple[str, ...], prototypes: np.ndarray, ids: np.ndarray
+                      ) -> bytes:
+    from csgs_codec.codec.semantic_codebook import write_codebook
+    from csgs_codec.format.primitives import ByteWriter
+
+    out = ByteWriter()
+    write_codebook(out, names, prototypes, ids)
+    return out.getvalue()
+
+
+def _chunk_payload(data: bytes, code: str) -> bytes:
+    container = read_layers(data, layers={"color", "semantic"})
+    return bytes(next(container.payloads[e.index] for e in container.toc if e.type == code))
+
+
+def _with_payload(data: bytes, code: str, payload: bytes, before: str | None = None) -> bytes:
+    """``data`` rewritten with chunk ``code``'s payload replaced, or, given ``before``, with a
+    ``code`` chunk holding ``payload`` inserted before chunk ``before``."""
+    container = read_layers(data, layers={"color", "semantic"})
+    chunks = []
+    for e in container.toc:
+        if before is not None and e.type == before:
+            chunks.append(Chunk(code, e.layer, payload, e.tile))
+        own = payload if before is None and e.type == code else container.payloads[e.index]
+        chunks.append(Chunk(e.type, e.layer, bytes(own), e.tile))
+    return write_container(chunks)
 
 
 def _color_prior_vectors(out_dir: Path, donut: GaussianScene) -> None:

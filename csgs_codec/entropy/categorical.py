@@ -40,12 +40,17 @@ def encode_categorical(symbols: np.ndarray, alphabet: int) -> bytes:
 
 
 def decode_categorical(data: bytes, count: int, *, chunk: str | None = None,
-                       base_offset: int = 0) -> np.ndarray:
+                       base_offset: int = 0, alphabet: int | None = None) -> np.ndarray:
     """Decode :func:`encode_categorical`'s stream holding ``count`` symbols: (count,) int64.
 
+    Args:
+        alphabet: the alphabet the stream must declare, or None for any (2..255).
+
     Raises:
-        FormatError: wrong count, bad table, truncation or trailing bytes (with the offset).
+        FormatError: wrong count or alphabet, bad table, truncation or trailing bytes (with
+            the offset).
     """
+    expected_alphabet = alphabet
     reader = ByteReader(data, base_offset=base_offset, chunk=chunk)
     n = reader.varint("count", maximum=MAX_COUNT)
     if n != count:
@@ -53,6 +58,8 @@ def decode_categorical(data: bytes, count: int, *, chunk: str | None = None,
     alphabet = int(reader.fixed("u8", "alphabet"))
     if alphabet < 2:
         raise reader.error(f"alphabet {alphabet} is below 2")
+    if expected_alphabet is not None and alphabet != expected_alphabet:
+        raise reader.error(f"alphabet {alphabet} is not the expected {expected_alphabet}")
     freqs = reader.array(alphabet, "<u2", "frequencies").astype(np.int64)
     if freqs.min() < 1 or int(freqs.sum()) != TOTAL:
         raise reader.error("frequencies must be >= 1 and sum to 65536")

@@ -80,6 +80,8 @@ _TABLE = (
               "Rotations: dropped-component categorical stream, smallest three (3 ch)."),
     ChunkType("SEMF", Layer.SEMANTIC, "Semantic features: channel names and a float stream."),
     ChunkType("SEML", Layer.SEMANTIC, "Integer labels: a lossless residual stream."),
+    ChunkType("SEMC", Layer.SEMANTIC,
+              "Semantic codebook: channel names, K prototypes and an instance id per Gaussian."),
     ChunkType("ANCH", Layer.BASE,
               "Anchor scene header: anchor count, F, K, voxel grid, CARM groups, flags."),
     ChunkType("AHYP", Layer.BASE, "Anchor hyperprior: integer network on the anchor cells."),

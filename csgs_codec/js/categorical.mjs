@@ -8,12 +8,13 @@ import { RangeDecodeError, RangeDecoder, prepareTable } from './range_decoder.mj
 /**
  * @returns {Uint8Array} the ``count`` symbols
  */
-export function decodeCategorical(bytes, count, chunk, baseOffset) {
+export function decodeCategorical(bytes, count, chunk, baseOffset, expectedAlphabet = null) {
   const r = new ByteReader(bytes, baseOffset, chunk);
   const n = r.varint('count', 4294967295);
   if (n !== count) throw r.error(`categorical stream holds ${n} symbols, expected ${count}`);
   const alphabet = r.u8('alphabet');
   if (alphabet < 2) throw r.error(`alphabet ${alphabet} is below 2`);
+  if (expectedAlphabet !== null && alphabet !== expectedAlphabet) throw r.error(`alphabet ${alphabet} is not the expected ${expectedAlphabet}`);
   const raw = r.raw(2 * alphabet, 'frequencies');
   const freqs = new Uint16Array(alphabet);
   let sum = 0;

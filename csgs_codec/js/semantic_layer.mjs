@@ -1,7 +1,10 @@
-/** The semantic layer of a standard scene: SEMF features and SEML labels (§12.16, §12.17). */
+/** The semantic layer of a standard scene: SEMF or SEMC features and SEML labels (§12.16,
+ * §12.23, §12.17). */
 
 import { ByteReader } from './bytes.mjs';
+import { decodeCategorical } from './categorical.mjs';
 import { checkFinite, single } from './chunks.mjs';
+import { FormatError } from './errors.mjs';
 import { readFloatStream } from './float_stream.mjs';
 import { decodeSymbols } from './residual.mjs';
 
@@ -9,28 +12,83 @@ import { decodeSymbols } from './residual.mjs';
  * channel. */
 const SEMANTIC_NAME = /^(sem_|ins_feat_)[A-Za-z0-9_]+$/;
 
-/** Decode SEMF and SEML when present into ``scene`` (semantic, semanticNames, labels). */
+/** The semantic channel names of SEMF and SEMC (§12.16): count, then each name checked. */
+function readNames(r) {
+  const count = r.varint('channel_count', 256);
+  const names = [];
+  const decoder = new TextDecoder('utf-8', { fatal: true });
+  for (let i = 0; i < count; i++) {
+    const at = r.offset;
+    const raw = r.byteString('channel_name', 256);
+    let name;
+    try { name = decoder.decode(raw); } catch { throw r.error('channel name is not UTF-8'); }
+    if (!SEMANTIC_NAME.test(name)) throw r.error(`semantic channel name ${JSON.stringify(name)} is not a PLY-safe semantic identifier (sem_ or ins_feat_ followed by ASCII letters, digits or underscores)`, at);
+    if (names.includes(name)) throw r.error(`semantic channel name ${JSON.stringify(name)} appears twice`, at);
+    names.push(name);
+  }
+  return names;
+}
+
+/** SEMC (§12.23): (names, N x S features), each Gaussian its instance's prototype. */
+function readCodebook(r, count) {
+  const versionAt = r.offset;
+  const version = r.u8('version');
+  if (version !== 1) throw r.error(`SEMC version ${version} is not 1`, versionAt);
+  const names = readNames(r);
+  if (names.length === 0) throw r.error('a codebook needs at least one channel');
+  const channels = names.length;
+  let at = r.offset;
+  const instances = r.varint('instance_count', 4294967296);
+  if (!(instances >= 1 && instances <= 255)) throw r.error(`instance_count ${instances} is outside 1..255`, at);
+  at = r.offset;
+  const raw = r.raw(4 * instances * channels, 'prototypes');
+  const view = new DataView(raw.buffer, raw.byteOffset, raw.byteLength);
+  const prototypes = new Float32Array(instances * channels);
+  for (let i = 0; i < prototypes.length; i++) {
+    prototypes[i] = view.getFloat32(4 * i, true);
+    if (!Number.isFinite(prototypes[i])) throw r.error('a prototype value is not finite', at);
+  }
+  const sameBytes = r.byteString('same_stream');
+  const same = decodeCategorical(sameBytes, Math.max(count - 1, 0), r.chunk, r.offset - sameBytes.length, 2);
+  let changes = 0;
+  for (let i = 0; i < same.length; i++) if (same[i] === 0) changes++;
+  const startCount = count === 0 ? 0 : 1 + changes;
+  at = r.offset;
+  const idBytes = r.byteString('id_stream');
+  const starts = decodeCategorical(idBytes, startCount, r.chunk, r.offset - idBytes.length, Math.max(instances, 2));
+  for (let i = 0; i < starts.length; i++) {
+    if (starts[i] >= instances) throw r.error(`an instance id is not below instance_count ${instances}`, at);
+  }
+  r.expectEnd('the SEMC payload');
+  const features = new Float32Array(count * channels);
+  let run = 0;
+  for (let i = 0; i < count; i++) {
+    if (i > 0 && same[i - 1] === 0) run++;
+    const id = starts[run];
+    features.set(prototypes.subarray(id * channels, (id + 1) * channels), i * channels);
+  }
+  return { names, features };
+}
+
+/** Decode SEMF or SEMC and SEML when present into ``scene`` (semantic, semanticNames,
+ * labels). */
 export function decodeSemantic(container, header, scene, family) {
   const present = new Set(container.toc.entries.map((e) => e.type));
   if (present.has('SEMF')) {
     const [data, offset] = single(container, 'SEMF');
     const r = new ByteReader(data, offset, 'SEMF');
-    const count = r.varint('channel_count', 256);
-    const names = [];
-    const decoder = new TextDecoder('utf-8', { fatal: true });
-    for (let i = 0; i < count; i++) {
-      const at = r.offset;
-      const raw = r.byteString('channel_name', 256);
-      let name;
-      try { name = decoder.decode(raw); } catch { throw r.error('channel name is not UTF-8'); }
-      if (!SEMANTIC_NAME.test(name)) throw r.error(`semantic channel name ${JSON.stringify(name)} is not a PLY-safe semantic identifier (sem_ or ins_feat_ followed by ASCII letters, digits or underscores)`, at);
-      if (names.includes(name)) throw r.error(`semantic channel name ${JSON.stringify(name)} appears twice`, at);
-      names.push(name);
-    }
+    const names = readNames(r);
     const values = readFloatStream(r, header.count, names.length, null, family);
     r.expectEnd('the semantic feature stream');
     checkFinite(values, 'SEMF');
     scene.semantic = values;
+    scene.semanticNames = names;
+  }
+  if (present.has('SEMC')) {
+    const [data, offset] = single(container, 'SEMC');
+    if (present.has('SEMF')) throw new FormatError('a tile holds both SEMF and SEMC', { chunk: 'SEMC', offset });
+    const { names, features } = readCodebook(new ByteReader(data, offset, 'SEMC'), header.count);
+    scene.semantic = features;
     scene.semanticNames = names;
   }
   if (present.has('SEML')) {

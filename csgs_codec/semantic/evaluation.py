@@ -47,7 +47,7 @@ def object_click_points(positions: np.ndarray, labels: np.ndarray, camera: Camer
 
 def click_object_ious(scene: GaussianScene | AnchorScene, camera: Camera,
                       labels: np.ndarray | None = None, *,
-                      threshold: float = DEFAULT_THRESHOLD, mode: str = "cosine",
+                      threshold: float = DEFAULT_THRESHOLD, mode: str = "instance",
                       backend: str = "numba") -> dict[int, float]:
     """Click each labelled object's projected centre and score the selection.
 

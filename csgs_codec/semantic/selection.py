@@ -137,7 +137,7 @@ def render_feature_map(scene: GaussianScene | AnchorScene, camera: Camera, *,
 
 
 def select_at_click(scene: GaussianScene | AnchorScene, camera: Camera, x: float, y: float,
-                    *, threshold: float = DEFAULT_THRESHOLD, mode: str = "cosine"
+                    *, threshold: float = DEFAULT_THRESHOLD, mode: str = "instance"
                     ) -> np.ndarray:
     """The (N,) bool mask of the Gaussians (anchors for an :class:`AnchorScene`) that match the
     semantic feature under pixel (x, y) of ``camera``; see :func:`click_selection`."""
@@ -145,17 +145,18 @@ def select_at_click(scene: GaussianScene | AnchorScene, camera: Camera, x: float
 
 
 def click_selection(scene: GaussianScene | AnchorScene, camera: Camera, x: float, y: float,
-                    *, threshold: float = DEFAULT_THRESHOLD, mode: str = "cosine",
+                    *, threshold: float = DEFAULT_THRESHOLD, mode: str = "instance",
                     clusters: int = DEFAULT_CLUSTERS, backend: str = DEFAULT_BACKEND,
                     feature_map: FeatureMap | None = None) -> ClickSelection:
-    """Select what the click at pixel (x, y) lands on, by semantic similarity.
+    """Select what the click at pixel (x, y) lands on: its instance, or by semantic
+    similarity.
 
     Args:
         scene: Gaussians with ``semantic`` (N, S) features, or anchors with (M, S) features.
         camera: the view clicked in; (x, y) are its pixel coordinates.
         x, y: pixel coordinates (column, row), pixel (i, j) spanning [i, i + 1) x [j, j + 1).
         threshold: cosine similarity in [-1, 1] (default :data:`DEFAULT_THRESHOLD`).
-        mode: "instance", "cosine" or "cluster" (see the module docstring).
+        mode: "instance" (default), "cosine" or "cluster" (see the module docstring).
         clusters: k of the k-means in "cluster" mode and for continuous features in
             "instance" mode.
         backend: rasterizer backend for the feature map ("numba" by default).
@@ -318,9 +319,15 @@ def element_instances(scene: GaussianScene | AnchorScene, *,
     Raises:
         InputError: the scene has neither labels nor semantic features.
     """
+    if not isinstance(scene, GaussianScene | AnchorScene):
+        raise InputError(f"expected a GaussianScene or AnchorScene, got "
+                         f"{type(scene).__name__}", property="scene")
     labels = getattr(scene, "labels", None)
     if labels is not None:
         return np.asarray(labels, np.int64), "labels", None
+    if getattr(scene, "semantic", None) is None:
+        raise InputError("the scene has no labels or semantic features to select by (decode "
+                         "the semantic layer: layers='color,semantic')", property="semantic")
     features = element_features(scene)
     rows, inverse = np.unique(features, axis=0, return_inverse=True)
     if len(rows) <= MAX_INSTANCES and len(rows) * MIN_INSTANCE_SIZE <= len(features):

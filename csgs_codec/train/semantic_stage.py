@@ -18,6 +18,7 @@ lambda_rate = 0. Adam minimises the sum. Deterministic on the CPU from ``seed``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -164,7 +165,8 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
                             rate_model: torch.nn.Module | None = None, seed: int = 0,
                             device: str | torch.device = "cpu",
                             initial_features: np.ndarray | None = None,
-                            step_range: tuple[float, float] | None = None) -> SemanticResult:
+                            step_range: tuple[float, float] | None = None,
+                            on_step: Callable[[int], None] | None = None) -> SemanticResult:
     """Fit the semantic feature of every group to the views' masks (module notes).
 
     Args:
@@ -192,6 +194,7 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
             default random (``initial_scale``).
         step_range: the codec's (low, high) color steps for the quality-aware weights (see
             :func:`quality_aware_weights`); None normalises min-max over the groups.
+        on_step: called with the step index (0-based) after every step (progress bars).
 
     Returns:
         :class:`SemanticResult`.
@@ -250,5 +253,7 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
         loss.backward()
         optimizer.step()
         history[step] = loss.item()
+        if on_step is not None:
+            on_step(step)
     return SemanticResult(features.detach().cpu().numpy().astype(np.float32), history,
                           bits_history, rate_model)

@@ -1,6 +1,13 @@
 /**
- * Click selection with the rule of `csgs select` (csgs_codec/semantic/selection.py, "cosine"
- * mode): the semantic features are alpha-composited at the clicked pixel exactly as the
+ * Click selection with the rules of `csgs select` (csgs_codec/semantic/selection.py).
+ *
+ * "instance" (used whenever the scene has instances: labels, or features with at most 255
+ * distinct rows and at least 4 Gaussians per row on average, as `csgs segment` writes): the
+ * instance whose Gaussians carry the most compositing weight at the clicked pixel is selected
+ * whole. Scenes with continuous features use "cosine" here (Python's "instance" mode clusters
+ * them with k-means first, which the page does not do yet).
+ *
+ * "cosine": the semantic features are alpha-composited at the clicked pixel exactly as the
  * project rasterizer composites color (EWA projection with the 0.3 px^2 low-pass, alpha
  * clamped to 0.99, contributions below 1/255 skipped, front to back by camera depth, stopping
  * before transmittance falls below 1e-4), divided by the pixel's accumulated opacity and
@@ -10,11 +17,34 @@
 
 export const DEFAULT_THRESHOLD = 0.9;
 export const MIN_CLICK_ALPHA = 0.05;
+/** Most distinct feature rows read as instances (selection.py MAX_INSTANCES). */
+export const MAX_INSTANCES = 255;
+/** Gaussians per distinct row needed, on average (selection.py MIN_INSTANCE_SIZE). */
+export const MIN_INSTANCE_SIZE = 4;
 const LOW_PASS_VARIANCE = 0.3;
 const ALPHA_THRESHOLD = 1 / 255;
 const MAX_ALPHA = 0.99;
 const TRANSMITTANCE_STOP = 1e-4;
 const JACOBIAN_FOV_MARGIN = 1.3;
+
+/**
+ * The Gaussians that contribute at pixel (column, row) and their weights alpha * T.
+ * @returns {{index: Int32Array, weight: Float64Array, alpha: number, hits: number}}
+ */
+export function weightsAtPixel(scene, camera, column, row) {
+  const hits = pixelHits(scene, camera, column, row);
+  const index = [];
+  const weight = [];
+  let transmittance = 1;
+  for (const [, alpha, i] of hits) {
+    const after = transmittance * (1 - alpha);
+    if (after < TRANSMITTANCE_STOP) break;
+    index.push(i);
+    weight.push(alpha * transmittance);
+    transmittance = after;
+  }
+  return { index: Int32Array.from(index), weight: Float64Array.from(weight), alpha: 1 - transmittance, hits: hits.length };
+}
 
 /**
  * The alpha and opacity-weighted feature sum at pixel (column, row).
@@ -26,6 +56,18 @@ const JACOBIAN_FOV_MARGIN = 1.3;
  * @returns {{feature: Float64Array, alpha: number, hits: number}}
  */
 export function compositeAtPixel(scene, features, channels, camera, column, row) {
+  const { index, weight, alpha, hits } = weightsAtPixel(scene, camera, column, row);
+  const feature = new Float64Array(channels);
+  for (let k = 0; k < index.length; k++) {
+    const i = index[k];
+    for (let s = 0; s < channels; s++) feature[s] += weight[k] * features[i * channels + s];
+  }
+  return { feature, alpha, hits };
+}
+
+/** [depth, alpha, index] of every Gaussian whose alpha at the pixel reaches 1/255, sorted
+ * near to far (stable: ties keep index order, as the reference's stable depth sort). */
+function pixelHits(scene, camera, column, row) {
   const { positions, scales, rotations, opacity } = scene;
   const m = camera.world_to_camera;
   const { fx, fy, cx, cy } = camera;
@@ -80,16 +122,59 @@ export function compositeAtPixel(scene, features, channels, camera, column, row)
     hits.push([z, alpha, i]);
   }
   hits.sort((p, q) => p[0] - q[0]);
-  const feature = new Float64Array(channels);
-  let transmittance = 1;
-  for (const [, alpha, i] of hits) {
-    const after = transmittance * (1 - alpha);
-    if (after < TRANSMITTANCE_STOP) break;
-    const weight = alpha * transmittance;
-    for (let s = 0; s < channels; s++) feature[s] += weight * features[i * channels + s];
-    transmittance = after;
+  return hits;
+}
+
+/**
+ * The instance of every Gaussian: the labels when there are any, else the distinct rows of
+ * the features when there are at most MAX_INSTANCES of them and at least MIN_INSTANCE_SIZE
+ * Gaussians per row on average; else null (select by cosine).
+ * @returns {{ids: Int32Array, source: string}|null}
+ */
+export function elementInstances(labels, features, channels) {
+  if (labels) return { ids: Int32Array.from(labels), source: 'labels' };
+  if (!features || !channels) return null;
+  const n = features.length / channels;
+  const rows = new Map();
+  const ids = new Int32Array(n);
+  const bits = new Uint32Array(features.buffer, features.byteOffset, features.length);
+  for (let i = 0; i < n; i++) {
+    const key = Array.from(bits.subarray(i * channels, (i + 1) * channels)).join(',');
+    let id = rows.get(key);
+    if (id === undefined) {
+      if (rows.size >= MAX_INSTANCES) return null;
+      id = rows.size;
+      rows.set(key, id);
+    }
+    ids[i] = id;
   }
-  return { feature, alpha: 1 - transmittance, hits: hits.length };
+  if (rows.size * MIN_INSTANCE_SIZE > n) return null;
+  return { ids, source: 'features' };
+}
+
+/**
+ * Select the instance carrying the most weight at pixel (column, row), whole.
+ * @returns {{mask: Uint8Array, count: number, alpha: number, instance: number}} or throws
+ *   Error with a message for a click on the background
+ */
+export function selectInstanceAtPixel(scene, ids, camera, column, row) {
+  const { index, weight, alpha } = weightsAtPixel(scene, camera, column, row);
+  if (!(alpha >= MIN_CLICK_ALPHA)) {
+    throw new Error(`nothing under the click at pixel (${column}, ${row}): accumulated opacity ${alpha.toPrecision(3)} is below ${MIN_CLICK_ALPHA}`);
+  }
+  const carried = new Map();
+  for (let k = 0; k < index.length; k++) {
+    const id = ids[index[k]];
+    carried.set(id, (carried.get(id) || 0) + weight[k]);
+  }
+  let chosen = null;
+  for (const id of [...carried.keys()].sort((a, b) => a - b)) {
+    if (chosen === null || carried.get(id) > carried.get(chosen)) chosen = id;
+  }
+  const mask = new Uint8Array(ids.length);
+  let count = 0;
+  for (let i = 0; i < ids.length; i++) if (ids[i] === chosen) { mask[i] = 1; count++; }
+  return { mask, count, alpha, instance: chosen };
 }
 
 /**

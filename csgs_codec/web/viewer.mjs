@@ -22,7 +22,7 @@
  */
 
 import { CameraRig } from './camera_rig.mjs';
-import { DEFAULT_THRESHOLD, selectAtPixel } from './pick.mjs';
+import { DEFAULT_THRESHOLD, elementInstances, selectAtPixel, selectInstanceAtPixel } from './pick.mjs';
 
 const $ = (id) => document.getElementById(id);
 const params = new URLSearchParams(location.search);
@@ -239,7 +239,10 @@ worker.onmessage = (event) => {
     bands = message.sh_rest;
     drawing = drawing.then(() => showBands(message.sh_rest, id));
   } else if (message.kind === 'semantic') {
-    semantic = message.semantic ? { features: message.semantic, channels: message.channels, names: message.names } : null;
+    semantic = message.semantic || message.labels ? {
+      features: message.semantic, channels: message.channels, names: message.names,
+      instances: elementInstances(message.labels, message.semantic, message.channels),
+    } : null;
     Object.assign(state, {
       semanticReady: Boolean(semantic), semanticMs: performance.now(),
       semanticDecodeMs: message.decodeMs, semanticBytesRead: message.bytesRead,
@@ -264,17 +267,28 @@ worker.onmessage = (event) => {
   }
 };
 
-/** Select by the feature under drawing-buffer pixel (column, row); updates the page. */
+/** Select the object under drawing-buffer pixel (column, row): by instance when the scene
+ * has instances, else by cosine; updates the page. */
 function selectAt(column, row) {
   if (!scene) throw new Error('no scene is open');
   if (!semantic) throw new Error('the semantic layer is not loaded, so there is nothing to select by');
   const { width, height } = view.size;
-  const threshold = Number($('threshold').value) || DEFAULT_THRESHOLD;
-  const result = selectAtPixel(scene, semantic.features, semantic.channels, rig.camera(width, height), column, row, threshold);
-  state.selection = { count: result.count, column, row, alpha: result.alpha, threshold, mask: result.mask };
+  const camera = rig.camera(width, height);
+  let result;
+  let rule;
+  let threshold = null;
+  if (semantic.instances) {
+    result = selectInstanceAtPixel(scene, semantic.instances.ids, camera, column, row);
+    rule = `instance from ${semantic.instances.source}`;
+  } else {
+    threshold = Number($('threshold').value) || DEFAULT_THRESHOLD;
+    result = selectAtPixel(scene, semantic.features, semantic.channels, camera, column, row, threshold);
+    rule = `threshold ${threshold}`;
+  }
+  state.selection = { count: result.count, column, row, alpha: result.alpha, threshold, rule, mask: result.mask };
   view.highlight(result.mask);
   drawAgain();
-  $('selection').textContent = `selected ${result.count.toLocaleString()} of ${scene.count.toLocaleString()} Gaussians (pixel ${column},${row}, threshold ${threshold})`;
+  $('selection').textContent = `selected ${result.count.toLocaleString()} of ${scene.count.toLocaleString()} Gaussians (pixel ${column},${row}, ${rule})`;
   return result;
 }
 

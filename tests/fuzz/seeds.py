@@ -32,7 +32,7 @@ SUBSET = 300
 LARGE_BYTES = 100_000
 LARGE_WEIGHT = 0.02
 #: Seed scenes also encoded in spatial tiles of this many Gaussians (quality 5).
-TILED = {"semantic200": 50, "outliers300": 75}
+TILED = {"semantic200": 50, "outliers300": 75, "instances200": 50}
 #: Vector folders whose .csgs files are seeds (a missing folder adds none).
 SEED_VECTOR_FAMILIES = ("scenes", "anchors")
 
@@ -59,8 +59,14 @@ def seed_scenes() -> dict[str, GaussianScene]:
     far = donut.subset(np.arange(len(donut)))
     far.positions[:4] = np.array([[1e4, 0, 0], [-3e4, 5, 1], [0, 2e5, 0], [7, 7, -1e6]],
                                  np.float32)
-    scenes = {"donut300": donut, "outliers300": far,
-              "semantic200": random_scene(200, sh_degree=1, seed=2, semantic=4, labels=True)}
+    semantic = random_scene(200, sh_degree=1, seed=2, semantic=4, labels=True)
+    # Every Gaussian its label's prototype, as `csgs segment` writes: coded as SEMC.
+    instances = semantic.subset(np.arange(len(semantic)))
+    prototypes = np.random.default_rng(5).normal(size=(int(instances.labels.max()) + 1, 4))
+    instances.semantic = prototypes[instances.labels].astype(np.float32)
+    instances.labels = None
+    scenes = {"donut300": donut, "outliers300": far, "semantic200": semantic,
+              "instances200": instances}
     sh3 = FIXTURES / "sh3_iter7000.ply"
     if sh3.exists():
         scenes["sh3_300"] = _subset(read_ply(sh3), SUBSET, 3)

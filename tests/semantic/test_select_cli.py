@@ -104,12 +104,12 @@ def test_select_bad_input_exits_2_with_one_line(files, tmp_path, capsys, view, c
 
 def test_select_on_a_scene_without_semantic_features_exits_2(files, tmp_path, capsys):
     bare = files["scene"].subset(np.arange(len(files["scene"])))
-    bare.semantic, bare.semantic_names = None, ()
+    bare.semantic, bare.semantic_names, bare.labels = None, (), None
     path = tmp_path / "bare.ply"
     write_ply(bare, path)
     assert main(["select", str(path), "--view", str(files["cameras"]), "--click", "10,10",
                  "-o", str(tmp_path / "o.ply")]) == 2
-    assert "no semantic features" in capsys.readouterr().err
+    assert "no labels or semantic features" in capsys.readouterr().err
 
 
 def test_select_missing_scene_and_folder_output_exit_2(files, tmp_path, capsys):

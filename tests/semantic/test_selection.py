@@ -96,7 +96,8 @@ def test_clicked_feature_is_the_objects_unit_direction(objects):
 
 def test_scores_are_cosines_and_mask_is_scores_over_threshold(objects):
     scene, camera = objects
-    result = click_selection(scene, camera, *centre_pixel(scene, camera, 0), threshold=0.5)
+    result = click_selection(scene, camera, *centre_pixel(scene, camera, 0), threshold=0.5,
+                             mode="cosine")
     units = scene.semantic / np.linalg.norm(scene.semantic, axis=1, keepdims=True)
     np.testing.assert_allclose(result.scores, units @ result.clicked_feature, atol=1e-5)
     np.testing.assert_array_equal(result.mask, result.scores >= 0.5)
@@ -105,9 +106,9 @@ def test_scores_are_cosines_and_mask_is_scores_over_threshold(objects):
 def test_lower_threshold_selects_a_superset(objects):
     scene, camera = objects
     x, y = centre_pixel(scene, camera, 4)
-    strict = select_at_click(scene, camera, x, y, threshold=0.99)
-    loose = select_at_click(scene, camera, x, y, threshold=0.5)
-    everything = select_at_click(scene, camera, x, y, threshold=-1.0)
+    strict = select_at_click(scene, camera, x, y, threshold=0.99, mode="cosine")
+    loose = select_at_click(scene, camera, x, y, threshold=0.5, mode="cosine")
+    everything = select_at_click(scene, camera, x, y, threshold=-1.0, mode="cosine")
     assert strict.sum() < loose.sum() and not np.any(strict & ~loose)
     assert everything.all()
 
@@ -145,6 +146,10 @@ def test_scene_without_semantic_features_is_an_input_error(objects):
     bare = scene.subset(np.arange(len(scene)))
     bare.semantic, bare.semantic_names = None, ()
     with pytest.raises(InputError, match="no semantic features") as err:
+        select_at_click(bare, camera, *centre_pixel(scene, camera, 0), mode="cosine")
+    assert err.value.property == "semantic"
+    bare.labels = None  # instance mode reads labels too; with neither there is nothing
+    with pytest.raises(InputError, match="no labels or semantic features") as err:
         select_at_click(bare, camera, *centre_pixel(scene, camera, 0))
     assert err.value.property == "semantic"
 
@@ -190,7 +195,7 @@ def test_feature_map_of_another_camera_is_an_input_error(objects):
     feature_map = render_feature_map(scene, overview_camera(scene.positions, width=64,
                                                             height=48))
     with pytest.raises(InputError, match="another camera") as err:
-        click_selection(scene, camera, 10, 10, feature_map=feature_map)
+        click_selection(scene, camera, 10, 10, feature_map=feature_map, mode="cosine")
     assert err.value.property == "feature_map"
 
 

@@ -76,6 +76,25 @@ def objects(tmp_path_factory):
     return path, Decoder().decode(data, layers="color,semantic")
 
 
+@pytest.fixture(scope="module")
+def segmented(tmp_path_factory):
+    """(path, decoded scene without labels, true labels in decoded order): the 5 blobs with
+    every Gaussian's features its object's prototype and no labels in the file, as `csgs
+    segment` writes scenes; the default encoder codes them as a codebook (SEMC)."""
+    import dataclasses
+
+    scene = labelled_blob_scene(5, 400, seed=3)
+    prototypes = np.random.default_rng(4).normal(size=(int(scene.labels.max()) + 1, 6))
+    snapped = dataclasses.replace(scene, labels=None,
+                                  semantic=prototypes[scene.labels].astype(np.float32))
+    report = Encoder().encode_with_report(snapped)
+    path = tmp_path_factory.mktemp("segmented") / "segmented.csgs"
+    path.write_bytes(report.data)
+    assert b"SEMC" in report.data
+    return path, Decoder().decode(report.data, layers="color,semantic"), \
+        scene.labels[report.order]
+
+
 def test_page_draws_the_sample_like_the_project_rasterizer(browser, donut):
     path, scene = donut
     with ViewerServer(path) as server:
@@ -101,11 +120,14 @@ def test_page_draws_the_sample_like_the_project_rasterizer(browser, donut):
             assert psnr(page, reference) >= MIN_RENDER_PSNR, camera.name
 
 
-def test_click_selects_the_labelled_object(browser, objects):
+@pytest.mark.parametrize("source", ["objects", "segmented"])
+def test_click_selects_the_labelled_object(browser, request, source):
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
 
-    path, scene = objects
+    path, scene, *truth = request.getfixturevalue(source)
+    labels = truth[0] if truth else scene.labels
+    rule = "instance from labels" if source == "objects" else "instance from features"
     camera = overview_camera(scene.positions, width=CLICK_SIZE[0], height=CLICK_SIZE[1])
     with ViewerServer(path) as server:
         _open(browser, server, CLICK_SIZE)
@@ -113,7 +135,7 @@ def test_click_selects_the_labelled_object(browser, objects):
         assert state["error"] is None and state["count"] == len(scene)
         show_camera(browser, camera)
         canvas = browser.find_element(By.ID, "canvas")
-        points = object_click_points(scene.positions, scene.labels, camera)
+        points = object_click_points(scene.positions, labels, camera)
         for label, (x, y) in sorted(points.items()):
             # Selenium offsets are from the element's centre; CSS pixels = canvas pixels here.
             ActionChains(browser).move_to_element_with_offset(
@@ -123,12 +145,13 @@ def test_click_selects_the_labelled_object(browser, objects):
             state = viewer_state(browser)
             assert state["selection"]["count"] == selected.sum()
             assert (state["selection"]["column"], state["selection"]["row"]) == (int(x), int(y))
-            assert mask_iou(selected, scene.labels == label) >= MIN_CLICK_IOU, label
+            assert mask_iou(selected, labels == label) >= MIN_CLICK_IOU, label
             # The same rule as `csgs select`: the Python selection at that pixel agrees.
             python = select_at_click(scene, camera, x, y)
             assert mask_iou(selected, python) >= 0.99, label
             text = browser.find_element(By.ID, "selection").text
             assert f"selected {selected.sum():,} of {len(scene):,} Gaussians" in text
+            assert rule in text
 
 
 def save_page_screenshot(browser, path: Path) -> None:

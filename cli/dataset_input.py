@@ -1,0 +1,42 @@
+"""Dataset and output checks shared by the commands that train on a capture (``csgs train``,
+``csgs segment``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from csgs_codec.errors import InputError
+
+
+def downscale_for(data: str, resolution: int | None) -> float:
+    """The factor that brings the dataset's longest image side down to ``resolution`` pixels
+    (1 when None or already smaller).
+
+    Raises:
+        InputError: a resolution under 16 pixels, or no cameras in ``data``.
+    """
+    if resolution is None:
+        return 1.0
+    if resolution < 16:
+        raise InputError(f"--resolution must be at least 16 pixels, got {resolution}",
+                         property="resolution")
+    from csgs_codec.scene.cameras_io import load_cameras
+    from csgs_codec.train.datasets import find_camera_file
+
+    cameras = load_cameras(find_camera_file(Path(data)))
+    longest = max((max(c.width, c.height) for c in cameras), default=resolution)
+    return max(1.0, longest / resolution)
+
+
+def check_output_folder(output: Path) -> None:
+    """InputError naming ``output`` when its folder is missing or not writable (checked
+    before training, so hours of work are not lost at the end)."""
+    import os
+
+    folder = output.parent if str(output.parent) else Path(".")
+    if not folder.is_dir():
+        raise InputError("the output's folder does not exist", file=output)
+    if not os.access(folder, os.W_OK):
+        raise InputError("the output's folder is not writable", file=output)
+    if output.is_dir():
+        raise InputError("the output is a folder", file=output)

@@ -1,0 +1,171 @@
+"""Semantics for any standard 3DGS scene: stages 2-3 on its fixed Gaussians, from the capture's
+images, cameras and instance masks.
+
+1. One pass of the reference compositor per view gives the linear map from per-Gaussian
+   features to the view's rendered feature map (:func:`contribution_matrix`; cost one render
+   whatever the scene's size), and all views become one sparse product
+   (:class:`~csgs_codec.train.semantic_batch.ViewBatch`).
+2. Stage 2 trains a D-channel feature per Gaussian with the intra-mask smoothing and
+   inter-mask contrastive losses under quantization noise
+   (:func:`~csgs_codec.train.semantic_stage.train_semantic_features`).
+3. The features pick instances: masks of different views that show one object are joined by
+   their features, each Gaussian takes the nearest object and then the majority of its 3D
+   neighbours (:func:`~csgs_codec.train.instances.lift_instances`).
+4. Stage 3 for a standard scene is the codec's own semantic coding: every Gaussian's feature
+   becomes its instance's prototype, so the features are K distinct rows that the encoder
+   codes exactly as a codebook (``SEMC``, FORMAT §12.23) at a fraction of a bit per Gaussian,
+   and selection by instance (``csgs select --mode instance``) is the same before and after
+   coding. No quantization step to apply by hand: the prototypes are written as they are.
+
+The features are written as ``ins_feat_0``.. (the per-Gaussian layout OpenGaussian uses), in
+feature units of stage 2 (masks' mean features trained at least ``margin`` apart).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+
+from csgs_codec.errors import InputError
+from csgs_codec.scene.gaussian_scene import GaussianScene
+from csgs_codec.train import defaults
+from csgs_codec.train.instances import NEIGHBOURS, Instances, lift_instances
+from csgs_codec.train.semantic_batch import ViewBatch
+from csgs_codec.train.semantic_stage import (
+    SEMANTIC_DIM,
+    SemanticView,
+    contribution_matrix,
+    train_semantic_features,
+)
+from csgs_codec.train.views import TrainingView
+
+#: Feature channel names written by :func:`segment_scene` (channel i is ``ins_feat_i``).
+FEATURE_PREFIX = "ins_feat_"
+
+
+@dataclass(frozen=True)
+class SegmentSettings:
+    """How :func:`segment_scene` trains.
+
+    Attributes:
+        iterations: stage-2 Adam steps, each over every view.
+        dim: feature channels D.
+        margin: contrastive margin between masks' mean features (feature units).
+        learning_rate: Adam step size.
+        neighbours: 3D neighbours voting for each Gaussian's instance (1: none).
+        seed: seeds the initial features and the noise.
+        device: torch device for the compositing and the training.
+        ignore_id: mask id of pixels that belong to no instance, or None.
+    """
+
+    iterations: int = defaults.SEMANTIC_ITERATIONS
+    dim: int = SEMANTIC_DIM
+    margin: float = defaults.CONTRASTIVE_MARGIN
+    learning_rate: float = 0.1
+    neighbours: int = NEIGHBOURS
+    seed: int = 0
+    device: str = "cpu"
+    ignore_id: int | None = None
+
+    def validate(self) -> None:
+        """Raises InputError naming the first setting out of range."""
+        for name, low in (("iterations", 1), ("dim", 1), ("neighbours", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise InputError(f"{name} must be an integer >= {low}, got {value!r}",
+                                 property=name)
+        if self.dim > 255:
+            raise InputError(f"dim must be at most 255 channels, got {self.dim}",
+                             property="dim")
+        for name in ("margin", "learning_rate"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | float) and np.isfinite(value) and value > 0):
+                raise InputError(f"{name} must be a finite number > 0, got {value!r}",
+                                 property=name)
+
+
+@dataclass
+class SegmentResult:
+    """What :func:`segment_scene` returns.
+
+    Attributes:
+        scene: the input scene with ``semantic`` (N, D) float32 = each Gaussian's instance
+            prototype, named ``ins_feat_0``..; labels left as they were.
+        instances: the instances (ids, prototypes, counts, visibility).
+        losses: (iterations,) stage-2 loss per step.
+        seconds: wall seconds per phase ("render", "stage2", "instances").
+    """
+
+    scene: GaussianScene
+    instances: Instances
+    losses: np.ndarray
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+def segment_scene(scene: GaussianScene, views: list[TrainingView],
+                  settings: SegmentSettings = SegmentSettings(), *,
+                  progress: Callable[[str, int, int], None] | None = None) -> SegmentResult:
+    """Give every Gaussian of ``scene`` an instance and its prototype feature (module notes).
+
+    Args:
+        scene: the fixed Gaussians, in the cameras' world frame.
+        views: views of the capture, each with a camera and an instance mask (image pixels are
+            not used).
+        settings: :class:`SegmentSettings`.
+        progress: called as ``progress(phase, done, total)`` while rendering views ("render")
+            and training ("stage2").
+
+    Returns:
+        :class:`SegmentResult`.
+
+    Raises:
+        InputError: an empty scene, no views, a view without a mask or whose mask does not
+            match its camera, bad settings, or masks that cover no Gaussian.
+    """
+    settings.validate()
+    if not isinstance(scene, GaussianScene) or len(scene) == 0:
+        raise InputError("segmenting needs a standard scene with at least one Gaussian",
+                         property="scene")
+    if not views:
+        raise InputError("segmenting needs at least one view with a mask", property="views")
+    report = progress or (lambda phase, done, total: None)
+    seconds = {}
+    began = time.perf_counter()
+    prepared = []
+    for i, view in enumerate(views):
+        if view.mask is None:
+            raise InputError("every view needs an instance mask", file=view.name or None,
+                             index=i, property="mask")
+        if view.mask.shape != (view.camera.height, view.camera.width):
+            raise InputError(f"mask is {view.mask.shape[1]}x{view.mask.shape[0]} but its "
+                             f"camera is {view.camera.width}x{view.camera.height}",
+                             file=view.name or None, index=i, property="mask")
+        matrix = contribution_matrix(scene, view.camera, device=settings.device)
+        prepared.append(SemanticView(matrix, torch.as_tensor(view.mask.astype(np.int64),
+                                                             device=matrix.device)))
+        report("render", i + 1, len(views))
+    seconds["render"] = time.perf_counter() - began
+    began = time.perf_counter()
+    trained = train_semantic_features(
+        prepared, len(scene), dim=settings.dim, iterations=settings.iterations,
+        learning_rate=settings.learning_rate, margin=settings.margin,
+        ignore_id=settings.ignore_id, seed=settings.seed, device=settings.device,
+        on_step=lambda step: report("stage2", step + 1, settings.iterations))
+    seconds["stage2"] = time.perf_counter() - began
+    began = time.perf_counter()
+    batch = ViewBatch.from_views([v.contributions for v in prepared],
+                                 [v.mask for v in prepared], len(scene),
+                                 ignore_id=settings.ignore_id, device=settings.device)
+    instances = lift_instances(batch, trained.features, scene.positions,
+                               join_distance=settings.margin / 2,
+                               neighbours=settings.neighbours)
+    seconds["instances"] = time.perf_counter() - began
+    names = tuple(f"{FEATURE_PREFIX}{i}" for i in range(settings.dim))
+    segmented = dataclasses.replace(scene, semantic=instances.features(),
+                                    semantic_names=names)
+    return SegmentResult(segmented, instances, trained.losses, seconds)
