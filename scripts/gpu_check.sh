@@ -4,8 +4,8 @@
 # their hashes there. Wheels it needs beyond the machine's own packages (constriction) are
 # taken from .whl/ in the repository (see /work/.library/device/README.md). Writes into
 # $OUT (default /tmp/gpu_check): gpu.txt, pytest_gpu.log, train_speed_cuda.json,
-# check_vectors.log. Every step has its own time limit, so the script ends within about
-# 8 minutes whatever hangs.
+# segment_scale_cuda.json, check_vectors.log. Every step has its own time limit, so the
+# script ends within about 10 minutes whatever hangs.
 set -u
 cd "$(dirname "$0")/.."
 OUT=${OUT:-/tmp/gpu_check}
@@ -28,6 +28,9 @@ echo "pytest exit $?"; tail -5 "$OUT/pytest_gpu.log"
 echo "== training speed"
 timeout 150 python3 benchmarks/train_speed.py --device cuda --semantic-iterations 10 \
     --out "$OUT/train_speed_cuda.json" 2>&1 | tail -3
+echo "== segment at scale"
+timeout 150 python3 benchmarks/segment_scale.py --device cuda \
+    --out "$OUT/segment_scale_cuda.json" 2>&1 | tail -3
 echo "== conformance vectors"
 timeout 120 python3 -m tests.determinism.check_vectors --cuda > "$OUT/check_vectors.log" 2>&1
 echo "check_vectors exit $?"; tail -3 "$OUT/check_vectors.log"

@@ -44,6 +44,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--quality", type=int, default=DEFAULT_QUALITY, choices=range(1, 10),
                         metavar="Q", help="encoder quality for a .csgs output (default "
                                           f"{DEFAULT_QUALITY})")
+    parser.add_argument("--ignore-id", type=int, metavar="ID",
+                        help="mask id of pixels that belong to no object (e.g. 0 where the "
+                             "masks mark unlabelled pixels 0); default: every id is an object")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"),
                         help="where to composite and train (default cpu)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
@@ -68,7 +71,7 @@ def run(args) -> int:
     if args.device == "cuda" and not torch.cuda.is_available():
         raise InputError("--device cuda: torch sees no CUDA device", property="device")
     settings = SegmentSettings(iterations=args.iterations, margin=args.margin, seed=args.seed,
-                               device=args.device)
+                               device=args.device, ignore_id=args.ignore_id)
     try:
         settings.validate()
     except InputError as error:

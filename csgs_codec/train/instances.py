@@ -15,18 +15,27 @@ views show the same object, and the Gaussians take their instance from the masks
    margin) and the object holds no mask of the same view (two masks of one view are two
    instances by definition); otherwise it starts a new object. Centroids are pixel-weighted
    means of their masks' descriptors. Deterministic: ties keep view and mask order.
-3. **Assignment.** Each Gaussian (group) joins the object whose centroid is nearest its own
-   feature. Voting with the masks' pixels instead (each Gaussian's rendered weight per mask)
-   was measured worse on fruit_drops, even with the true mask-to-object association (44-56%
-   of Gaussians right against 81% by feature): translucent letter Gaussians spread most of
-   their weight over pixels that show the card behind them.
-4. **Neighbours.** Objects are compact in space, trained features of faint or hidden Gaussians
-   are not: each Gaussian's instance becomes the majority among its :data:`NEIGHBOURS`
-   nearest Gaussians (itself included), each weighing log(1 + 10 v), v its total rendered
-   weight over the training views (measured on fruit_drops: 81% -> 93% of Gaussians right;
-   Gaussian Grouping regularises its identity features with 3D neighbours the same way).
-   Neighbours are approximate: candidates within :data:`WINDOW` places in three shifted
-   Morton orders of the positions.
+3. **Classification.** Each Gaussian (group) gets a score per object, started at
+   -||f - c_o||^2 / :data:`SCORE_SCALE` (its feature's distance to the object's centroid) and
+   refined by :data:`CLASSIFY_STEPS` Adam steps on the cross-entropy of every masked pixel:
+   the pixel's rendered object probabilities (the compositing weights times each Gaussian's
+   softmax, normalised) against its mask's object. A pixel already explained by the Gaussians
+   in front of it pulls little on the faint ones behind, so what a Gaussian decides is what
+   the masks show where it is visible (Gaussian Grouping classifies its rendered identity
+   features the same way). Its instance is its best-scoring object.
+4. **Neighbours.** Gaussians too faint to decide any pixel (their largest weight alpha * T in
+   any training pixel is below :data:`DECIDING_WEIGHT`) take the majority among their
+   :data:`NEIGHBOURS` nearest Gaussians (itself included), each weighing log(1 + 10 v), v its
+   total rendered weight over the training views: objects are compact in space, the faint
+   Gaussians' scores are not. Neighbours are approximate: candidates within :data:`WINDOW`
+   places in three shifted Morton orders of the positions.
+
+Measured on fruit_drops (24 views of 320x240, masks from its real labels, 0 ignored), click
+3D / occlusion-aware 2D mIoU: nearest centroid 0.73 / 0.57; neighbour vote for every Gaussian
+0.86 / 0.22 (it hands large card Gaussians to the letters in front of them); classification
+0.74 / 0.78; classification and the faint Gaussians' vote 0.91 / 0.81. Voting with the masks'
+pixels (each Gaussian's rendered weight per mask) gave 0.29 / 0.20: translucent letter
+Gaussians spread most of their weight over pixels that show the card behind them.
 5. **Prototypes.** Each instance's feature is the weighted mean feature of its Gaussians;
    instances are numbered 0..K-1 by decreasing Gaussian count (ties: first object first).
 
@@ -48,6 +57,14 @@ from csgs_codec.train.semantic_batch import ViewBatch
 
 #: Masks whose mean accumulated opacity is below this have no descriptor (nothing drawn).
 MIN_MASK_ALPHA = 0.05
+#: Squared feature distance that lowers a starting object score by 1 (feature units^2).
+SCORE_SCALE = 1.0
+#: Adam steps of the per-pixel classification, and their step size.
+CLASSIFY_STEPS = 100
+CLASSIFY_RATE = 0.1
+#: A Gaussian whose largest weight alpha * T in any training pixel reaches this decides
+#: pixels and keeps its classified instance; fainter ones take their neighbours' majority.
+DECIDING_WEIGHT = 0.2
 #: Gaussians whose instances vote for each Gaussian's instance (itself included).
 NEIGHBOURS = 32
 #: Candidates each side of a Gaussian in each Morton order when looking for neighbours.
@@ -117,16 +134,41 @@ def lift_instances(batch: ViewBatch, features: np.ndarray, positions: np.ndarray
         raise InputError(f"neighbours must be a positive integer, got {neighbours!r}",
                          property="neighbours")
     descriptors, usable = _mask_descriptors(batch, features)
-    centroids = _join_masks(descriptors, usable, batch, float(join_distance) ** 2)
+    centroids, mask_object = _join_masks(descriptors, usable, batch,
+                                         float(join_distance) ** 2)
     if len(centroids) == 0:
         raise InputError("no mask covers any Gaussian: nothing to segment", property="masks")
-    nearest = np.argmin(_squared_distances(features.astype(np.float64), centroids), axis=1)
-    visibility = _visibility(batch)
+    scores = -_squared_distances(features.astype(np.float64), centroids) / SCORE_SCALE
+    ids = _classify(batch, mask_object, scores)
+    visibility, peak = _visibility(batch)
     if neighbours > 1 and groups > 1:
         weight = np.log1p(10.0 * visibility) + 1e-3
-        nearest = _neighbour_vote(nearest, weight, positions, min(neighbours, groups),
-                                  len(centroids))
-    return _number_instances(nearest, features, visibility, len(centroids))
+        voted = _neighbour_vote(ids, weight, positions, min(neighbours, groups),
+                                len(centroids))
+        ids = np.where(peak >= DECIDING_WEIGHT, ids, voted)
+    return _number_instances(ids, features, visibility, len(centroids))
+
+
+def _classify(batch: ViewBatch, mask_object: np.ndarray, scores: np.ndarray) -> np.ndarray:
+    """(G,) int64 best object of each group after the per-pixel cross-entropy refinement of
+    the starting ``scores`` (G, objects) (module notes, step 3)."""
+    device = batch.sizes.device
+    row_object = torch.as_tensor(mask_object, device=device)[batch.mask_index]
+    labelled = row_object >= 0
+    target = row_object[labelled][:, None]
+    logits = torch.as_tensor(scores, dtype=torch.float32, device=device).requires_grad_(True)
+    if not bool(labelled.any()) or scores.shape[1] < 2:
+        return np.argmax(scores, axis=1)
+    optimizer = torch.optim.Adam([logits], lr=CLASSIFY_RATE)
+    for _ in range(CLASSIFY_STEPS):
+        optimizer.zero_grad()
+        rendered = batch.render(torch.softmax(logits, dim=1))[labelled]
+        total = rendered.sum(dim=1, keepdim=True).clamp(min=1e-8)
+        chosen = rendered.gather(1, target) / total
+        loss = -torch.log(chosen.clamp(min=1e-8)).mean()
+        loss.backward()
+        optimizer.step()
+    return logits.detach().argmax(dim=1).cpu().numpy()
 
 
 def _squared_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -154,11 +196,13 @@ def _mask_descriptors(batch: ViewBatch, features: np.ndarray
 
 
 def _join_masks(descriptors: np.ndarray, usable: np.ndarray, batch: ViewBatch,
-                join_sq: float) -> np.ndarray:
-    """(objects, D) float64 centroids of the masks joined into objects (module notes)."""
+                join_sq: float) -> tuple[np.ndarray, np.ndarray]:
+    """((objects, D) float64 centroids of the masks joined into objects, (M,) int64 object
+    of each mask, -1 without a descriptor) (module notes)."""
     sizes = batch.sizes.double().cpu().numpy()
     views = batch.mask_view.cpu().numpy()
     order = [int(m) for m in np.lexsort((np.arange(len(sizes)), -sizes)) if usable[m]]
+    mask_object = np.full(len(sizes), -1, np.int64)
     sums: list[np.ndarray] = []
     weights: list[float] = []
     view_sets: list[set[int]] = []
@@ -176,20 +220,27 @@ def _join_masks(descriptors: np.ndarray, usable: np.ndarray, batch: ViewBatch,
             weights[best] += sizes[m]
             view_sets[best].add(int(views[m]))
         else:
+            best = len(sums)
             sums.append(sizes[m] * descriptors[m])
             weights.append(sizes[m])
             view_sets.append({int(views[m])})
+        mask_object[m] = best
     if not sums:
-        return np.zeros((0, descriptors.shape[1]))
-    return np.stack(sums) / np.asarray(weights)[:, None]
+        return np.zeros((0, descriptors.shape[1])), mask_object
+    return np.stack(sums) / np.asarray(weights)[:, None], mask_object
 
 
-def _visibility(batch: ViewBatch) -> np.ndarray:
-    """(G,) float64 summed rendered weight of each group over the masked pixels."""
+def _visibility(batch: ViewBatch) -> tuple[np.ndarray, np.ndarray]:
+    """((G,) float64 summed rendered weight of each group over the masked pixels, (G,)
+    float64 its largest weight at one pixel)."""
     with torch.no_grad():
-        ones = torch.ones((batch.transpose.shape[1], 1), dtype=torch.float32,
-                          device=batch.sizes.device)
-        return (batch.transpose @ ones).double().cpu().numpy()[:, 0]
+        coo = batch.transpose.to_sparse_coo().coalesce()
+        group = coo.indices()[0].cpu().numpy()
+        weight = coo.values().double().cpu().numpy()
+    groups = batch.transpose.shape[0]
+    peak = np.zeros(groups)
+    np.maximum.at(peak, group, weight)
+    return np.bincount(group, weights=weight, minlength=groups), peak
 
 
 def approximate_neighbours(positions: np.ndarray, k: int) -> np.ndarray:

@@ -62,3 +62,19 @@ def test_stage_one_trains_on_cuda():
     assert np.isfinite(state.history["loss"]).all()
     assert psnr[-10:].mean() > psnr[:5].mean() + 8.0
     assert state.model.to_anchor_scene().positions.shape[1] == 3
+
+
+def test_segment_on_cuda_finds_the_cpu_instances():
+    from csgs_codec.train.segment import SegmentSettings, segment_scene
+
+    dataset = make_synthetic_dataset(7, objects=4, gaussians_per_object=150, views=6,
+                                     width=64, height=48)
+    cpu = segment_scene(dataset.scene, dataset.views, SegmentSettings(iterations=80))
+    gpu = segment_scene(dataset.scene, dataset.views,
+                        SegmentSettings(iterations=80, device="cuda"))
+    labels = dataset.scene.labels
+    for result in (cpu, gpu):
+        assert result.instances.count == 4
+        for label in np.unique(labels):
+            ids, counts = np.unique(result.instances.ids[labels == label], return_counts=True)
+            assert counts.max() >= 0.95 * counts.sum(), label
