@@ -15,8 +15,8 @@ slowest again, untraced, best of three, after the run. Misbehaving inputs are wr
 ``--crash-dir`` as ``crash_<index>.csgs`` with a ``.json`` beside each. A batch that finishes
 more than ``2 x --batch`` seconds plus a minute after the one before it is reported as a hang
 and ends the run (its inputs ran far past the 1 s limit).
-``--only-seeds TEXT`` keeps the seeds whose name contains TEXT (e.g. ``tiled`` for the
-multi-tile files); the mutant sequence then follows that list, which the JSON records.
+``--only-seeds TEXT`` keeps the seeds whose name contains TEXT, or one of TEXT's
+comma-separated parts (e.g. ``tiled`` for the multi-tile files); the mutant sequence then follows that list, which the JSON records.
 """
 
 from __future__ import annotations
@@ -117,7 +117,8 @@ def main() -> int:
 
     seeds = build_seeds()
     if args.only_seeds is not None:
-        seeds = [s for s in seeds if args.only_seeds in s.name]
+        parts = [part for part in args.only_seeds.split(",") if part]
+        seeds = [s for s in seeds if any(part in s.name for part in parts)]
         if not seeds:
             parser.error(f"no seed name contains {args.only_seeds!r}")
     batches = [(s, min(args.batch, args.start + args.inputs - s))
