@@ -16,7 +16,8 @@ slowest again, untraced, best of three, after the run. Misbehaving inputs are wr
 more than ``2 x --batch`` seconds plus a minute after the one before it is reported as a hang
 and ends the run (its inputs ran far past the 1 s limit).
 ``--only-seeds TEXT`` keeps the seeds whose name contains TEXT, or one of TEXT's
-comma-separated parts (e.g. ``tiled`` for the multi-tile files); the mutant sequence then follows that list, which the JSON records.
+comma-separated parts (e.g. ``tiled`` for the multi-tile files); the mutant sequence then
+follows that list, which the JSON records.
 """
 
 from __future__ import annotations

@@ -3,11 +3,13 @@ distinct values, coded exactly as a codebook and one instance id per Gaussian.
 
 What ``csgs segment`` writes is of this kind: every Gaussian carries its instance's prototype
 feature, so the features are K distinct rows (K <= 255). The chunk holds the K prototypes as
-float32 and the ids in the file's Gaussian order as two categorical streams (§12.18): one flag
-per Gaussian after the first, 1 when its id equals the previous Gaussian's, and the ids of the
-first Gaussian and of every Gaussian whose flag is 0. Gaussians are in Morton order (§12.4), so
-neighbours mostly share an instance: on fruit_drops (4,721 real Gaussians, 9 instances) the
-ids cost 0.46 bits each against 3.03 for one table over the ids.
+float16 when every value is one exactly (``csgs segment`` rounds them so: its per-instance
+embeddings can be long), else float32, and the ids in the file's Gaussian order as two
+categorical streams (§12.18): one flag per Gaussian after the first, 1 when its id equals the
+previous Gaussian's, and the ids of the first Gaussian and of every Gaussian whose flag is 0.
+Gaussians are in Morton order (§12.4), so neighbours mostly share an instance: on fruit_drops
+(4,721 real Gaussians, 9 instances) the ids cost 0.46 bits each against 3.03 for one table over
+the ids.
 """
 
 from __future__ import annotations
@@ -22,6 +24,8 @@ from csgs_codec.format.primitives import ByteReader, ByteWriter
 VERSION = 1
 #: Most instances a codebook holds (one categorical symbol each).
 MAX_INSTANCES = 255
+#: ``prototype_format`` values: how the prototype table is stored.
+FLOAT32, FLOAT16 = 0, 1
 
 
 def codebook_of(features: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
@@ -44,10 +48,16 @@ def write_codebook(out: ByteWriter, names: tuple[str, ...], prototypes: np.ndarr
     [0, K)."""
     prototypes = np.asarray(prototypes, np.float32)
     ids = np.asarray(ids, np.int64)
+    half = prototypes.astype(np.float16)
+    exact = np.array_equal(half.astype(np.float32).view(np.uint32), prototypes.view(np.uint32))
     out.fixed("u8", VERSION)
     names_to_bytes(out, names)
     out.varint(len(prototypes))
-    out.array(prototypes.reshape(-1), "<f4")
+    out.fixed("u8", FLOAT16 if exact else FLOAT32)
+    if exact:
+        out.array(half.reshape(-1), "<f2")
+    else:
+        out.array(prototypes.reshape(-1), "<f4")
     same = (ids[1:] == ids[:-1]).astype(np.int64)
     starts = ids[np.r_[True, same == 0]] if ids.size else ids
     out.byte_string(encode_categorical(same, 2))
@@ -72,7 +82,12 @@ def read_codebook(r: ByteReader, count: int, max_channels: int
     if not 1 <= instances <= MAX_INSTANCES:
         raise r.error(f"instance_count {instances} is outside 1..{MAX_INSTANCES}", at)
     at = r.offset
-    prototypes = r.array(instances * len(names), "<f4", "prototypes").astype(np.float32)
+    layout = r.fixed("u8", "prototype_format")
+    if layout not in (FLOAT32, FLOAT16):
+        raise r.error(f"prototype_format {layout} is not 0 (float32) or 1 (float16)", at)
+    at = r.offset
+    kind = "<f4" if layout == FLOAT32 else "<f2"
+    prototypes = r.array(instances * len(names), kind, "prototypes").astype(np.float32)
     if not np.isfinite(prototypes).all():
         raise r.error("a prototype value is not finite", at)
     prototypes = prototypes.reshape(instances, len(names))

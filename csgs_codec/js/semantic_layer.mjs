@@ -29,6 +29,16 @@ function readNames(r) {
   return names;
 }
 
+/** The value of an IEEE binary16 bit pattern (exact in a double, and in a float32). */
+function halfToFloat(bits) {
+  const sign = bits & 0x8000 ? -1 : 1;
+  const exponent = (bits >> 10) & 0x1f;
+  const fraction = bits & 0x3ff;
+  if (exponent === 0) return sign * fraction * 2 ** -24;
+  if (exponent === 31) return fraction ? NaN : sign * Infinity;
+  return sign * (1024 + fraction) * 2 ** (exponent - 25);
+}
+
 /** SEMC (§12.23): (names, N x S features), each Gaussian its instance's prototype. */
 function readCodebook(r, count) {
   const versionAt = r.offset;
@@ -41,11 +51,15 @@ function readCodebook(r, count) {
   const instances = r.varint('instance_count', 4294967296);
   if (!(instances >= 1 && instances <= 255)) throw r.error(`instance_count ${instances} is outside 1..255`, at);
   at = r.offset;
-  const raw = r.raw(4 * instances * channels, 'prototypes');
+  const layout = r.u8('prototype_format');
+  if (layout > 1) throw r.error(`prototype_format ${layout} is not 0 (float32) or 1 (float16)`, at);
+  at = r.offset;
+  const size = layout === 0 ? 4 : 2;
+  const raw = r.raw(size * instances * channels, 'prototypes');
   const view = new DataView(raw.buffer, raw.byteOffset, raw.byteLength);
   const prototypes = new Float32Array(instances * channels);
   for (let i = 0; i < prototypes.length; i++) {
-    prototypes[i] = view.getFloat32(4 * i, true);
+    prototypes[i] = layout === 0 ? view.getFloat32(4 * i, true) : halfToFloat(view.getUint16(2 * i, true));
     if (!Number.isFinite(prototypes[i])) throw r.error('a prototype value is not finite', at);
   }
   const sameBytes = r.byteString('same_stream');

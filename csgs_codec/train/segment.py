@@ -12,10 +12,11 @@ images, cameras and instance masks.
    their features, each Gaussian takes the nearest object and then the majority of its 3D
    neighbours (:func:`~csgs_codec.train.instances.lift_instances`).
 4. Stage 3 for a standard scene is the codec's own semantic coding: every Gaussian's feature
-   becomes its instance's prototype, so the features are K distinct rows that the encoder
-   codes exactly as a codebook (``SEMC``, FORMAT §12.23) at a fraction of a bit per Gaussian,
-   and selection by instance (``csgs select --mode instance``) is the same before and after
-   coding. No quantization step to apply by hand: the prototypes are written as they are.
+   becomes its instance's prototype (rounded to binary16), so the features are K distinct rows
+   that the encoder codes exactly as a codebook (``SEMC``, FORMAT §12.23) at a fraction of a
+   bit per Gaussian, and selection by instance (``csgs select --mode instance``) is the same
+   before and after coding. No quantization step to apply by hand: the prototypes are written
+   as they are.
 
 The features are written as ``ins_feat_0``.. (the per-Gaussian layout OpenGaussian uses), in
 feature units of stage 2 (masks' mean features trained at least ``margin`` apart).
@@ -166,6 +167,8 @@ def segment_scene(scene: GaussianScene, views: list[TrainingView],
                                neighbours=settings.neighbours)
     seconds["instances"] = time.perf_counter() - began
     names = tuple(f"{FEATURE_PREFIX}{i}" for i in range(settings.dim))
-    segmented = dataclasses.replace(scene, semantic=instances.features(),
-                                    semantic_names=names)
+    # Prototypes rounded to binary16 (distinct ones stay margin-far apart), so the codebook
+    # stores them in 2 bytes a value, exactly (FORMAT §12.23).
+    features = instances.features().astype(np.float16).astype(np.float32)
+    segmented = dataclasses.replace(scene, semantic=features, semantic_names=names)
     return SegmentResult(segmented, instances, trained.losses, seconds)

@@ -68,3 +68,17 @@ def test_a_damaged_codebook_is_a_format_error_at_its_offset():
     assert err.value.offset == 100 and err.value.chunk == "SEMC"
     with pytest.raises(FormatError, match="symbols"):
         read_codebook(ByteReader(out.getvalue(), base_offset=100, chunk="SEMC"), 6, 256)
+
+
+def test_prototypes_exact_in_binary16_are_stored_in_two_bytes():
+    ids = np.array([0, 1, 1, 0])
+    exact, inexact = ByteWriter(), ByteWriter()
+    write_codebook(exact, NAMES, np.array([[0.5, -2.0], [1.25, 3.0]], np.float32), ids)
+    write_codebook(inexact, NAMES, np.array([[0.1, -2.0], [1.25, 3.0]], np.float32), ids)
+    assert len(inexact) - len(exact) == 4 * 2
+    _, features = read_codebook(ByteReader(exact.getvalue(), chunk="SEMC"), 4, 256)
+    assert np.array_equal(features, np.array([[0.5, -2.0], [1.25, 3.0]], np.float32)[ids])
+    damaged = bytearray(exact.getvalue())
+    damaged[1 + 1 + 2 * 11 + 1] = 2  # version, count, two names, K: then the format byte
+    with pytest.raises(FormatError, match="prototype_format 2"):
+        read_codebook(ByteReader(bytes(damaged), chunk="SEMC"), 4, 256)
