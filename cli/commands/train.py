@@ -137,7 +137,8 @@ def run(args) -> int:
                          read_masks=not args.no_semantic)
     train_views, test_views = split_views(views, args.test_every)
     points, source = find_initial_points(args.data, [v.camera for v in train_views],
-                                         points=args.points, seed=args.seed)
+                                         points=args.points, seed=args.seed,
+                                         views=train_views)
     settings = TrainSettings(color, semantic_iterations=args.semantic_iterations,
                              stage3_iterations=max(1, 2 * args.semantic_iterations // 3),
                              feature_rate_weight=args.semantic_rate,

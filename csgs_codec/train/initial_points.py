@@ -7,18 +7,22 @@ Looked for in this order (:func:`find_initial_points`):
 2. the ``ply_file_path`` entry of a nerfstudio ``transforms.json``;
 3. ``scene.ply`` beside the camera file (what :meth:`SyntheticDataset.write` adds);
 4. a COLMAP ``points3D.bin`` or ``points3D.txt`` in the model folder;
-5. otherwise uniform random points in the ball the cameras look into (Scaffold-GS's fallback
-   for scenes without structure-from-motion points), from a seed.
+5. points triangulated from the training views' images at their known poses with pycolmap
+   (:mod:`csgs_codec.train.sfm_points`; cached), when views are given, pycolmap is installed
+   and at least :data:`~csgs_codec.train.sfm_points.MIN_POINTS` come out;
+6. otherwise uniform random points in the ball the cameras look into (Scaffold-GS's fallback
+   for scenes without structure-from-motion points), from a seed, with a warning.
 """
 
 from __future__ import annotations
 
 import struct
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from csgs_codec.errors import InputError
+from csgs_codec.errors import CsgsWarning, InputError
 from csgs_codec.scene.camera import MAX_CAMERA_FILE_BYTES, Camera
 from csgs_codec.train.datasets import find_camera_file
 from csgs_codec.untrusted import load_json, read_regular
@@ -145,9 +149,16 @@ def random_points(cameras: list[Camera], count: int = RANDOM_POINT_COUNT, seed: 
 
 
 def find_initial_points(dataset: str | Path, cameras: list[Camera], *,
-                        points: str | Path | None = None, seed: int = 0
-                        ) -> tuple[np.ndarray, str]:
+                        points: str | Path | None = None, seed: int = 0,
+                        views: list | None = None) -> tuple[np.ndarray, str]:
     """The initial point cloud of a dataset and where it came from (module notes).
+
+    Args:
+        dataset: the dataset folder or camera file.
+        cameras: the training cameras (for random points).
+        points: a PLY the caller names (overrides everything).
+        seed: seed of the random points.
+        views: the training views (images and cameras) to triangulate from, or None.
 
     Returns:
         ((N, 3) float64 points, a short description of the source for the user).
@@ -172,4 +183,20 @@ def find_initial_points(dataset: str | Path, cameras: list[Camera], *,
         if model.is_dir() and ((model / "points3D.bin").is_file()
                                or (model / "points3D.txt").is_file()):
             return read_colmap_points(model), str(model)
+    why = "no training views to triangulate from"
+    if views is not None and len(views) >= 2:
+        from csgs_codec.train.sfm_points import MIN_POINTS, pycolmap_available, triangulate_views
+
+        if not pycolmap_available():
+            why = "pycolmap is not installed (pip install 'csgs[train]')"
+        else:
+            found = triangulate_views(views)
+            if len(found.points) >= MIN_POINTS:
+                how = "cached" if found.cached else "triangulated now"
+                return found.points, (f"{len(found.points):,} points triangulated by pycolmap "
+                                      f"from {len(views)} views ({how}: {found.folder})")
+            why = f"pycolmap triangulated only {len(found.points)} points"
+    warnings.warn(f"{dataset}: no initial points ({why}); starting from "
+                  f"{RANDOM_POINT_COUNT:,} random points, which trains worse",
+                  CsgsWarning, stacklevel=2)
     return random_points(cameras, seed=seed), f"{RANDOM_POINT_COUNT} random points"
