@@ -36,19 +36,25 @@ def click_text(point) -> str:
     return f"{point[0]:.1f},{point[1]:.1f}"
 
 
+@pytest.mark.parametrize("mode", ["instance", "cosine"])
 @pytest.mark.parametrize("source", ["ply", "csgs"])
-def test_select_writes_the_clicked_objects_gaussians(files, tmp_path, capsys, source):
+def test_select_writes_the_clicked_objects_gaussians(files, tmp_path, capsys, source, mode):
     scene, camera = files["scene"], files["camera"]
     out = tmp_path / "object.ply"
     click = click_text(centre_pixel(scene, camera, 3))
     assert main(["select", str(files[source]), "--view", f"{files['cameras']}#1",
-                 "--click", click, "-o", str(out)]) == 0
+                 "--click", click, "--mode", mode, "-o", str(out)]) == 0
     selected = read_ply(out)
     truth = int(np.count_nonzero(scene.labels == 3))
-    assert 0.9 * truth <= len(selected) <= truth / 0.9
+    if mode == "instance":  # the labels are the instances: exactly the object
+        assert len(selected) == truth
+    else:
+        assert 0.9 * truth <= len(selected) <= truth / 0.9
     assert set(np.unique(selected.labels)) == {3}
     assert selected.semantic is not None and selected.semantic.shape[1] == 6
-    assert f"selected {len(selected):,} of {len(scene):,} Gaussians" in capsys.readouterr().out
+    text = capsys.readouterr().out
+    assert f"selected {len(selected):,} of {len(scene):,} Gaussians" in text
+    assert ("instance from labels" in text) == (mode == "instance")
 
 
 def test_select_by_camera_name_and_resized_click(files, tmp_path):
@@ -119,16 +125,3 @@ def test_select_missing_scene_and_folder_output_exit_2(files, tmp_path, capsys):
     assert main(["select", str(files["ply"]), "--view", "orbit:0", "--click", "1,1",
                  "-o", str(tmp_path)]) == 2
     assert "output is a folder" in capsys.readouterr().err
-
-
-@pytest.mark.parametrize("source", ["ply", "csgs"])
-def test_instance_mode_selects_the_clicked_label(files, tmp_path, capsys, source):
-    scene, camera = files["scene"], files["camera"]
-    out = tmp_path / "object.ply"
-    click = click_text(centre_pixel(scene, camera, 2))
-    assert main(["select", str(files[source]), "--view", f"{files['cameras']}#1",
-                 "--click", click, "--mode", "instance", "-o", str(out)]) == 0
-    selected = read_ply(out)
-    assert len(selected) == int(np.count_nonzero(scene.labels == 2))
-    assert set(np.unique(selected.labels)) == {2}
-    assert "instance from labels" in capsys.readouterr().out
