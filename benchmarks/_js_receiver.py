@@ -54,6 +54,9 @@ def scene_hashes(scene) -> dict[str, dict]:
     }
     if scene.semantic is not None:
         arrays["semantic"] = scene.semantic
+    if getattr(scene, "instances", None) is not None:
+        arrays["instance_prototypes"] = scene.instances.prototypes
+        arrays["instance_embeddings"] = scene.instances.embeddings
     out = {name: {"shape": list(v.shape), "sha256": _digest(v, "<f4")}
            for name, v in arrays.items()}
     if scene.labels is not None:

@@ -30,6 +30,10 @@ def add_arguments(parser) -> None:
                         help="instance masks, one integer label image per view named after "
                              "its image (e.g. SAM's, as PNG); default: masks/ beside the "
                              "images, else the built-in segmenter (weaker)")
+    parser.add_argument("--mask-embeddings", metavar="DIR",
+                        help="one .npy per view named after its image, row i an embedding "
+                             "of mask id i (e.g. CLIP image embeddings of the masks): the "
+                             ".csgs then answers 'csgs query'")
     parser.add_argument("-o", "--output", required=True, metavar="OUT",
                         help="output .ply (features as ins_feat_* properties) or .csgs")
     parser.add_argument("--iterations", type=int, default=defaults.SEMANTIC_ITERATIONS,
@@ -81,6 +85,12 @@ def run(args) -> int:
     scene = load_scene(args.scene, command=NAME, layers="color")
     views = load_dataset(args.images, downscale=downscale_for(args.images, args.resolution),
                          masks=args.masks, segment_missing=True)
+    embeddings = None
+    if args.mask_embeddings:
+        if suffix != ".csgs":
+            raise InputError("instance embeddings travel in a .csgs only; name a .csgs output",
+                             file=output)
+        embeddings = read_mask_embeddings(Path(args.mask_embeddings), views)
     if not args.quiet:
         print(f"{len(scene):,} Gaussians, {len(views)} views at "
               f"{views[0].width}x{views[0].height}")
@@ -95,7 +105,8 @@ def run(args) -> int:
         bars[phase].update(done - bars[phase].n)
 
     try:
-        result = segment_scene(scene, views, settings, progress=progress)
+        result = segment_scene(scene, views, settings, mask_embeddings=embeddings,
+                               progress=progress)
     finally:
         for bar in bars.values():
             bar.close()
@@ -116,3 +127,34 @@ def run(args) -> int:
     times = ", ".join(f"{k} {v:.1f} s" for k, v in result.seconds.items())
     print(f"time: {times}")
     return 0
+
+
+def read_mask_embeddings(folder: Path, views) -> list:
+    """Per view, the (I, E) array in ``folder/<image stem>.npy`` (no pickles).
+
+    Raises:
+        InputError: a missing folder or file, or a file that is not a 2-D numeric .npy.
+    """
+    import io
+
+    import numpy as np
+
+    from csgs_codec.untrusted import read_regular
+
+    if not folder.is_dir():
+        raise InputError("mask embeddings folder not found", file=folder)
+    arrays = []
+    for view in views:
+        path = folder / f"{Path(view.name).stem}.npy"
+        if not path.is_file():
+            raise InputError(f"no mask embeddings for view '{view.name}'", file=path)
+        try:
+            array = np.load(io.BytesIO(read_regular(path, 1 << 30, what="mask embeddings")),
+                            allow_pickle=False)
+        except (ValueError, OSError) as exc:
+            raise InputError(f"not a .npy array ({exc})", file=path) from None
+        if array.ndim != 2 or array.dtype.kind not in "fiu":
+            raise InputError(f"expected a 2-D numeric array (mask id x value), got "
+                             f"{array.shape} {array.dtype}", file=path)
+        arrays.append(array.astype(np.float32))
+    return arrays

@@ -435,8 +435,8 @@ class Decoder:
                 raise FormatError("a tile holds both SEMF and SEMC", chunk="SEMC",
                                   offset=offset)
             r = ByteReader(data, base_offset=offset, chunk="SEMC")
-            scene.semantic_names, scene.semantic = read_codebook(r, header.count,
-                                                                 MAX_SEMANTIC_CHANNELS)
+            scene.semantic_names, scene.semantic, scene.instances = read_codebook(
+                r, header.count, MAX_SEMANTIC_CHANNELS)
         if "SEML" in present:
             data, offset = single_payload(container, "SEML")
             r = ByteReader(data, base_offset=offset, chunk="SEML")

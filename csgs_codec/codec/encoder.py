@@ -43,7 +43,11 @@ from csgs_codec.codec.presets import (
     preset,
     scaled_preset,
 )
-from csgs_codec.codec.semantic_codebook import codebook_of, write_codebook
+from csgs_codec.codec.semantic_codebook import (
+    codebook_of,
+    instance_embeddings,
+    write_codebook,
+)
 from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
 from csgs_codec.codec.tiling import check_tile_size, effective_tile_size
 from csgs_codec.codec.view_pruning import DEFAULT_BUDGET, decide
@@ -56,6 +60,7 @@ from csgs_codec.errors import InputError
 from csgs_codec.format import Chunk
 from csgs_codec.format.primitives import ByteWriter
 from csgs_codec.scene.gaussian_scene import GaussianScene
+from csgs_codec.scene.instance_table import InstanceTable
 from csgs_codec.scene.position_grid import PositionGrid
 
 SEMANTIC_MODES = ("auto", "none")
@@ -492,13 +497,17 @@ class Encoder:
             reconstruction.semantic_names = ordered.semantic_names
             chunk = Chunk("SEMF", "semantic", out.getvalue())
             codebook = codebook_of(ordered.semantic)
+            embeddings = instance_embeddings(ordered, codebook)
             if codebook is not None:
-                # Few distinct feature rows (segmented scenes): exact, and kept when smaller.
+                # Few distinct feature rows (segmented scenes): exact, and kept when smaller
+                # (always when it carries the instances' embeddings, which SEMF cannot).
                 exact = ByteWriter()
-                write_codebook(exact, ordered.semantic_names, *codebook)
-                if len(exact) <= len(chunk.payload):
+                stored = write_codebook(exact, ordered.semantic_names, *codebook, embeddings)
+                if embeddings is not None or len(exact) <= len(chunk.payload):
                     chunk = Chunk("SEMC", "semantic", exact.getvalue())
                     reconstruction.semantic = ordered.semantic.astype(np.float32, copy=True)
+                    reconstruction.instances = (None if stored is None
+                                                else InstanceTable(codebook[0], stored))
             chunks.append(chunk)
         if ordered.labels is not None:
             labels = ordered.labels.astype(np.int64)

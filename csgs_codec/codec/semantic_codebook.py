@@ -18,7 +18,9 @@ import numpy as np
 
 from csgs_codec.codec.payloads import names_from_bytes, names_to_bytes
 from csgs_codec.entropy.categorical import decode_categorical, encode_categorical
+from csgs_codec.errors import InputError
 from csgs_codec.format.primitives import ByteReader, ByteWriter
+from csgs_codec.scene.instance_table import MAX_EMBEDDING_DIM, InstanceTable
 
 #: Payload layout version (the only one).
 VERSION = 1
@@ -42,10 +44,37 @@ def codebook_of(features: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     return features[first], inverse.reshape(-1).astype(np.int64)
 
 
+def instance_embeddings(scene, codebook: tuple[np.ndarray, np.ndarray] | None
+                        ) -> np.ndarray | None:
+    """(K, E) embeddings of the codebook's prototypes from ``scene.instances``, or None when
+    the scene has no instance table.
+
+    Raises:
+        InputError: a table whose features are not few distinct rows, or a feature row the
+            table has no embedding for.
+    """
+    table = getattr(scene, "instances", None)
+    if table is None:
+        return None
+    if codebook is None:
+        raise InputError(f"instance embeddings need features of at most {MAX_INSTANCES} "
+                         "distinct rows (one per instance)", property="instances")
+    rows = table.rows_of(codebook[0])
+    if (rows < 0).any():
+        raise InputError("a semantic feature row has no instance embedding",
+                         property="instances")
+    return table.embeddings[rows]
+
+
 def write_codebook(out: ByteWriter, names: tuple[str, ...], prototypes: np.ndarray,
-                   ids: np.ndarray) -> None:
+                   ids: np.ndarray, embeddings: np.ndarray | None = None) -> np.ndarray | None:
     """Append the SEMC payload: ``names`` (S), (K, S) float32 ``prototypes``, (N,) ids in
-    [0, K)."""
+    [0, K) and optionally (K, E) per-instance ``embeddings`` (stored as binary16).
+
+    Returns:
+        The (K, E) float32 embeddings as a decoder reads them back (rounded to binary16), or
+        None.
+    """
     prototypes = np.asarray(prototypes, np.float32)
     ids = np.asarray(ids, np.int64)
     half = prototypes.astype(np.float16)
@@ -58,15 +87,25 @@ def write_codebook(out: ByteWriter, names: tuple[str, ...], prototypes: np.ndarr
         out.array(half.reshape(-1), "<f2")
     else:
         out.array(prototypes.reshape(-1), "<f4")
+    stored = None
+    if embeddings is None:
+        out.varint(0)
+    else:
+        half_embeddings = np.asarray(embeddings, np.float32).astype(np.float16)
+        out.varint(half_embeddings.shape[1])
+        out.array(half_embeddings.reshape(-1), "<f2")
+        stored = half_embeddings.astype(np.float32)
     same = (ids[1:] == ids[:-1]).astype(np.int64)
     starts = ids[np.r_[True, same == 0]] if ids.size else ids
     out.byte_string(encode_categorical(same, 2))
     out.byte_string(encode_categorical(starts, max(len(prototypes), 2)))
+    return stored
 
 
 def read_codebook(r: ByteReader, count: int, max_channels: int
-                  ) -> tuple[tuple[str, ...], np.ndarray]:
-    """Read a SEMC payload for ``count`` Gaussians: (names, (count, S) float32 features).
+                  ) -> tuple[tuple[str, ...], np.ndarray, InstanceTable | None]:
+    """Read a SEMC payload for ``count`` Gaussians: (names, (count, S) float32 features, the
+    instance table when the payload carries embeddings).
 
     Raises:
         FormatError: any field that breaks §12.23, at its offset.
@@ -91,6 +130,17 @@ def read_codebook(r: ByteReader, count: int, max_channels: int
     if not np.isfinite(prototypes).all():
         raise r.error("a prototype value is not finite", at)
     prototypes = prototypes.reshape(instances, len(names))
+    at = r.offset
+    width = r.varint("embedding_dim", maximum=1 << 32)
+    if width > MAX_EMBEDDING_DIM:
+        raise r.error(f"embedding_dim {width} is above {MAX_EMBEDDING_DIM}", at)
+    table = None
+    if width:
+        at = r.offset
+        embeddings = r.array(instances * width, "<f2", "embeddings").astype(np.float32)
+        if not np.isfinite(embeddings).all():
+            raise r.error("an embedding value is not finite", at)
+        table = InstanceTable(prototypes, embeddings.reshape(instances, width))
     same_bytes = r.byte_string("same_stream")
     same = decode_categorical(same_bytes, max(count - 1, 0), chunk=r.chunk,
                               base_offset=r.offset - len(same_bytes), alphabet=2)
@@ -108,5 +158,5 @@ def read_codebook(r: ByteReader, count: int, max_channels: int
         # Each run of equal ids starts where a flag is 0 (and at Gaussian 0).
         run = np.cumsum(np.r_[1, (same == 0).astype(np.int64)]) - 1
         ids = starts[run]
-    return names, prototypes[ids]
+    return names, prototypes[ids], table
 

@@ -77,8 +77,11 @@ def _write(out_dir: Path, name: str, data: bytes, description: str, reads: list[
            "bytes": len(data), "sha256": hashlib.sha256(data).hexdigest(),
            "valid": all(r["outcome"] == "ok" for r in reads), "reads": reads}
     if arrays is not None:
-        np.savez(out_dir / f"{name}.npz", **{k: v for k, v in vars(arrays).items()
-                                             if isinstance(v, np.ndarray)})
+        saved = {k: v for k, v in vars(arrays).items() if isinstance(v, np.ndarray)}
+        if getattr(arrays, "instances", None) is not None:
+            saved["instance_prototypes"] = arrays.instances.prototypes
+            saved["instance_embeddings"] = arrays.instances.embeddings
+        np.savez(out_dir / f"{name}.npz", **saved)
         doc["arrays"] = f"{name}.npz"
     (out_dir / f"{name}.json").write_text(json.dumps(doc, indent=2) + "\n")
 
@@ -196,12 +199,41 @@ def _semantic_codebook_vectors(out_dir: Path) -> None:
         bad = _with_payload(data, "SEMC", payload)
         _write(out_dir, name, bad, f"semantic_codebook with {what} (frame and CRC "
                "rewritten): the color layer reads, the semantic layer is refused", _reads(bad))
+    _codebook_embedding_vectors(out_dir, scene, prototypes)
     features = Encoder(quality=6, **UNIFORM).encode(small)
     both = _with_payload(data, "SEMF", _chunk_payload(features, "SEMF"), before="SEMC")
     _write(out_dir, "semantic_codebook_with_semf", both,
            "semantic_codebook with semantic_small's SEMF chunk added before its SEMC (a tile "
            "holds one or the other): the color layer reads, the semantic layer is refused",
            _reads(both))
+
+
+def _codebook_embedding_vectors(out_dir: Path, scene: GaussianScene,
+                                prototypes: np.ndarray) -> None:
+    """semantic_codebook's scene with a 4-value embedding per instance (SEMC embeddings, for
+    open-vocabulary queries), and a copy whose first embedding value is a binary16 NaN."""
+    from dataclasses import replace
+
+    from csgs_codec.scene.instance_table import InstanceTable
+
+    embeddings = np.array([[1.0, 0.0, 0.0, 0.5], [0.0, 1.0, 0.25, 0.0],
+                           [0.0, 0.0, 1.0, -0.5], [0.5, 0.5, 0.0, 0.75],
+                           [-1.0, 0.0, 0.0, 0.125]], np.float32)
+    data = Encoder(quality=6, **UNIFORM).encode(
+        replace(scene, instances=InstanceTable(prototypes, embeddings)))
+    arrays = Decoder().decode(data, layers="color,semantic")
+    _write(out_dir, "semantic_codebook_embeddings", data,
+           "semantic_codebook's scene with a 4-value embedding per instance (SEMC "
+           "embedding_dim 4), quality 6", _reads(data), arrays=arrays)
+    payload = bytearray(_chunk_payload(data, "SEMC"))
+    # version, count, three names of 1 + 10 bytes, K, format, 5 x 3 binary16, E: then values.
+    at = 1 + 1 + 3 * 11 + 1 + 1 + 2 * 15 + 1
+    payload[at:at + 2] = np.float16(np.nan).tobytes()
+    bad = _with_payload(data, "SEMC", bytes(payload))
+    _write(out_dir, "semantic_codebook_embedding_nan", bad,
+           "semantic_codebook_embeddings with its first embedding value a binary16 NaN "
+           "(frame and CRC rewritten): the color layer reads, the semantic layer is refused",
+           _reads(bad))
 
 
 def _codebook_payload(names: tuple[str, ...], prototypes: np.ndarray, ids: np.ndarray

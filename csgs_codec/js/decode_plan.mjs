@@ -189,6 +189,7 @@ export function sceneOf(plan, results, stage = 'semantic') {
     semantic: semantic ? semantic.semantic : null,
     semanticNames: semantic ? semantic.semanticNames : [],
     labels: semantic ? semantic.labels : null,
+    instances: semantic ? semantic.instances || null : null,
     metadata: readViews(plan.prep.container),
     complete: stage !== 'first' || plan.targets.shRest.length === 0,
     shCoefficients: SH_REST[plan.prep.header.stored],

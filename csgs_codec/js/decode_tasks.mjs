@@ -81,7 +81,7 @@ export function runTask(prep, task, inputs, target = null) {
   }
   if (task.startsWith('PRIOR/')) return priorRows(prep, inputs.cells);
   if (task === 'SEMANTIC') {
-    const layer = { semantic: null, semanticNames: [], labels: null };
+    const layer = { semantic: null, semanticNames: [], labels: null, instances: null };
     decodeSemantic(prep.container, prep.header, layer, prep.family);
     return layer;
   }

@@ -111,6 +111,11 @@ export function sceneArrays(scene) {
   };
   if (scene.semantic) arrays.semantic = [scene.semantic, [n, scene.semanticNames.length]];
   if (scene.labels) arrays.labels = [scene.labels, [n]];
+  if (scene.instances) {
+    const k = scene.instances.embeddings.length / scene.instances.width;
+    arrays.instance_prototypes = [scene.instances.prototypes, [k, scene.semanticNames.length]];
+    arrays.instance_embeddings = [scene.instances.embeddings, [k, scene.instances.width]];
+  }
   return arrays;
 }
 

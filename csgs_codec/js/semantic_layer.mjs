@@ -62,6 +62,20 @@ function readCodebook(r, count) {
     prototypes[i] = layout === 0 ? view.getFloat32(4 * i, true) : halfToFloat(view.getUint16(2 * i, true));
     if (!Number.isFinite(prototypes[i])) throw r.error('a prototype value is not finite', at);
   }
+  at = r.offset;
+  const width = r.varint('embedding_dim', 4294967296);
+  if (width > 4096) throw r.error(`embedding_dim ${width} is above 4096`, at);
+  let embeddings = null;
+  if (width) {
+    at = r.offset;
+    const rawEmbeddings = r.raw(2 * instances * width, 'embeddings');
+    const halves = new DataView(rawEmbeddings.buffer, rawEmbeddings.byteOffset, rawEmbeddings.byteLength);
+    embeddings = new Float32Array(instances * width);
+    for (let i = 0; i < embeddings.length; i++) {
+      embeddings[i] = halfToFloat(halves.getUint16(2 * i, true));
+      if (!Number.isFinite(embeddings[i])) throw r.error('an embedding value is not finite', at);
+    }
+  }
   const sameBytes = r.byteString('same_stream');
   const same = decodeCategorical(sameBytes, Math.max(count - 1, 0), r.chunk, r.offset - sameBytes.length, 2);
   let changes = 0;
@@ -81,7 +95,7 @@ function readCodebook(r, count) {
     const id = starts[run];
     features.set(prototypes.subarray(id * channels, (id + 1) * channels), i * channels);
   }
-  return { names, features };
+  return { names, features, instances: embeddings ? { prototypes, embeddings, width } : null };
 }
 
 /** Decode SEMF or SEMC and SEML when present into ``scene`` (semantic, semanticNames,
@@ -101,9 +115,10 @@ export function decodeSemantic(container, header, scene, family) {
   if (present.has('SEMC')) {
     const [data, offset] = single(container, 'SEMC');
     if (present.has('SEMF')) throw new FormatError('a tile holds both SEMF and SEMC', { chunk: 'SEMC', offset });
-    const { names, features } = readCodebook(new ByteReader(data, offset, 'SEMC'), header.count);
+    const { names, features, instances } = readCodebook(new ByteReader(data, offset, 'SEMC'), header.count);
     scene.semantic = features;
     scene.semanticNames = names;
+    scene.instances = instances;
   }
   if (present.has('SEML')) {
     const [data, offset] = single(container, 'SEML');

@@ -108,6 +108,31 @@ export function joinTiles(scenes) {
     semantic: first.semantic === null ? null : field('semantic'),
     semanticNames: first.semanticNames,
     labels: first.labels === null ? null : field('labels'),
+    instances: unionInstances(scenes.map((s) => s.instances)),
     metadata: first.metadata,
   };
+}
+
+/** The instance tables of tiles as one: each prototype once, the first tile's row first
+ * (as the reference decoder joins them). */
+function unionInstances(tables) {
+  const present = tables.filter(Boolean);
+  if (!present.length) return null;
+  const width = present[0].width;
+  const seen = new Set();
+  const prototypes = [];
+  const embeddings = [];
+  for (const table of present) {
+    const k = table.embeddings.length / width;
+    const channels = table.prototypes.length / k;
+    const bits = new Uint32Array(table.prototypes.buffer, table.prototypes.byteOffset, table.prototypes.length);
+    for (let i = 0; i < k; i++) {
+      const key = Array.from(bits.subarray(i * channels, (i + 1) * channels)).join(',');
+      if (seen.has(key)) continue;
+      seen.add(key);
+      prototypes.push(...table.prototypes.subarray(i * channels, (i + 1) * channels));
+      embeddings.push(...table.embeddings.subarray(i * width, (i + 1) * width));
+    }
+  }
+  return { prototypes: Float32Array.from(prototypes), embeddings: Float32Array.from(embeddings), width };
 }

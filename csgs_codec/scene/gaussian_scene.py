@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from csgs_codec.errors import InputError
+from csgs_codec.scene.instance_table import InstanceTable
 from csgs_codec.scene.ply_names import ply_property
 
 #: Number of SH rest coefficients per color channel for SH degree 0..3.
@@ -32,6 +33,9 @@ class GaussianScene:
         semantic: optional (N, S) float32 per-Gaussian semantic feature.
         semantic_names: names of the S semantic channels (PLY property names).
         labels: optional (N,) int32 integer object/instance labels.
+        instances: optional per-instance embeddings keyed by semantic feature row
+            (:class:`~csgs_codec.scene.instance_table.InstanceTable`), for open-vocabulary
+            queries of a segmented scene; carried by .csgs files, not by PLY.
     """
 
     positions: np.ndarray
@@ -43,6 +47,7 @@ class GaussianScene:
     semantic: np.ndarray | None = None
     semantic_names: tuple[str, ...] = field(default_factory=tuple)
     labels: np.ndarray | None = None
+    instances: InstanceTable | None = None
 
     # ----------------------------------------------------------------- construction
     @classmethod
@@ -70,7 +75,8 @@ class GaussianScene:
                    opacity=join("opacity"), scales=join("scales"), rotations=join("rotations"),
                    semantic=None if first.semantic is None else join("semantic"),
                    semantic_names=first.semantic_names,
-                   labels=None if first.labels is None else join("labels"))
+                   labels=None if first.labels is None else join("labels"),
+                   instances=InstanceTable.union([s.instances for s in scenes]))
 
     # ----------------------------------------------------------------- basic facts
     def __repr__(self) -> str:
@@ -176,6 +182,7 @@ class GaussianScene:
             semantic=None if self.semantic is None else self.semantic[keep],
             semantic_names=self.semantic_names,
             labels=None if self.labels is None else self.labels[keep],
+            instances=self.instances,
         )
 
     def nonfinite_rows(self) -> np.ndarray:
@@ -189,6 +196,12 @@ class GaussianScene:
     def equals(self, other: GaussianScene) -> bool:
         """True when every array (and semantic names) match exactly, bit for bit."""
         if not isinstance(other, GaussianScene) or self.semantic_names != other.semantic_names:
+            return False
+        if (self.instances is None) != (other.instances is None) or (
+                self.instances is not None and not (
+                    np.array_equal(self.instances.prototypes, other.instances.prototypes)
+                    and np.array_equal(self.instances.embeddings,
+                                       other.instances.embeddings))):
             return False
         for name in ("positions", "sh_dc", "sh_rest", "opacity", "scales", "rotations",
                      "semantic", "labels"):
@@ -252,6 +265,11 @@ class GaussianScene:
             if lab.shape != (n,) or lab.dtype != np.int32:
                 raise InputError(f"expected (N,) int32, got {lab.shape} {lab.dtype}",
                                  file=source, property="labels")
+        if self.instances is not None:
+            if self.semantic is None:
+                raise InputError("an instance table needs semantic features", file=source,
+                                 property="instances")
+            self.instances.validate(self.semantic.shape[1])
         for name, values in self.attributes().items():
             if values.shape[1] == 0:
                 continue

@@ -84,6 +84,9 @@ class Instances:
         visibility: (G,) float64 total rendered weight of each group over the training
             views' masked pixels.
         objects: number of mask clusters found before empty ones were dropped.
+        instance_objects: (K,) int64 the mask cluster each instance is.
+        mask_objects: (M,) int64 the cluster of each mask of the batch, -1 for masks with
+            no descriptor.
     """
 
     ids: np.ndarray
@@ -91,6 +94,8 @@ class Instances:
     counts: np.ndarray
     visibility: np.ndarray
     objects: int
+    instance_objects: np.ndarray
+    mask_objects: np.ndarray
 
     @property
     def count(self) -> int:
@@ -146,7 +151,7 @@ def lift_instances(batch: ViewBatch, features: np.ndarray, positions: np.ndarray
         voted = _neighbour_vote(ids, weight, positions, min(neighbours, groups),
                                 len(centroids))
         ids = np.where(peak >= DECIDING_WEIGHT, ids, voted)
-    return _number_instances(ids, features, visibility, len(centroids))
+    return _number_instances(ids, features, visibility, len(centroids), mask_object)
 
 
 def _classify(batch: ViewBatch, mask_object: np.ndarray, scores: np.ndarray) -> np.ndarray:
@@ -289,7 +294,7 @@ def _neighbour_vote(ids: np.ndarray, weight: np.ndarray, positions: np.ndarray, 
 
 
 def _number_instances(winner: np.ndarray, features: np.ndarray, visibility: np.ndarray,
-                      objects: int) -> Instances:
+                      objects: int, mask_objects: np.ndarray) -> Instances:
     """Instances numbered by decreasing group count, with visibility-weighted prototypes."""
     counts = np.bincount(winner, minlength=objects)
     kept = np.lexsort((np.arange(objects), -counts))
@@ -303,4 +308,5 @@ def _number_instances(winner: np.ndarray, features: np.ndarray, visibility: np.n
     np.add.at(sums, ids, features.astype(np.float64) * w[:, None])
     totals = np.bincount(ids, weights=w, minlength=kept.size)
     prototypes = (sums / totals[:, None]).astype(np.float32)
-    return Instances(ids, prototypes, counts[kept].astype(np.int64), visibility, objects)
+    return Instances(ids, prototypes, counts[kept].astype(np.int64), visibility, objects,
+                     kept.astype(np.int64), mask_objects)

@@ -34,6 +34,7 @@ import torch
 
 from csgs_codec.errors import InputError
 from csgs_codec.scene.gaussian_scene import GaussianScene
+from csgs_codec.scene.instance_table import MAX_EMBEDDING_DIM, InstanceTable
 from csgs_codec.train import defaults
 from csgs_codec.train.instances import NEIGHBOURS, Instances, lift_instances
 from csgs_codec.train.semantic_batch import ViewBatch
@@ -110,6 +111,7 @@ class SegmentResult:
 
 def segment_scene(scene: GaussianScene, views: list[TrainingView],
                   settings: SegmentSettings = SegmentSettings(), *,
+                  mask_embeddings: list[np.ndarray | None] | None = None,
                   progress: Callable[[str, int, int], None] | None = None) -> SegmentResult:
     """Give every Gaussian of ``scene`` an instance and its prototype feature (module notes).
 
@@ -118,6 +120,10 @@ def segment_scene(scene: GaussianScene, views: list[TrainingView],
         views: views of the capture, each with a camera and an instance mask (image pixels are
             not used).
         settings: :class:`SegmentSettings`.
+        mask_embeddings: per view, an (I, E) array whose row i embeds the view's mask id i
+            (an image embedding of the mask's pixels, say; rows of ids absent from the view
+            are ignored), or None for a view without; gives the result an instance table
+            (:func:`instance_embeddings`) for open-vocabulary queries.
         progress: called as ``progress(phase, done, total)`` while rendering views ("render")
             and training ("stage2").
 
@@ -169,6 +175,61 @@ def segment_scene(scene: GaussianScene, views: list[TrainingView],
     names = tuple(f"{FEATURE_PREFIX}{i}" for i in range(settings.dim))
     # Prototypes rounded to binary16 (distinct ones stay margin-far apart), so the codebook
     # stores them in 2 bytes a value, exactly (FORMAT §12.23).
-    features = instances.features().astype(np.float16).astype(np.float32)
-    segmented = dataclasses.replace(scene, semantic=features, semantic_names=names)
+    prototypes = instances.prototypes.astype(np.float16).astype(np.float32)
+    table = None
+    if mask_embeddings is not None:
+        table = InstanceTable(prototypes, instance_embeddings(batch, instances,
+                                                              mask_embeddings))
+    segmented = dataclasses.replace(scene, semantic=prototypes[instances.ids],
+                                    semantic_names=names, instances=table)
     return SegmentResult(segmented, instances, trained.losses, seconds)
+
+
+def instance_embeddings(batch: ViewBatch, instances: Instances,
+                        mask_embeddings: list[np.ndarray | None]) -> np.ndarray:
+    """(K, E) float32 unit embedding of each instance: the pixel-weighted mean of the unit
+    embeddings of the masks joined into its object (zero where none has one).
+
+    Raises:
+        InputError: not one entry per view, arrays that are not (I, E) finite, widths that
+            differ, or a mask id beyond its view's array.
+    """
+    views = batch.view_count
+    if len(mask_embeddings) != views:
+        raise InputError(f"{len(mask_embeddings)} mask embedding arrays for {views} views",
+                         property="mask_embeddings")
+    width = None
+    for v, array in enumerate(mask_embeddings):
+        if array is None:
+            continue
+        array = np.asarray(array)
+        if array.ndim != 2 or not np.isfinite(array).all() or not \
+                1 <= array.shape[1] <= MAX_EMBEDDING_DIM:
+            raise InputError(f"view {v}: mask embeddings must be finite (I, E) with E in "
+                             f"1..{MAX_EMBEDDING_DIM}, got {array.shape}", index=v,
+                             property="mask_embeddings")
+        if width not in (None, array.shape[1]):
+            raise InputError(f"view {v}: embeddings of {array.shape[1]} values, earlier "
+                             f"views {width}", index=v, property="mask_embeddings")
+        width = array.shape[1]
+    if width is None:
+        raise InputError("no view has mask embeddings", property="mask_embeddings")
+    sums = np.zeros((instances.objects, width))
+    views_of = batch.mask_view.cpu().numpy()
+    ids = batch.mask_ids.cpu().numpy()
+    sizes = batch.sizes.double().cpu().numpy()
+    for m, obj in enumerate(instances.mask_objects):
+        array = mask_embeddings[views_of[m]]
+        if obj < 0 or array is None:
+            continue
+        if not 0 <= ids[m] < len(array):
+            raise InputError(f"view {views_of[m]}: mask id {ids[m]} has no embedding row "
+                             f"(the array has {len(array)})", index=int(views_of[m]),
+                             property="mask_embeddings")
+        row = np.asarray(array[ids[m]], np.float64)
+        norm = np.linalg.norm(row)
+        if norm > 0:
+            sums[obj] += sizes[m] * row / norm
+    chosen = sums[instances.instance_objects]
+    norms = np.linalg.norm(chosen, axis=1, keepdims=True)
+    return np.where(norms > 0, chosen / np.where(norms > 0, norms, 1.0), 0.0).astype(np.float32)

@@ -48,6 +48,7 @@ class ViewBatch:
         mask_matrix: (M, G) float32 sparse CSR, the rows of ``matrix`` summed per mask.
         mask_transpose: (G, M) float32 sparse CSR, ``mask_matrix`` transposed.
         mask_index: [R] int64 mask of each row, masks numbered across views.
+        mask_ids: [M] int64 each mask's id in its view's mask image.
         sizes: [M] float32 pixel count of each mask (covered or not).
         mask_view: [M] int64 view of each mask.
         masks_per_view: [V] float32 masks of each view.
@@ -62,6 +63,7 @@ class ViewBatch:
     mask_matrix: torch.Tensor
     mask_transpose: torch.Tensor
     mask_index: torch.Tensor
+    mask_ids: torch.Tensor
     sizes: torch.Tensor
     mask_view: torch.Tensor
     masks_per_view: torch.Tensor
@@ -81,7 +83,7 @@ class ViewBatch:
         Raises:
             InputError: a matrix that does not match its mask or G.
         """
-        rows, cols, values, mask_parts, sizes, mask_view = [], [], [], [], [], []
+        rows, cols, values, mask_parts, sizes, mask_view, ids = [], [], [], [], [], [], []
         masks_per_view, firsts, seconds, pair_views, pairs_per_view = [], [], [], [], []
         row_offset = mask_offset = 0
         for v, (matrix, mask) in enumerate(zip(contributions, masks)):
@@ -93,7 +95,8 @@ class ViewBatch:
             flat = mask.reshape(-1).to(device)
             kept = (torch.ones_like(flat, dtype=torch.bool) if ignore_id is None
                     else flat != ignore_id)
-            _, index = torch.unique(flat[kept], return_inverse=True)
+            view_ids, index = torch.unique(flat[kept], return_inverse=True)
+            ids.append(view_ids.to(torch.int64))
             count = int(index.max()) + 1 if index.numel() else 0
             mask_of_pixel = torch.full((pixels,), -1, dtype=torch.int64, device=device)
             mask_of_pixel[kept] = index
@@ -128,7 +131,7 @@ class ViewBatch:
         matrix, transpose = _csr_pair(row, col, data, (row_offset, group_count))
         mask_matrix, mask_transpose = _csr_pair(row_mask[row], col, data,
                                                 (mask_offset, group_count))
-        return cls(matrix, transpose, mask_matrix, mask_transpose, row_mask,
+        return cls(matrix, transpose, mask_matrix, mask_transpose, row_mask, torch.cat(ids),
                    torch.cat(sizes), torch.cat(mask_view),
                    torch.tensor(masks_per_view, dtype=torch.float32, device=device),
                    torch.cat(firsts), torch.cat(seconds), torch.cat(pair_views),

@@ -47,7 +47,8 @@ def test_document_has_every_variant_coding_and_mode(doc):
 
 def test_ious_and_sizes_are_in_range(doc):
     for row in doc["results"]:
-        modes = ("label",) if row["variant"] == "labels" else ("cosine", "cluster")
+        modes = {"labels": ("label", "instance"),
+                 "segment": ("instance",)}.get(row["variant"], ("cosine", "cluster"))
         assert set(row["selection"]) == set(modes)
         for scores in row["selection"].values():
             assert 0.0 <= scores["miou_3d"] <= 1.0 and 0.0 <= scores["miou_2d"] <= 1.0

@@ -27,7 +27,8 @@ def _round_trip(prototypes, ids):
 @pytest.mark.parametrize("ids", [[], [0], [0, 0, 0], [1, 0, 2, 2, 2, 1, 1, 0]])
 def test_codebook_round_trips_exactly(ids):
     prototypes = np.array([[0.5, -0.0], [0.0, 1e-30], [-3.25, 7.0]], np.float32)
-    names, features = _round_trip(prototypes, ids)
+    names, features, table = _round_trip(prototypes, ids)
+    assert table is None
     assert names == NAMES
     assert features.shape == (len(ids), 2) and features.dtype == np.float32
     expected = prototypes[np.asarray(ids, np.int64)] if ids else np.zeros((0, 2), np.float32)
@@ -76,9 +77,49 @@ def test_prototypes_exact_in_binary16_are_stored_in_two_bytes():
     write_codebook(exact, NAMES, np.array([[0.5, -2.0], [1.25, 3.0]], np.float32), ids)
     write_codebook(inexact, NAMES, np.array([[0.1, -2.0], [1.25, 3.0]], np.float32), ids)
     assert len(inexact) - len(exact) == 4 * 2
-    _, features = read_codebook(ByteReader(exact.getvalue(), chunk="SEMC"), 4, 256)
+    _, features, _ = read_codebook(ByteReader(exact.getvalue(), chunk="SEMC"), 4, 256)
     assert np.array_equal(features, np.array([[0.5, -2.0], [1.25, 3.0]], np.float32)[ids])
     damaged = bytearray(exact.getvalue())
     damaged[1 + 1 + 2 * 11 + 1] = 2  # version, count, two names, K: then the format byte
     with pytest.raises(FormatError, match="prototype_format 2"):
         read_codebook(ByteReader(bytes(damaged), chunk="SEMC"), 4, 256)
+
+
+def _segmented_blobs(count=1200):
+    from csgs_codec.scene.instance_table import InstanceTable
+
+    scene = labelled_blob_scene(4, count // 4, seed=5)
+    prototypes = np.random.default_rng(2).normal(size=(int(scene.labels.max()) + 1, 3))
+    prototypes = prototypes.astype(np.float16).astype(np.float32)
+    embeddings = np.random.default_rng(3).normal(size=(len(prototypes), 8)).astype(np.float32)
+    table = InstanceTable(prototypes, embeddings)
+    names = ("ins_feat_0", "ins_feat_1", "ins_feat_2")
+    return dataclasses.replace(scene, semantic=prototypes[scene.labels], semantic_names=names,
+                               instances=table), table
+
+
+@pytest.mark.parametrize("tile_size", [None, 1000])
+def test_instance_embeddings_round_trip_in_binary16(tile_size):
+    scene, table = _segmented_blobs(2400)
+    report = Encoder(quality=5, tile_size=tile_size).encode_with_report(scene)
+    decoded = Decoder().decode(report.data, layers="color,semantic")
+    assert decoded.instances is not None
+    rows = decoded.instances.rows_of(table.prototypes)
+    assert (rows >= 0).all() and len(decoded.instances.prototypes) == len(table.prototypes)
+    expected = table.embeddings.astype(np.float16).astype(np.float32)
+    assert np.array_equal(decoded.instances.embeddings[rows], expected)
+    assert np.array_equal(report.reconstruction.instances.embeddings[
+        report.reconstruction.instances.rows_of(table.prototypes)], expected)
+
+
+def test_an_instance_table_must_cover_every_feature_row():
+    from csgs_codec.errors import InputError
+    from csgs_codec.scene.instance_table import InstanceTable
+
+    scene, table = _segmented_blobs()
+    short = InstanceTable(table.prototypes[:-1], table.embeddings[:-1])
+    with pytest.raises(InputError, match="no instance embedding"):
+        Encoder(quality=5).encode(dataclasses.replace(scene, instances=short))
+    repeated = InstanceTable(table.prototypes[[0, 0]], table.embeddings[:2])
+    with pytest.raises(InputError, match="repeat"):
+        Encoder(quality=5).encode(dataclasses.replace(scene, instances=repeated))

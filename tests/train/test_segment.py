@@ -119,3 +119,56 @@ def test_segment_finds_the_letters_of_a_real_scene():
     # measures the full one.
     ious = _object_ious(result.instances.ids, classes)
     assert np.mean(ious) > 0.75, ious
+
+
+def _mask_embeddings(dataset, folder, width=16, seed=0):
+    """Per view, an embedding per mask id: its object's direction plus noise (what CLIP
+    image embeddings of the masks would give), written as <image stem>.npy."""
+    rng = np.random.default_rng(seed)
+    objects = int(max(v.mask.max() for v in dataset.views)) + 1
+    directions = rng.normal(size=(objects, width))
+    folder.mkdir()
+    for view in dataset.views:
+        rows = directions + 0.3 * rng.normal(size=directions.shape)
+        np.save(folder / f"{Path(view.name).stem}.npy", rows.astype(np.float32))
+    return directions
+
+
+def test_segment_with_mask_embeddings_answers_queries(capture, tmp_path, capsys):
+    dataset, folder = capture
+    directions = _mask_embeddings(dataset, tmp_path / "embeddings")
+    out = tmp_path / "segmented.csgs"
+    assert main(["segment", "-q", str(folder / "scene.ply"), "--images", str(folder),
+                 "--mask-embeddings", str(tmp_path / "embeddings"), "-o", str(out),
+                 "--iterations", "80"]) == 0
+    decoded = Decoder().decode(out.read_bytes(), layers="color,semantic")
+    assert decoded.instances is not None and decoded.instances.embeddings.shape == (4, 16)
+    # Ask for each object by its direction (a "text embedding"): the query selects it.
+    for label in np.unique(decoded.labels):
+        query = tmp_path / f"query{label}.npy"
+        np.save(query, directions[label])
+        picked = tmp_path / f"object{label}.ply"
+        assert main(["query", str(out), "--embedding", str(query), "-o", str(picked)]) == 0
+        assert "1. instance" in capsys.readouterr().out
+        selected = read_ply(picked)
+        truth = int(np.count_nonzero(decoded.labels == label))
+        assert set(np.unique(selected.labels)) == {label}
+        assert len(selected) >= 0.95 * truth
+
+
+def test_query_refuses_scenes_without_embeddings_and_bad_queries(capture, tmp_path, capsys):
+    _, folder = capture
+    out = tmp_path / "plain.csgs"
+    assert main(["segment", "-q", str(folder / "scene.ply"), "--images", str(folder),
+                 "-o", str(out), "--iterations", "20"]) == 0
+    query = tmp_path / "q.npy"
+    np.save(query, np.ones(16, np.float32))
+    assert main(["query", str(out), "--embedding", str(query)]) == 2
+    assert "no instance embeddings" in capsys.readouterr().err
+    (tmp_path / "bad.npy").write_bytes(b"not numpy")
+    assert main(["query", str(out), "--embedding", str(tmp_path / "bad.npy")]) == 2
+    assert "bad.npy" in capsys.readouterr().err
+    assert main(["segment", "-q", str(folder / "scene.ply"), "--images", str(folder),
+                 "--mask-embeddings", str(tmp_path / "missing"), "-o",
+                 str(tmp_path / "x.csgs")]) == 2
+    assert not (tmp_path / "x.csgs").exists()

@@ -1,0 +1,63 @@
+"""``csgs query scene.csgs --embedding QUERY.npy [-o object.ply]``: the instance whose
+embedding best matches a query embedding (open-vocabulary selection), written as a PLY."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+NAME = "query"
+HELP = ("select the instance whose embedding best matches a query embedding (.npy) in a "
+        "segmented .csgs and write its Gaussians as a .ply")
+#: Instances listed with their scores.
+SHOWN = 5
+
+
+def add_arguments(parser) -> None:
+    """Arguments of ``csgs query``."""
+    parser.add_argument("scene", help="a .csgs written by 'csgs segment' with --mask-embeddings")
+    parser.add_argument("--embedding", required=True, metavar="NPY",
+                        help="the query: a .npy holding one vector in the space of the "
+                             "scene's instance embeddings (e.g. a CLIP text embedding)")
+    parser.add_argument("-o", "--output", metavar="PLY",
+                        help="write the selected Gaussians here (default: only print)")
+
+
+def run(args) -> int:
+    """Rank the instances, print the best ones, write the best one's Gaussians."""
+    from csgs_cli.scene_input import load_scene
+    from csgs_codec.atomic_write import check_output
+    from csgs_codec.errors import InputError
+    from csgs_codec.scene.ply_io import write_ply
+    from csgs_codec.semantic.query import query_instances
+    from csgs_codec.untrusted import read_regular
+
+    if args.output:
+        check_output(Path(args.output), [args.scene])
+    query = _read_vector(Path(args.embedding), read_regular, InputError)
+    scene = load_scene(args.scene, command=NAME, layers="color,semantic")
+    result = query_instances(scene, query)
+    for rank, row in enumerate(result.ranking[:SHOWN]):
+        members = int((scene.instances.rows_of(scene.semantic) == row).sum())
+        print(f"{rank + 1}. instance {row}: cosine {result.scores[row]:.4f}, "
+              f"{members:,} Gaussians")
+    if args.output:
+        write_ply(scene.subset(result.mask), Path(args.output), [args.scene])
+        print(f"wrote instance {result.instance} ({result.count:,} Gaussians) to "
+              f"{args.output}")
+    return 0
+
+
+def _read_vector(path: Path, read_regular, error):
+    """The query vector in a .npy file (no pickles)."""
+    import io
+
+    import numpy as np
+
+    data = read_regular(path, 1 << 26, what="a query embedding")
+    try:
+        vector = np.load(io.BytesIO(data), allow_pickle=False)
+    except (ValueError, OSError) as exc:
+        raise error(f"not a .npy array ({exc})", file=path) from None
+    if vector.dtype.kind not in "fiu":
+        raise error(f"holds {vector.dtype} values, not numbers", file=path)
+    return vector.astype(np.float64)
