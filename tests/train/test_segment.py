@@ -32,6 +32,20 @@ def capture(tmp_path_factory):
     return dataset, folder
 
 
+@pytest.fixture(scope="module")
+def segmented(capture, tmp_path_factory):
+    """(path of what `csgs segment --mask-embeddings ... -o x.csgs` wrote, the embedding
+    direction of each object)."""
+    dataset, folder = capture
+    work = tmp_path_factory.mktemp("segmented")
+    directions = _mask_embeddings(dataset, work / "embeddings")
+    out = work / "segmented.csgs"
+    assert main(["segment", "-q", str(folder / "scene.ply"), "--images", str(folder),
+                 "--mask-embeddings", str(work / "embeddings"), "-o", str(out),
+                 "--iterations", "80"]) == 0
+    return out, directions
+
+
 def _object_ious(ids: np.ndarray, labels: np.ndarray) -> list[float]:
     """Per object, the IoU of the instance holding most of its Gaussians with the object."""
     ious = []
@@ -56,12 +70,9 @@ def test_segment_writes_instance_features_to_a_ply(capture, tmp_path, capsys):
     assert "4 instances over 600 Gaussians" in capsys.readouterr().out
 
 
-def test_segment_to_csgs_codes_the_instances_exactly(capture, tmp_path):
-    dataset, folder = capture
-    out = tmp_path / "segmented.csgs"
-    assert main(["segment", "-q", str(folder / "scene.ply"), "--images", str(folder),
-                 "-o", str(out), "--iterations", "80"]) == 0
-    data = out.read_bytes()
+def test_segment_to_csgs_codes_the_instances_exactly(capture, segmented):
+    dataset, _ = capture
+    data = segmented[0].read_bytes()
     chunks = {c["type"] for c in describe_bitstream(data)["chunks"]}
     assert "SEMC" in chunks and "SEMF" not in chunks
     decoded = Decoder().decode(data, layers="color,semantic")
@@ -134,13 +145,8 @@ def _mask_embeddings(dataset, folder, width=16, seed=0):
     return directions
 
 
-def test_segment_with_mask_embeddings_answers_queries(capture, tmp_path, capsys):
-    dataset, folder = capture
-    directions = _mask_embeddings(dataset, tmp_path / "embeddings")
-    out = tmp_path / "segmented.csgs"
-    assert main(["segment", "-q", str(folder / "scene.ply"), "--images", str(folder),
-                 "--mask-embeddings", str(tmp_path / "embeddings"), "-o", str(out),
-                 "--iterations", "80"]) == 0
+def test_segment_with_mask_embeddings_answers_queries(segmented, tmp_path, capsys):
+    out, directions = segmented
     decoded = Decoder().decode(out.read_bytes(), layers="color,semantic")
     assert decoded.instances is not None and decoded.instances.embeddings.shape == (4, 16)
     # Ask for each object by its direction (a "text embedding"): the query selects it.
@@ -158,9 +164,7 @@ def test_segment_with_mask_embeddings_answers_queries(capture, tmp_path, capsys)
 
 def test_query_refuses_scenes_without_embeddings_and_bad_queries(capture, tmp_path, capsys):
     _, folder = capture
-    out = tmp_path / "plain.csgs"
-    assert main(["segment", "-q", str(folder / "scene.ply"), "--images", str(folder),
-                 "-o", str(out), "--iterations", "20"]) == 0
+    out = folder / "scene.ply"  # labels but no instance embeddings
     query = tmp_path / "q.npy"
     np.save(query, np.ones(16, np.float32))
     assert main(["query", str(out), "--embedding", str(query)]) == 2
