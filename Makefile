@@ -19,12 +19,15 @@ $(STAMP): pyproject.toml setup.py scripts/system-deps.sh
 demo: $(STAMP)
 	bash scripts/demo.sh $(VENV) $(DEMO_OUT)
 
-# One test process per core (files kept whole, so module fixtures are built once).
+# One test process per core (files kept whole, so module fixtures are built once), each
+# with one BLAS/OpenMP thread: a process per core already fills the cores, and torch's
+# default of a thread per core in every process oversubscribed them (2 cores: 314 -> 221 s).
+# Tests that need several threads ask for them explicitly.
 test: $(STAMP)
-	$(PY) -m pytest -q -n auto --dist loadfile
+	OMP_NUM_THREADS=1 $(PY) -m pytest -q -n auto --dist loadfile
 
 test-slow: $(STAMP)
-	$(PY) -m pytest -q -n auto --dist loadfile -m slow
+	OMP_NUM_THREADS=1 $(PY) -m pytest -q -n auto --dist loadfile -m slow
 
 # Peer codecs for benchmarks/ (npm splat-transform, PyPI DracoPy); not needed to test.
 bench-deps: $(STAMP)
