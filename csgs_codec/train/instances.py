@@ -59,9 +59,11 @@ from csgs_codec.train.semantic_batch import ViewBatch
 MIN_MASK_ALPHA = 0.05
 #: Squared feature distance that lowers a starting object score by 1 (feature units^2).
 SCORE_SCALE = 1.0
-#: Adam steps of the per-pixel classification, and their step size.
-CLASSIFY_STEPS = 100
-CLASSIFY_RATE = 0.1
+#: Adam steps of the per-pixel classification, and their step size (fruit_drops, the
+#: measurement in the module notes: 100 steps at 0.1 and 40 at 0.25 gave the same click mIoU,
+#: 0.960 / 0.959, in 20.7 s and 10.9 s).
+CLASSIFY_STEPS = 40
+CLASSIFY_RATE = 0.25
 #: A Gaussian whose largest weight alpha * T in any training pixel reaches this decides
 #: pixels and keeps its classified instance; fainter ones take their neighbours' majority.
 DECIDING_WEIGHT = 0.2
