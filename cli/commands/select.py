@@ -84,8 +84,8 @@ def run(args) -> int:
     write_ply(selected_gaussians(scene, result.mask, camera), output, [args.scene])
     if args.save_mask:
         write_mask(result.mask, args.save_mask)
-    rule = (f"instance from {result.instance_source}" if args.mode == "instance"
-            else f"{args.mode}, threshold {result.threshold:g}")
+    rule = (f"instance from {result.instance_source}" if result.mode == "instance"
+            else f"{result.mode}, threshold {result.threshold:g}")
     print(f"selected {result.count:,} of {len(scene):,} Gaussians ({rule}, pixel "
           f"{result.pixel[0]},{result.pixel[1]} of "
           f"{camera.width}x{camera.height}); wrote {output}")

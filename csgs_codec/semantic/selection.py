@@ -7,11 +7,11 @@ Three rules turn a click into a selection.
   Gaussians, summed), with all its elements. Instances are the scene's labels when it has
   them; else its features when they take at most :data:`MAX_INSTANCES` distinct values, at
   most one per :data:`MIN_INSTANCE_SIZE` elements (what ``csgs segment`` writes: one
-  prototype per instance, coded exactly); else the spherical
-  k-means clusters of the features (``clusters``, fixed seed), the clusters whose centroid
-  has cosine >= ``threshold`` with the chosen one joining it. The rule never compares a
-  blended pixel feature with single Gaussians, which is what fails on real, translucent
-  scenes (the pixel mixes the object with what lies behind it).
+  prototype per instance, coded exactly). The rule never compares a blended pixel feature
+  with single Gaussians, which is what fails on real, translucent scenes (the pixel mixes the
+  object with what lies behind it). A scene whose features are continuous (trained but not
+  segmented) has no instances: the click then follows the cosine rule, as the browser page
+  does (the result says ``mode="cosine"``); ``"cluster"`` groups such features first.
 
 For the other two the semantic features are rendered into a feature map for the camera (the
 same alpha compositing as color), the feature under the click is divided by the pixel's
@@ -83,8 +83,8 @@ class ClickSelection:
         threshold: the cosine threshold used.
         clusters: (N,) int64 k-means cluster of each element in "cluster" mode (-1 for an
             all-zero feature), its instance in "instance" mode, else None.
-        instance_source: in "instance" mode where instances came from: "labels",
-            "features" or "clusters"; else None.
+        instance_source: in "instance" mode where instances came from: "labels" or
+            "features"; else None.
     """
 
     mask: np.ndarray
@@ -157,8 +157,7 @@ def click_selection(scene: GaussianScene | AnchorScene, camera: Camera, x: float
         x, y: pixel coordinates (column, row), pixel (i, j) spanning [i, i + 1) x [j, j + 1).
         threshold: cosine similarity in [-1, 1] (default :data:`DEFAULT_THRESHOLD`).
         mode: "instance" (default), "cosine" or "cluster" (see the module docstring).
-        clusters: k of the k-means in "cluster" mode and for continuous features in
-            "instance" mode.
+        clusters: k of the k-means in "cluster" mode.
         backend: rasterizer backend for the feature map ("numba" by default).
         feature_map: this scene's :func:`render_feature_map` for ``camera``, to click again
             without rendering again; None renders it.
@@ -174,7 +173,10 @@ def click_selection(scene: GaussianScene | AnchorScene, camera: Camera, x: float
     """
     check_selection_rule(mode, threshold)
     if mode == "instance":
-        return _instance_selection(scene, camera, x, y, threshold, clusters)
+        selection = _instance_selection(scene, camera, x, y, threshold)
+        if selection is not None:
+            return selection
+        mode = "cosine"  # continuous features have no instances (module notes)
     features = element_features(scene)
     column, row = click_pixel(camera, x, y)
     if feature_map is None:
@@ -306,15 +308,13 @@ def selected_gaussians(scene: GaussianScene | AnchorScene, mask: np.ndarray,
     return view.gaussians.subset(mask[view.anchor_index])
 
 
-def element_instances(scene: GaussianScene | AnchorScene, *,
-                      clusters: int = DEFAULT_CLUSTERS
-                      ) -> tuple[np.ndarray, str, np.ndarray | None]:
+def element_instances(scene: GaussianScene | AnchorScene
+                      ) -> tuple[np.ndarray, str] | None:
     """The instance of every selectable element (see the module docstring, "instance").
 
     Returns:
-        ((N,) int64 instance per element, -1 for none (an all-zero clustered feature);
-        "labels", "features" or "clusters"; (k, S) unit cluster centroids for "clusters",
-        else None).
+        ((N,) int64 instance per element, "labels" or "features"), or None when the scene's
+        features are continuous (no instances).
 
     Raises:
         InputError: the scene has neither labels nor semantic features.
@@ -324,20 +324,15 @@ def element_instances(scene: GaussianScene | AnchorScene, *,
                          f"{type(scene).__name__}", property="scene")
     labels = getattr(scene, "labels", None)
     if labels is not None:
-        return np.asarray(labels, np.int64), "labels", None
+        return np.asarray(labels, np.int64), "labels"
     if getattr(scene, "semantic", None) is None:
         raise InputError("the scene has no labels or semantic features to select by (decode "
                          "the semantic layer: layers='color,semantic')", property="semantic")
     features = element_features(scene)
     rows, inverse = np.unique(features, axis=0, return_inverse=True)
     if len(rows) <= MAX_INSTANCES and len(rows) * MIN_INSTANCE_SIZE <= len(features):
-        return inverse.reshape(-1).astype(np.int64), "features", None
-    units, valid = unit_rows(features)
-    ids = np.full(len(units), -1, np.int64)
-    centroids = np.zeros((0, units.shape[1]))
-    if valid.any():
-        centroids, ids[valid] = spherical_kmeans(units[valid], clusters, seed=CLUSTER_SEED)
-    return ids, "clusters", centroids
+        return inverse.reshape(-1).astype(np.int64), "features"
+    return None
 
 
 def weights_at_pixel(gaussians: GaussianScene, camera: Camera, column: int, row: int
@@ -368,12 +363,12 @@ def weights_at_pixel(gaussians: GaussianScene, camera: Camera, column: int, row:
 
 
 def _instance_selection(scene: GaussianScene | AnchorScene, camera: Camera, x: float,
-                        y: float, threshold: float, clusters: int) -> ClickSelection:
-    """"instance" mode (module notes)."""
-    if not isinstance(scene, GaussianScene | AnchorScene):
-        raise InputError(f"expected a GaussianScene or AnchorScene, got "
-                         f"{type(scene).__name__}", property="scene")
-    ids, source, centroids = element_instances(scene, clusters=clusters)
+                        y: float, threshold: float) -> ClickSelection | None:
+    """"instance" mode (module notes); None when the scene has no instances."""
+    found = element_instances(scene)
+    if found is None:
+        return None
+    ids, source = found
     column, row = click_pixel(camera, x, y)
     if isinstance(scene, GaussianScene):
         gaussians, element = scene, np.arange(len(scene))
@@ -387,17 +382,9 @@ def _instance_selection(scene: GaussianScene | AnchorScene, camera: Camera, x: f
     if not alpha >= MIN_CLICK_ALPHA:
         raise InputError(f"nothing under the click at pixel ({column}, {row}): accumulated "
                          f"opacity {alpha:.3g} is below {MIN_CLICK_ALPHA}", property="click")
-    hit = ids[element[index]]
-    carried = hit >= 0
-    if not carried.any():
-        raise InputError(f"the Gaussians under the click at pixel ({column}, {row}) belong to "
-                         "no instance (all-zero features)", property="semantic")
-    values, inverse = np.unique(hit[carried], return_inverse=True)
-    chosen = int(values[np.argmax(np.bincount(inverse, weights=weight[carried]))])
+    values, inverse = np.unique(ids[element[index]], return_inverse=True)
+    chosen = int(values[np.argmax(np.bincount(inverse, weights=weight))])
     mask = ids == chosen
-    if centroids is not None:
-        joined = np.flatnonzero(centroids @ centroids[chosen] >= threshold)
-        mask = np.isin(ids, np.union1d(joined, [chosen]))
     features = scene.semantic
     direction = np.zeros(0, np.float32)
     if features is not None and len(features):

@@ -4,8 +4,8 @@
  * "instance" (used whenever the scene has instances: labels, or features with at most 255
  * distinct rows and at least 4 Gaussians per row on average, as `csgs segment` writes): the
  * instance whose Gaussians carry the most compositing weight at the clicked pixel is selected
- * whole. Scenes with continuous features use "cosine" here (Python's "instance" mode clusters
- * them with k-means first, which the page does not do yet).
+ * whole. Scenes with continuous features (trained, not segmented) have no instances and use
+ * "cosine", as Python's "instance" mode does for them.
  *
  * "cosine": the semantic features are alpha-composited at the clicked pixel exactly as the
  * project rasterizer composites color (EWA projection with the 0.3 px^2 low-pass, alpha

@@ -234,16 +234,17 @@ def test_instance_mode_reads_distinct_features_as_instances(objects):
         assert mask_iou(result.mask, label_mask(scene.labels, label)) == 1.0, label
 
 
-def test_instance_mode_clusters_continuous_features(objects):
+def test_instance_mode_on_continuous_features_follows_the_cosine_rule(objects):
     import dataclasses
 
     scene, camera = objects
     continuous = dataclasses.replace(scene, labels=None)
-    ious = click_object_ious(continuous, camera, scene.labels, mode="instance")
-    assert min(ious.values()) >= 0.9, ious
     x, y = centre_pixel(scene, camera, 0)
-    assert click_selection(continuous, camera, x, y, mode="instance").instance_source == \
-        "clusters"
+    result = click_selection(continuous, camera, x, y, mode="instance")
+    cosine = click_selection(continuous, camera, x, y, mode="cosine")
+    assert result.mode == "cosine" and result.instance_source is None
+    assert np.array_equal(result.mask, cosine.mask)
+    assert mask_iou(result.mask, label_mask(scene.labels, 0)) >= 0.9
 
 
 def test_instance_mode_on_the_background_is_an_input_error(objects):
