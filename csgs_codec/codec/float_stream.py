@@ -55,7 +55,7 @@ from csgs_codec.entropy.residual import (
 )
 from csgs_codec.entropy.table_choice import table_costs
 from csgs_codec.entropy.tables import gaussian_family
-from csgs_codec.errors import FormatError
+from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format.primitives import ByteReader, ByteWriter
 
 MODE_CONSTANT = 0
@@ -201,7 +201,8 @@ def plan_float_stream(values: np.ndarray, step: float, derive=None,
     """
     n, channels = values.shape
     if lattice is not None and (derive is not None or len(lattice.means) != channels):
-        raise ValueError("a fixed lattice needs one mean per channel and no derived steps")
+        raise InputError("a fixed lattice needs one mean per channel and no derived steps",
+                         property="lattice")
     f = frac_bits_for(values) if lattice is None else lattice.frac_bits
     recon = np.empty((n, channels), np.float32)
     indices = np.zeros((channels, n), np.int64)  # channels as rows, as in the reader
@@ -273,7 +274,7 @@ def _plan_derived(values: np.ndarray, f: int, step_idx: int,
         mode = MODE_DERIVED
         why = check_table(derived.thresholds, derived.offsets, step_idx)
     if why is not None:
-        raise ValueError(why)
+        raise InputError(why, property="derive")
     recon = np.empty((n, channels), np.float32)
     indices = np.zeros((channels, n), np.int64)
     steps = derived.step_indices(step_idx)

@@ -37,7 +37,7 @@ from csgs_codec.entropy.intnet import (
 from csgs_codec.entropy.residual import coded_value_limit, decode_symbols, encode_symbols
 from csgs_codec.entropy.table_choice import best_table
 from csgs_codec.entropy.tables import gaussian_family
-from csgs_codec.errors import FormatError, ModelError
+from csgs_codec.errors import FormatError, InputError, ModelError
 from csgs_codec.format.primitives import ByteReader, ByteWriter
 
 INTNET_VERSION_RAW = 1
@@ -56,7 +56,7 @@ def intnet_to_bytes(net: IntMLP, version: int = INTNET_VERSION) -> bytes:
         version: 2 (entropy-coded weights, varint biases) or 1 (fixed-width fields).
     """
     if version not in (INTNET_VERSION_RAW, INTNET_VERSION):
-        raise ValueError(f"unknown network payload version {version}")
+        raise InputError(f"unknown network payload version {version}", property="version")
     out = ByteWriter()
     for value in (version, net.pos_bits, net.num_freqs, net.act_bits, len(net.layers)):
         out.fixed("u8", value)

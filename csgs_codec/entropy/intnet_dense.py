@@ -137,7 +137,7 @@ class IntDenseMLP:
         """The network payload (module docstring) in ``version`` 2 (coded weights) or 1 (fixed
         width); version 2 falls back to 1 when a layer has more weights than it may hold."""
         if version not in (DENSE_VERSION_RAW, DENSE_VERSION):
-            raise ValueError(f"unknown dense network version {version}")
+            raise InputError(f"unknown dense network version {version}", property="version")
         out = ByteWriter()
         out.fixed("u8", version)
         out.varint(self.in_width)

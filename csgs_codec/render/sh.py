@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import torch
 
+from csgs_codec.errors import InputError
+
 #: Y_0^0 normalisation, 1 / (2 sqrt(pi)).
 SH_C0 = 0.28209479177387814
 #: Band-1 normalisation, sqrt(3 / (4 pi)).
@@ -30,7 +32,8 @@ def sh_degree_of_count(count: int) -> int:
     for degree, n in SH_BASIS_COUNTS.items():
         if n == count:
             return degree
-    raise ValueError(f"{count} SH coefficients is not a full basis of degree 0..3")
+    raise InputError(f"{count} SH coefficients is not a full basis of degree 0..3",
+                     property="sh")
 
 
 def sh_basis(directions: torch.Tensor, degree: int) -> torch.Tensor:

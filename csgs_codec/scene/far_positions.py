@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from csgs_codec.errors import InputError
+
 #: Exponent range of a far point (stored as a byte, e = byte - 128).
 E_MIN, E_MAX = -128, 127
 #: Largest mantissa bits per axis (the mantissa then fits 31 bits with its sign).
@@ -54,7 +56,8 @@ def quantize_far(positions: np.ndarray, centre, mantissa_bits: int
         must be kept exactly; their exponent and mantissas are 0).
     """
     if not 1 <= mantissa_bits <= MAX_MANTISSA_BITS:
-        raise ValueError(f"mantissa_bits must be in 1..{MAX_MANTISSA_BITS}")
+        raise InputError(f"mantissa_bits must be in 1..{MAX_MANTISSA_BITS}",
+                         property="mantissa_bits")
     p = np.asarray(positions, np.float64).reshape(-1, 3)
     v = p - np.asarray(centre, np.float64)
     r = np.max(np.abs(v), axis=1)

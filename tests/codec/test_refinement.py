@@ -49,7 +49,7 @@ def test_a_plan_on_its_own_lattice_reproduces_its_values():
 
 def test_a_fixed_lattice_needs_one_mean_per_channel():
     plan = plan_float_stream(np.ones((4, 2), np.float32) * [[1, 2]], 0.1)
-    with pytest.raises(ValueError, match="one mean per channel"):
+    with pytest.raises(InputError, match="one mean per channel"):
         plan_float_stream(np.ones((4, 3), np.float32), 0.1, lattice=plan.lattice())
 
 

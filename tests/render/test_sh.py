@@ -7,6 +7,7 @@ import math
 import pytest
 import torch
 
+from csgs_codec.errors import InputError
 from csgs_codec.render.sh import SH_C0, sh_basis, sh_degree_of_count, sh_to_color
 
 
@@ -63,5 +64,5 @@ def test_color_depends_on_view_direction_through_band_one():
 
 
 def test_incomplete_sh_coefficient_count_is_rejected():
-    with pytest.raises(ValueError):
+    with pytest.raises(InputError):
         sh_degree_of_count(5)
