@@ -32,13 +32,28 @@ def run_js(files: list[Path], *, layers: str = "color", container: bool = False,
     if repeat > 1:
         args += ["--repeat", str(repeat)]
     done = subprocess.run(args, capture_output=True, text=True, timeout=timeout, check=False)
+    if done.returncode < 0:
+        # Killed by a signal: the engine itself aborted (seen once in many runs: SIGABRT in
+        # V8's optimizing compiler, Node 20.20). The receiver's own failures exit 1-3 and
+        # are never retried; a second engine abort fails below with both reports.
+        first = done.stderr
+        done = subprocess.run(args, capture_output=True, text=True, timeout=timeout,
+                              check=False)
+        if done.returncode < 0:
+            raise RuntimeError(f"node was killed by signal {-done.returncode} twice: "
+                               f"{_both_ends(first)} / {_both_ends(done.stderr)}")
     if done.returncode not in (0, 2, 3):
-        raise RuntimeError(f"node failed ({done.returncode}): {done.stderr[-2000:]}")
+        raise RuntimeError(f"node failed ({done.returncode}): {_both_ends(done.stderr)}")
     results = [json.loads(line) for line in done.stdout.splitlines() if line.strip()]
     if len(results) != len(files):
         raise RuntimeError(f"node printed {len(results)} results for {len(files)} files: "
                            f"{done.stderr[-2000:]}")
     return results
+
+
+def _both_ends(text: str, size: int = 1500) -> str:
+    """The start and end of ``text`` (where V8 prints its fatal message, and the stack)."""
+    return text if len(text) <= 2 * size else f"{text[:size]} [...] {text[-size:]}"
 
 
 def _digest(values: np.ndarray, dtype: str) -> str:
