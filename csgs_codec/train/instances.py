@@ -53,6 +53,7 @@ import torch
 
 from csgs_codec.entropy.morton import MAX_BITS, morton_encode
 from csgs_codec.errors import InputError
+from csgs_codec.train.plain_adam import PlainAdam
 from csgs_codec.train.semantic_batch import ViewBatch
 
 #: Masks whose mean accumulated opacity is below this have no descriptor (nothing drawn).
@@ -166,7 +167,7 @@ def _classify(batch: ViewBatch, mask_object: np.ndarray, scores: np.ndarray) -> 
     logits = torch.as_tensor(scores, dtype=torch.float32, device=device).requires_grad_(True)
     if not bool(labelled.any()) or scores.shape[1] < 2:
         return np.argmax(scores, axis=1)
-    optimizer = torch.optim.Adam([logits], lr=CLASSIFY_RATE)
+    optimizer = PlainAdam([logits], lr=CLASSIFY_RATE)
     for _ in range(CLASSIFY_STEPS):
         optimizer.zero_grad()
         rendered = batch.render(torch.softmax(logits, dim=1))[labelled]

@@ -33,6 +33,7 @@ from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.train.feature_prior import FactorizedGaussianPrior
 from csgs_codec.train.losses import CONTRASTIVE_MARGIN
+from csgs_codec.train.plain_adam import PlainAdam
 from csgs_codec.train.quantization import (
     add_quantization_noise,
     gaussian_rate_bits,
@@ -237,7 +238,7 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
     if rate_model is not None:
         rate_model = rate_model.to(device)
         parameters += list(rate_model.parameters())
-    optimizer = torch.optim.Adam(parameters, lr=learning_rate)
+    optimizer = PlainAdam(parameters, lr=learning_rate)
     history = np.zeros(iterations)
     bits_history = np.zeros(iterations)
     for step in range(iterations):
