@@ -24,6 +24,8 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     """Rank the instances, print the best ones, write the best one's Gaussians."""
+    import numpy as np
+
     from csgs_cli.scene_input import load_scene
     from csgs_codec.atomic_write import check_output
     from csgs_codec.errors import InputError
@@ -36,8 +38,9 @@ def run(args) -> int:
     query = _read_vector(Path(args.embedding), read_regular, InputError)
     scene = load_scene(args.scene, command=NAME, layers="color,semantic")
     result = query_instances(scene, query)
+    sizes = np.bincount(result.rows[result.rows >= 0], minlength=len(result.scores))
     for rank, row in enumerate(result.ranking[:SHOWN]):
-        members = int((scene.instances.rows_of(scene.semantic) == row).sum())
+        members = int(sizes[row])
         print(f"{rank + 1}. instance {row}: cosine {result.scores[row]:.4f}, "
               f"{members:,} Gaussians")
     if args.output:

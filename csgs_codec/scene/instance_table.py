@@ -62,8 +62,13 @@ class InstanceTable:
         -1 where none does."""
         features = np.ascontiguousarray(features, np.float32)
         keys = {row.tobytes(): i for i, row in enumerate(self.prototypes)}
-        return np.fromiter((keys.get(row.tobytes(), -1) for row in features), np.int64,
-                           count=len(features))
+        if features.ndim != 2 or features.shape[1] != self.prototypes.shape[1]:
+            return np.full(len(features), -1, np.int64)
+        # Distinct rows first (few in a segmented scene), then one lookup per distinct row.
+        distinct, inverse = np.unique(features.view(np.uint32), axis=0, return_inverse=True)
+        found = np.array([keys.get(row.view(np.float32).tobytes(), -1) for row in distinct],
+                         np.int64)
+        return found[inverse.reshape(-1)]
 
     @staticmethod
     def union(tables: list[InstanceTable]) -> InstanceTable | None:

@@ -28,12 +28,14 @@ class QueryResult:
         scores: (K,) float64 cosine similarity of each instance's embedding with the query
             (0 for an all-zero embedding).
         ranking: (K,) int64 instance rows, best first.
+        rows: (N,) int64 each Gaussian's instance row (-1 for a feature not in the table).
     """
 
     mask: np.ndarray
     instance: int
     scores: np.ndarray
     ranking: np.ndarray
+    rows: np.ndarray
 
     @property
     def count(self) -> int:
@@ -64,5 +66,5 @@ def query_instances(scene: GaussianScene, embedding: np.ndarray) -> QueryResult:
     scores /= np.linalg.norm(query)
     ranking = np.lexsort((np.arange(len(scores)), -scores))
     best = int(ranking[0])
-    mask = table.rows_of(scene.semantic) == best
-    return QueryResult(mask, best, scores, ranking)
+    rows = table.rows_of(scene.semantic)
+    return QueryResult(rows == best, best, scores, ranking, rows)

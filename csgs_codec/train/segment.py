@@ -158,16 +158,16 @@ def segment_scene(scene: GaussianScene, views: list[TrainingView],
         report("render", i + 1, len(views))
     seconds["render"] = time.perf_counter() - began
     began = time.perf_counter()
+    batch = ViewBatch.from_views([v.contributions for v in prepared],
+                                 [v.mask for v in prepared], len(scene),
+                                 ignore_id=settings.ignore_id, device=settings.device)
     trained = train_semantic_features(
         prepared, len(scene), dim=settings.dim, iterations=settings.iterations,
         learning_rate=settings.learning_rate, margin=settings.margin,
         ignore_id=settings.ignore_id, seed=settings.seed, device=settings.device,
-        on_step=lambda step: report("stage2", step + 1, settings.iterations))
+        on_step=lambda step: report("stage2", step + 1, settings.iterations), batch=batch)
     seconds["stage2"] = time.perf_counter() - began
     began = time.perf_counter()
-    batch = ViewBatch.from_views([v.contributions for v in prepared],
-                                 [v.mask for v in prepared], len(scene),
-                                 ignore_id=settings.ignore_id, device=settings.device)
     instances = lift_instances(batch, trained.features, scene.positions,
                                join_distance=settings.margin / 2,
                                neighbours=settings.neighbours)

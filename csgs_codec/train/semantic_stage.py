@@ -167,7 +167,8 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
                             device: str | torch.device = "cpu",
                             initial_features: np.ndarray | None = None,
                             step_range: tuple[float, float] | None = None,
-                            on_step: Callable[[int], None] | None = None) -> SemanticResult:
+                            on_step: Callable[[int], None] | None = None,
+                            batch: ViewBatch | None = None) -> SemanticResult:
     """Fit the semantic feature of every group to the views' masks (module notes).
 
     Args:
@@ -196,6 +197,8 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
         step_range: the codec's (low, high) color steps for the quality-aware weights (see
             :func:`quality_aware_weights`); None normalises min-max over the groups.
         on_step: called with the step index (0-based) after every step (progress bars).
+        batch: ``views`` already stacked (:class:`ViewBatch`, same ``ignore_id`` and
+            ``device``), for a caller that needs the batch afterwards; None stacks them here.
 
     Returns:
         :class:`SemanticResult`.
@@ -206,9 +209,10 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
     """
     if not views:
         raise InputError("stage 2 needs at least one view", property="views")
-    batch = ViewBatch.from_views([view.contributions for view in views],
-                                 [view.mask for view in views], group_count,
-                                 ignore_id=ignore_id, device=device)
+    if batch is None:
+        batch = ViewBatch.from_views([view.contributions for view in views],
+                                     [view.mask for view in views], group_count,
+                                     ignore_id=ignore_id, device=device)
     weights = (torch.ones(group_count, device=device) if color_steps is None
                else quality_aware_weights(np.asarray(color_steps, np.float32),
                                              step_range=step_range))

@@ -73,3 +73,30 @@ def test_a_default_encode_with_a_semantic_layer_opens(browser, default_encode, t
 def test_the_default_encode_of_every_shared_scene_opens(browser, default_encode, name):
     state, python = _open(browser, default_encode(shared_path("scenes", f"{name}.ply")))
     assert _decoded_as_in_python(state, python), state["error"]
+
+
+def test_the_sample_segmented_then_encoded_by_default_opens(browser, default_encode, tmp_path):
+    """What a user makes: `csgs segment` on the sample from a capture of it (renders, no
+    masks: the built-in segmenter's), then `csgs encode` with no flags (SEMC)."""
+    import numpy as np
+
+    from csgs_cli.main import main
+    from csgs_codec.render.rasterizer import render
+    from csgs_codec.scene.orbit import orbit_cameras
+    from csgs_codec.scene.ply_io import read_ply
+    from csgs_codec.train.synthetic import write_transforms_dataset
+    from csgs_codec.train.views import TrainingView
+
+    scene = read_ply(SAMPLE)
+    views = [TrainingView(np.clip(render(scene, c, backend="numba").image, 0, 1)
+                          .astype(np.float32), c, name=f"view_{i}.png")
+             for i, c in enumerate(orbit_cameras(scene, 8, width=160, height=120))]
+    write_transforms_dataset(views, tmp_path / "capture")
+    segmented = tmp_path / "segmented.ply"
+    assert main(["segment", "-q", str(SAMPLE), "--images", str(tmp_path / "capture"),
+                 "-o", str(segmented), "--iterations", "30"]) == 0
+    path = default_encode(segmented)
+    assert b"SEMC" in path.read_bytes()
+    state, python = _open(browser, path)
+    assert _decoded_as_in_python(state, python), state["error"]
+    assert state["semanticReady"] and state["hashes"]["semantic"] == python["hashes"]["semantic"]
