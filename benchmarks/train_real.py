@@ -8,12 +8,14 @@ The shared scenes come without their training images or cameras (../shared/data/
 so this stands in for a real capture: the scene is rendered from ``--views`` cameras at two
 elevations (half at 15, half at 45 degrees), every 4th view is held out, and each view's
 instance mask comes from :func:`csgs_codec.train.segmentation.segment_image` (what
-``csgs train`` does when a dataset has no masks). Stage 1 starts from random points in the
-ball the cameras look into, or (the default) from a seeded subset of the scene's own centres,
-standing in for the sparse SfM points a real capture comes with. Per lambda it reports the
-held-out PSNR/SSIM of the decoded file against the renders of the original, the file and
-layer sizes, anchors, the semantic share, and the 2D click mIoU against the segmenter's masks
-of the held-out views (consistency with the masks trained on; there is no ground truth).
+``csgs train`` does when a dataset has no masks). Stage 1 starts from points triangulated by
+pycolmap from the training views' images at their known cameras (``--initial-points sfm``,
+what ``csgs train`` does for a capture without points), from random points in the ball the
+cameras look into, or (the default) from a seeded subset of the scene's own centres. Per
+lambda it reports the held-out PSNR/SSIM of the decoded file against the renders of the
+original, the file and layer sizes, anchors, the semantic share, and the 2D click mIoU
+against the segmenter's masks of the held-out views (consistency with the masks trained on;
+there is no ground truth).
 """
 
 from __future__ import annotations
@@ -42,6 +44,7 @@ from csgs_codec.train.evaluation import image_click_miou, score_views, split_vie
 from csgs_codec.train.initial_points import random_points  # noqa: E402
 from csgs_codec.train.pipeline import TrainSettings, train_scene  # noqa: E402
 from csgs_codec.train.segmentation import segment_image  # noqa: E402
+from csgs_codec.train.sfm_points import triangulate_views  # noqa: E402
 from csgs_codec.train.views import TrainingView  # noqa: E402
 
 
@@ -98,10 +101,12 @@ def main() -> int:
     parser.add_argument("--iterations", type=int, default=2000)
     parser.add_argument("--anchors", type=int, default=2000)
     parser.add_argument("--max-anchors", type=int, default=8000)
-    parser.add_argument("--initial-points", choices=("scene", "random"), default="scene",
+    parser.add_argument("--initial-points", choices=("scene", "random", "sfm"),
+                        default="scene",
                         help="scene: a seeded subset of the scene's centres, standing in for "
                              "the sparse SfM points a capture comes with; random: in the "
-                             "cameras' view ball")
+                             "cameras' view ball; sfm: triangulated by pycolmap from the "
+                             "training views")
     parser.add_argument("--points", type=int, default=5000,
                         help="initial points taken from the scene")
     parser.add_argument("--seed", type=int, default=0)
@@ -117,6 +122,11 @@ def main() -> int:
         rng = np.random.default_rng(args.seed)
         chosen = rng.choice(len(scene), size=min(args.points, len(scene)), replace=False)
         points = scene.positions[np.sort(chosen)].astype(np.float64)
+    elif args.initial_points == "sfm":
+        found = triangulate_views(train)
+        points = found.points
+        print(f"{len(points):,} points triangulated from {len(train)} views "
+              f"({'cached' if found.cached else 'new'})", file=sys.stderr)
     else:
         points = random_points([v.camera for v in train], seed=args.seed)
     results = []
@@ -132,6 +142,7 @@ def main() -> int:
                            "test_views": len(test), "width": width, "height": height,
                            "masks": "segment_image (classical fallback)",
                            "initial_points": args.initial_points,
+                           "initial_point_count": len(points),
                            "render_seconds": round(render_seconds, 2)}), args.out)
     return 0
 

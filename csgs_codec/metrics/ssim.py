@@ -10,6 +10,7 @@ evaluates it on numpy images.
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 
 from csgs_codec.errors import InputError
@@ -20,29 +21,111 @@ SSIM_C1 = 0.01**2
 SSIM_C2 = 0.03**2
 
 
-def _gaussian_taps(dtype: torch.dtype, device: torch.device) -> torch.Tensor:
-    """The [SSIM_WINDOW] Gaussian window on ``device``, computed in float64 on the CPU so
-    that every device gets the same taps."""
+def _gaussian_taps() -> torch.Tensor:
+    """The [SSIM_WINDOW] Gaussian window in float64 on the CPU (the same taps everywhere)."""
     x = torch.arange(SSIM_WINDOW, dtype=torch.float64, device="cpu") - (SSIM_WINDOW - 1) / 2
     taps = torch.exp(-0.5 * (x / SSIM_SIGMA) ** 2)
-    return (taps / taps.sum()).to(dtype=dtype, device=device)
+    return taps / taps.sum()
 
 
-def _valid_filter(planes: torch.Tensor, taps: torch.Tensor) -> torch.Tensor:
-    """[P, H, W] -> [P, H - k + 1, W - k + 1]: separable 'valid' filtering (rows, then columns)."""
+#: Lengths up to which one banded matrix filters a whole axis; longer axes are cut into
+#: blocks of :data:`_BLOCK` outputs (a full band matrix costs O(length) per output).
+_FULL_BAND_LIMIT = 1024
+_BLOCK = 32
+
+
+def _band_matrix(n_in: int, n_out: int, dtype: torch.dtype,
+                 device: torch.device) -> torch.Tensor:
+    """[n_in, n_out] matrix whose column j holds the window taps at rows j..j + k - 1."""
+    taps = _gaussian_taps()
     k = taps.numel()
-    x = planes[:, None]
-    x = torch.nn.functional.conv2d(x, taps.view(1, 1, k, 1))
-    x = torch.nn.functional.conv2d(x, taps.view(1, 1, 1, k))
-    return x[:, 0]
+    band = torch.zeros(n_in, n_out, dtype=torch.float64, device="cpu")
+    cols = torch.arange(n_out)
+    for offset in range(k):
+        band[cols + offset, cols] = taps[offset]
+    return band.to(dtype=dtype, device=device)
 
 
-def ssim(rendered: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+def _valid_filter_last(x: torch.Tensor) -> torch.Tensor:
+    """'Valid' window filtering along the last axis: [..., L] -> [..., L - k + 1].
+
+    A matrix product with a banded matrix: on the CPU it is 4-8x faster than conv2d with a
+    one-channel 11-tap kernel, forward and backward (measured at 512x384 and 1920x1080).
+    """
+    k = SSIM_WINDOW
+    length = x.shape[-1]
+    n_out = length - k + 1
+    if n_out <= _FULL_BAND_LIMIT:
+        return x @ _band_matrix(length, n_out, x.dtype, x.device)
+    blocks = -(-n_out // _BLOCK)
+    padded = torch.nn.functional.pad(x, (0, blocks * _BLOCK + k - 1 - length))
+    windows = padded.unfold(-1, _BLOCK + k - 1, _BLOCK)  # [..., blocks, BLOCK + k - 1]
+    out = windows @ _band_matrix(_BLOCK + k - 1, _BLOCK, x.dtype, x.device)
+    return out.flatten(-2)[..., :n_out]
+
+
+def _valid_filter(planes: torch.Tensor) -> torch.Tensor:
+    """[P, H, W] -> [P, H - k + 1, W - k + 1]: separable 'valid' Gaussian filtering."""
+    rows = _valid_filter_last(planes)
+    height = rows.shape[-2]
+    n_out = height - SSIM_WINDOW + 1
+    if n_out <= _FULL_BAND_LIMIT:  # a left product keeps the planes contiguous
+        return _band_matrix(height, n_out, rows.dtype, rows.device).T @ rows
+    return _valid_filter_last(rows.transpose(-1, -2)).transpose(-1, -2)
+
+
+class _NumbaSSIM(torch.autograd.Function):
+    """SSIM of [C, H, W] float32 CPU planes by the numba kernels; gradient for ``a`` only."""
+
+    @staticmethod
+    def forward(ctx, a, b):
+        from csgs_codec.metrics import ssim_kernels
+
+        a_np = np.ascontiguousarray(a.detach().numpy())
+        b_np = np.ascontiguousarray(b.detach().numpy())
+        taps = _gaussian_taps().numpy().astype(np.float32)
+        stats = ssim_kernels.window_statistics(a_np, b_np, taps)
+        slopes = np.empty((3,) + stats.shape[1:], np.float32)
+        total = ssim_kernels.score_and_slopes(stats, SSIM_C1, SSIM_C2, slopes)
+        count = stats[0].size
+        ctx.saved = (a_np, b_np, slopes, taps, count)
+        ctx.device = a.device
+        return torch.tensor(total / count, dtype=a.dtype, device=a.device)
+
+    @staticmethod
+    def backward(ctx, grad):
+        from csgs_codec.metrics import ssim_kernels
+
+        a_np, b_np, slopes, taps, count = ctx.saved
+        grad_a = ssim_kernels.gradient_of_a(a_np, b_np, slopes, taps)
+        return torch.as_tensor(grad_a, device=ctx.device) * (grad / count), None
+
+
+def _numba_usable(a: torch.Tensor, b: torch.Tensor) -> bool:
+    if (a.device.type != "cpu" or a.dtype != torch.float32 or b.dtype != torch.float32
+            or b.requires_grad or min(a.shape[1], a.shape[2]) < SSIM_WINDOW):
+        return False
+    try:
+        from csgs_codec.metrics import ssim_kernels  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def ssim(rendered: torch.Tensor, target: torch.Tensor, *,
+         kernel: str = "torch") -> torch.Tensor:
     """Differentiable SSIM of two images (module notes): scalar, 1 for equal images.
 
     Args:
         rendered, target: [H, W, C] or [H, W] images in [0, 1], same shape and dtype.
+        kernel: "torch" (the reference: any dtype and device, gradients for both images) or
+            "auto": the numba kernels when the images are float32 on the CPU, at least a
+            window in size, the target needs no gradient and numba is installed (the same
+            value and gradient to float32 rounding, 4-5x faster on one thread), else torch.
     """
+    if kernel not in ("torch", "auto"):
+        raise InputError(f"unknown SSIM kernel {kernel!r}; expected 'torch' or 'auto'",
+                         property="kernel")
     if rendered.shape != target.shape:
         raise InputError(f"image shapes differ: {tuple(rendered.shape)} vs "
                          f"{tuple(target.shape)}", property="image")
@@ -52,6 +135,8 @@ def ssim(rendered: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     a = rendered if rendered.ndim == 3 else rendered[..., None]
     b = target if target.ndim == 3 else target[..., None]
     a, b = a.permute(2, 0, 1), b.permute(2, 0, 1)  # [C, H, W]
+    if kernel == "auto" and _numba_usable(a, b):
+        return _NumbaSSIM.apply(a, b)
     if min(a.shape[1], a.shape[2]) < SSIM_WINDOW:
         mu_a = a.mean(dim=(1, 2), keepdim=True)
         mu_b = b.mean(dim=(1, 2), keepdim=True)
@@ -60,11 +145,13 @@ def ssim(rendered: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
         cov = ((a - mu_a) * (b - mu_b)).mean(dim=(1, 2))
         mu_a, mu_b = mu_a[:, 0, 0], mu_b[:, 0, 0]
     else:
-        taps = _gaussian_taps(a.dtype, a.device)
-        mu_a, mu_b = _valid_filter(a, taps), _valid_filter(b, taps)
-        var_a = _valid_filter(a * a, taps) - mu_a**2
-        var_b = _valid_filter(b * b, taps) - mu_b**2
-        cov = _valid_filter(a * b, taps) - mu_a * mu_b
+        channels = a.shape[0]
+        # One filtering of all five statistics' planes: [5C, H, W].
+        filtered = _valid_filter(torch.cat([a, b, a * a, b * b, a * b]))
+        mu_a, mu_b, sq_a, sq_b, prod = filtered.split(channels)
+        var_a = sq_a - mu_a**2
+        var_b = sq_b - mu_b**2
+        cov = prod - mu_a * mu_b
     score = ((2 * mu_a * mu_b + SSIM_C1) * (2 * cov + SSIM_C2)
              / ((mu_a**2 + mu_b**2 + SSIM_C1) * (var_a + var_b + SSIM_C2)))
     return score.mean()

@@ -61,11 +61,13 @@ def bin_tiles(rects: np.ndarray, order: np.ndarray, n_tiles: int,
 def composite_tiles(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
                     conics: np.ndarray, opacities: np.ndarray, values: np.ndarray,
                     width: int, height: int, tile_size: int, tiles_x: int,
-                    out: np.ndarray, transmittance: np.ndarray) -> None:
+                    out: np.ndarray, transmittance: np.ndarray, walked: np.ndarray) -> None:
     """Composite every tile into ``out`` [H, W, C] and ``transmittance`` [H, W] (float32).
 
     ``out`` must start at zero; per-Gaussian inputs are float32: means2d [N, 2], conics
-    [N, 3], opacities [N], values [N, C].
+    [N, 3], opacities [N], values [N, C]. ``walked`` [H, W] int32 receives how many of its
+    tile's Gaussians each pixel went through before it stopped (the backward pass replays
+    exactly those).
     """
     n_tiles = offsets.shape[0] - 1
     channels = values.shape[1]
@@ -92,6 +94,7 @@ def composite_tiles(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
             for px in range(x0, min(x0 + tile_size, width)):
                 pxc = np.float32(px) + _HALF
                 trans = _ONE
+                stop = count
                 for k in range(count):
                     dx = pxc - packed[k, 0]
                     dy = pyc - packed[k, 1]
@@ -104,6 +107,7 @@ def composite_tiles(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
                         continue
                     after = trans * (_ONE - alpha)
                     if after < _T_STOP:
+                        stop = k
                         break
                     weight = alpha * trans
                     g = ids[start + k]
@@ -111,6 +115,7 @@ def composite_tiles(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
                         out[py, px, ch] += weight * values[g, ch]
                     trans = after
                 transmittance[py, px] = trans
+                walked[py, px] = stop
 
 
 @numba.njit(parallel=True, cache=True)
@@ -165,3 +170,106 @@ def blend_weight_slots(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray
                     weight_sq[start + k] += weight * weight
                     weight_sum[start + k] += weight
                     trans = after
+
+
+@numba.njit(parallel=True, cache=True)
+def composite_tiles_backward(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
+                             conics: np.ndarray, opacities: np.ndarray, values: np.ndarray,
+                             width: int, height: int, tile_size: int, tiles_x: int,
+                             out: np.ndarray, transmittance: np.ndarray, walked: np.ndarray,
+                             grad_out: np.ndarray, grad_transmittance: np.ndarray,
+                             slot_grads: np.ndarray) -> None:
+    """Gradients of :func:`composite_tiles` for every (tile, Gaussian) slot of ``ids``.
+
+    Each pixel replays its forward walk (same float32 operations in the same order, so the
+    same pairs contribute) with ``out``, ``transmittance`` and ``walked`` from the forward
+    pass. For pair i of a pixel with weight w_i = alpha_i T_i and S_i the accumulated value
+    of the pairs behind it (``out`` minus the running sum up to i):
+
+        dL/dalpha_i = sum_c g_c (T_i v_ic - S_ic / (1 - alpha_i)) - g_T T_final / (1 - alpha_i)
+        dL/dv_ic = g_c w_i
+
+    and the chain rule through alpha = min(0.99, opacity exp(power)) gives the mean, conic
+    and opacity terms. ``slot_grads`` [I, 6 + C] float32 (zeroed by the caller) receives
+    (mean x, mean y, conic a, b, c, opacity, values...); slots belong to one tile each, so
+    tiles run in parallel without races and the caller sums slots per Gaussian.
+    """
+    n_tiles = offsets.shape[0] - 1
+    channels = values.shape[1]
+    for t in numba.prange(n_tiles):
+        start = offsets[t]
+        count = offsets[t + 1] - start
+        if count == 0:
+            continue
+        packed = np.empty((count, 7), np.float32)
+        for k in range(count):
+            g = ids[start + k]
+            packed[k, 0] = means2d[g, 0]
+            packed[k, 1] = means2d[g, 1]
+            packed[k, 2] = conics[g, 0]
+            packed[k, 3] = conics[g, 1]
+            packed[k, 4] = conics[g, 2]
+            packed[k, 5] = opacities[g]
+            packed[k, 6] = np.log(_ALPHA_THRESHOLD / opacities[g]) - _POWER_MARGIN
+        running = np.empty(channels, np.float32)
+        x0 = (t % tiles_x) * tile_size
+        y0 = (t // tiles_x) * tile_size
+        for py in range(y0, min(y0 + tile_size, height)):
+            pyc = np.float32(py) + _HALF
+            for px in range(x0, min(x0 + tile_size, width)):
+                stop = walked[py, px]
+                if stop == 0:
+                    continue
+                pxc = np.float32(px) + _HALF
+                final = transmittance[py, px]
+                grad_t = grad_transmittance[py, px]
+                for ch in range(channels):
+                    running[ch] = np.float32(0.0)
+                trans = _ONE
+                for k in range(stop):
+                    dx = pxc - packed[k, 0]
+                    dy = pyc - packed[k, 1]
+                    power = (-_HALF * (packed[k, 2] * dx * dx + packed[k, 4] * dy * dy)
+                             - packed[k, 3] * dx * dy)
+                    if power < packed[k, 6]:
+                        continue
+                    falloff = np.exp(power)
+                    raw = packed[k, 5] * falloff
+                    alpha = min(_MAX_ALPHA, raw)
+                    if alpha < _ALPHA_THRESHOLD:
+                        continue
+                    keep = _ONE - alpha
+                    weight = alpha * trans
+                    g = ids[start + k]
+                    slot = start + k
+                    grad_alpha = -grad_t * final / keep
+                    for ch in range(channels):
+                        value = values[g, ch]
+                        running[ch] += weight * value
+                        behind = out[py, px, ch] - running[ch]
+                        grad_c = grad_out[py, px, ch]
+                        grad_alpha += grad_c * (trans * value - behind / keep)
+                        slot_grads[slot, 6 + ch] += grad_c * weight
+                    if raw <= _MAX_ALPHA:  # the clamp passes no gradient above its bound
+                        grad_power = grad_alpha * alpha
+                        slot_grads[slot, 0] += grad_power * (packed[k, 2] * dx
+                                                             + packed[k, 3] * dy)
+                        slot_grads[slot, 1] += grad_power * (packed[k, 4] * dy
+                                                             + packed[k, 3] * dx)
+                        slot_grads[slot, 2] -= _HALF * dx * dx * grad_power
+                        slot_grads[slot, 3] -= dx * dy * grad_power
+                        slot_grads[slot, 4] -= _HALF * dy * dy * grad_power
+                        slot_grads[slot, 5] += grad_alpha * falloff
+                    trans = trans * keep
+
+
+@numba.njit(cache=True)
+def sum_slots(ids: np.ndarray, slot_grads: np.ndarray, n: int) -> np.ndarray:
+    """[n, K] float64 sums of the [I, K] slot rows per Gaussian ``ids`` [I], in slot order
+    (one thread, so the sums are the same on every run)."""
+    total = np.zeros((n, slot_grads.shape[1]), np.float64)
+    for i in range(ids.shape[0]):
+        g = ids[i]
+        for j in range(slot_grads.shape[1]):
+            total[g, j] += slot_grads[i, j]
+    return total

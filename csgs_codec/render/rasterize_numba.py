@@ -81,8 +81,9 @@ def rasterize_numba(prepared: PreparedGaussians, camera: Camera, *,
     offsets, ids = kernels.bin_tiles(rects, order, tiles_x * tiles_y, tiles_x)
     out = np.zeros((height, width, values.shape[1]), np.float32)
     transmittance = np.ones((height, width), np.float32)
+    walked = np.zeros((height, width), np.int32)
     kernels.composite_tiles(offsets, ids, means2d, conics, opacities, values, width, height,
-                            tile_size, tiles_x, out, transmittance)
+                            tile_size, tiles_x, out, transmittance, walked)
     bg = np.asarray(background, dtype=np.float32)
     image = out[..., :3] + transmittance[..., None] * bg
     alpha = np.float32(1.0) - transmittance

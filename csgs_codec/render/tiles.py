@@ -24,6 +24,28 @@ def depth_order(depths: torch.Tensor, visible: torch.Tensor) -> torch.Tensor:
     return ids[order]
 
 
+def tile_ranges(means2d: torch.Tensor, extents: torch.Tensor, width: int, height: int,
+                tile_size: int) -> torch.Tensor:
+    """Range of tiles each footprint box (mean +- extent, pixels) touches.
+
+    Returns:
+        [N, 4] int64 (tx0, tx1, ty0, ty1), half-open tile ranges clipped to the image, on the
+        device of ``means2d``.
+    """
+    tiles_x = math.ceil(width / tile_size)
+    tiles_y = math.ceil(height / tile_size)
+    with torch.no_grad():
+        lo = torch.floor((means2d - extents) / tile_size)
+        hi = torch.floor((means2d + extents) / tile_size) + 1
+        lo = torch.nan_to_num(lo, nan=0.0, posinf=1e9, neginf=-1e9).to(torch.float64)
+        hi = torch.nan_to_num(hi, nan=0.0, posinf=1e9, neginf=-1e9).to(torch.float64)
+        tx0 = lo[:, 0].clamp(0, tiles_x).to(torch.int64)
+        tx1 = torch.maximum(hi[:, 0].clamp(0, tiles_x).to(torch.int64), tx0)
+        ty0 = lo[:, 1].clamp(0, tiles_y).to(torch.int64)
+        ty1 = torch.maximum(hi[:, 1].clamp(0, tiles_y).to(torch.int64), ty0)
+    return torch.stack([tx0, tx1, ty0, ty1], dim=-1)
+
+
 def tile_rectangles(projected: ProjectedGaussians, width: int, height: int,
                     tile_size: int) -> torch.Tensor:
     """Range of tiles each Gaussian's footprint box touches.
@@ -37,18 +59,8 @@ def tile_rectangles(projected: ProjectedGaussians, width: int, height: int,
         [N, 4] int64 (tx0, tx1, ty0, ty1), half-open tile ranges clipped to the image; empty
         (tx0 == tx1) for culled Gaussians.
     """
-    tiles_x = math.ceil(width / tile_size)
-    tiles_y = math.ceil(height / tile_size)
-    with torch.no_grad():
-        lo = torch.floor((projected.means2d - projected.extents) / tile_size)
-        hi = torch.floor((projected.means2d + projected.extents) / tile_size) + 1
-        lo = torch.nan_to_num(lo, nan=0.0, posinf=1e9, neginf=-1e9).to(torch.float64)
-        hi = torch.nan_to_num(hi, nan=0.0, posinf=1e9, neginf=-1e9).to(torch.float64)
-        tx0 = lo[:, 0].clamp(0, tiles_x).to(torch.int64)
-        tx1 = hi[:, 0].clamp(0, tiles_x).to(torch.int64)
-        ty0 = lo[:, 1].clamp(0, tiles_y).to(torch.int64)
-        ty1 = hi[:, 1].clamp(0, tiles_y).to(torch.int64)
-        vis = projected.visible
-        tx1 = torch.where(vis, torch.maximum(tx1, tx0), tx0)
-        ty1 = torch.where(vis, torch.maximum(ty1, ty0), ty0)
-    return torch.stack([tx0, tx1, ty0, ty1], dim=-1)
+    rects = tile_ranges(projected.means2d, projected.extents, width, height, tile_size)
+    hidden = ~projected.visible
+    rects[hidden, 1] = rects[hidden, 0]
+    rects[hidden, 3] = rects[hidden, 2]
+    return rects

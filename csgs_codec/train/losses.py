@@ -52,9 +52,12 @@ def l1_loss(rendered: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
 
 def photometric_loss(rendered: torch.Tensor, target: torch.Tensor,
                      ssim_weight: float = SSIM_LOSS_WEIGHT) -> torch.Tensor:
-    """Stage-1 distortion: (1 - w) * L1 + w * (1 - SSIM) of [H, W, 3] images; scalar."""
+    """Stage-1 distortion: (1 - w) * L1 + w * (1 - SSIM) of [H, W, 3] images; scalar.
+
+    SSIM runs on the numba kernels where they apply (float32 on the CPU), else in torch.
+    """
     return (1.0 - ssim_weight) * l1_loss(rendered, target) + ssim_weight * (
-        1.0 - ssim(rendered, target))
+        1.0 - ssim(rendered, target, kernel="auto"))
 
 
 @dataclass(frozen=True)

@@ -52,6 +52,29 @@ def test_ssim_uses_an_11x11_gaussian_window_with_sigma_1_5():
     assert ssim(a, b) == pytest.approx(expected, rel=1e-9)
 
 
+def windowed_ssim_map(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """SSIM of every 11x11 window of two 2-D images, written out window by window (float64)."""
+    x = np.arange(11) - 5
+    w = np.exp(-(x[:, None] ** 2 + x[None, :] ** 2) / (2 * 1.5**2))
+    w /= w.sum()
+    win = np.lib.stride_tricks.sliding_window_view
+    wa, wb = win(a, (11, 11)), win(b, (11, 11))
+    ma, mb = (w * wa).sum((-1, -2)), (w * wb).sum((-1, -2))
+    va = (w * wa * wa).sum((-1, -2)) - ma**2
+    vb = (w * wb * wb).sum((-1, -2)) - mb**2
+    cov = (w * wa * wb).sum((-1, -2)) - ma * mb
+    return ((2 * ma * mb + SSIM_C1) * (2 * cov + SSIM_C2)
+            / ((ma**2 + mb**2 + SSIM_C1) * (va + vb + SSIM_C2)))
+
+
+@pytest.mark.parametrize("shape", [(23, 40), (14, 1100)])
+def test_ssim_equals_the_window_by_window_definition(shape):
+    # (14, 1100): the long axis is filtered in blocks, the short one by one band matrix.
+    a = noise_image(shape + (1,), 4)[..., 0].astype(np.float64)
+    b = np.clip(a + np.random.default_rng(5).normal(0, 0.1, a.shape), 0, 1)
+    assert ssim(a, b) == pytest.approx(windowed_ssim_map(a, b).mean(), rel=1e-9)
+
+
 def test_ssim_falls_as_noise_grows():
     image = noise_image() * 0.5 + 0.25
     rng = np.random.default_rng(3)

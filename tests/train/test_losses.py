@@ -138,3 +138,30 @@ def test_losses_accept_numpy_converted_masks():
     mask = torch.from_numpy(np.array([[0, 1], [0, 1]], np.int32))
     features = torch.tensor([[[0.0], [7.0]], [[0.0], [7.0]]])
     assert inter_mask_contrastive_loss(features, mask).item() == 0.0
+
+
+@pytest.mark.parametrize("shape", [(384, 512, 3), (23, 40, 1), (11, 30, 3)])
+def test_ssim_numba_kernels_give_the_reference_value_and_gradient(shape):
+    pytest.importorskip("numba")
+    gen = torch.Generator().manual_seed(sum(shape))
+    target = torch.rand(shape, generator=gen)
+    image = (target + 0.1 * torch.randn(shape, generator=gen)).clamp(0, 1)
+    results = {}
+    for kernel in ("torch", "auto"):
+        rendered = image.clone().requires_grad_()
+        value = ssim(rendered, target, kernel=kernel)
+        value.backward()
+        results[kernel] = (float(value), rendered.grad)
+    (ref_value, ref_grad), (value, grad) = results["torch"], results["auto"]
+    assert value == pytest.approx(ref_value, abs=1e-6)
+    assert float((grad - ref_grad).norm() / ref_grad.norm()) < 1e-5
+
+
+def test_ssim_auto_kernel_leaves_a_target_that_needs_gradient_to_torch():
+    gen = torch.Generator().manual_seed(2)
+    a = torch.rand(20, 24, 3, generator=gen, requires_grad=True)
+    b = torch.rand(20, 24, 3, generator=gen, requires_grad=True)
+    ssim(a, b, kernel="auto").backward()
+    assert a.grad is not None and b.grad is not None and float(b.grad.abs().max()) > 0
+    with pytest.raises(InputError, match="kernel"):
+        ssim(a, b, kernel="cuda")
