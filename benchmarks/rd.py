@@ -224,8 +224,9 @@ def main() -> int:
     """Run the benchmark; see the module docstring."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", nargs="*", default=None,
-                        help="scene names in ../shared/data/scenes (default: all)")
-    parser.add_argument("--qualities", nargs="*", type=int, default=list(range(1, 10)))
+                        help="scene names in ../shared/data/scenes or paths to .ply files "
+                             "(default: every scene there)")
+    parser.add_argument("--qualities", nargs="*", type=int, default=list(range(1, 12)))
     parser.add_argument("--variants", nargs="+", default=["plain"], choices=sorted(VARIANTS))
     parser.add_argument("--stacked-qualities", nargs="*", type=int, default=[5, 7, 8, 9])
     parser.add_argument("--refine-steps", type=int, default=20)
@@ -258,7 +259,8 @@ def main() -> int:
     rows: list[dict] = []
     with tempfile.TemporaryDirectory() as tmp:
         for name in names:
-            path = SCENES / f"{name}.ply"
+            path = Path(name) if name.endswith(".ply") else SCENES / f"{name}.ply"
+            name = path.stem
             original = read_ply(path)
             if args.scoring == "held-out":
                 cameras = held_out_views(original, width, height)

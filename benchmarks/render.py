@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from csgs_codec.render.rasterize_numba import numba_available
+from csgs_codec.render.numba_loader import numba_available
 from csgs_codec.render.rasterize_torch import prepare_gaussians, rasterize_gaussians
 from csgs_codec.render.rasterizer import render, scene_tensors
 from csgs_codec.scene.camera import Camera

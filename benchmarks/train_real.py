@@ -72,7 +72,16 @@ def run_one(train, test, points, weight: float, args) -> dict:
                                seed=args.seed)
     settings = TrainSettings(color)
     cpu, wall = time.process_time(), time.perf_counter()
-    result = train_scene(train, points, settings)
+
+    def report(stage: str, step) -> None:
+        if step is None:
+            print(f"{stage} ({time.perf_counter() - wall:.0f} s)", file=sys.stderr)
+        elif step.step % 500 == 0 or step.step == step.iterations:
+            print(f"  step {step.step}/{step.iterations}: train PSNR {step.psnr:.2f} dB, "
+                  f"{step.anchors} anchors, {time.perf_counter() - wall:.0f} s",
+                  file=sys.stderr)
+
+    result = train_scene(train, points, settings, progress=report)
     cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
     decoded = AnchorDecoder().decode(result.data, layers="color,semantic")
     if not decoded.equals(result.encode.reconstruction):

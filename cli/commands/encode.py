@@ -8,7 +8,12 @@ from time import perf_counter
 
 from tqdm import tqdm
 
-from csgs_codec.codec.presets import DEFAULT_QUALITY, DEFAULT_ROTATION_STEPS, ROTATION_STEPS
+from csgs_codec.codec.presets import (
+    DEFAULT_QUALITY,
+    DEFAULT_ROTATION_STEPS,
+    QUALITIES,
+    ROTATION_STEPS,
+)
 from csgs_codec.errors import InputError
 
 NAME = "encode"
@@ -24,9 +29,10 @@ def add_arguments(parser) -> None:
                                       "an INRIA output folder, or a Scaffold-GS checkpoint "
                                       "folder / anchor .ply (coded as an anchor scene)")
     parser.add_argument("-o", "--output", required=True, help="output .csgs file")
-    parser.add_argument("--quality", type=int, default=None, choices=range(1, 10),
-                        metavar="1-9", help=f"1 smallest .. 9 near-lossless "
-                                            f"(default {DEFAULT_QUALITY})")
+    parser.add_argument("--quality", type=int, default=None, choices=QUALITIES,
+                        metavar="1-11", help=f"1 smallest .. 9 high; 10 and 11 near-lossless "
+                                             f"(3DGS scenes; anchor scenes take 1-9) "
+                                             f"(default {DEFAULT_QUALITY})")
     parser.add_argument("--target-psnr", type=float, default=None, metavar="DB",
                         help="instead of --quality: the smallest file whose renders reach this "
                              "foreground PSNR on the encoder's probe views (several encodes)")

@@ -18,7 +18,7 @@ DEFAULT_RESOLUTION = 640
 
 def add_arguments(parser) -> None:
     """Arguments of ``csgs segment``."""
-    from csgs_codec.codec.presets import DEFAULT_QUALITY
+    from csgs_codec.codec.presets import DEFAULT_QUALITY, QUALITIES
     from csgs_codec.train import defaults
 
     parser.add_argument("scene", help="the trained scene: any 3DGS file 'csgs encode' reads, "
@@ -45,7 +45,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--resolution", type=int, default=DEFAULT_RESOLUTION, metavar="R",
                         help="downscale views so their longer side is at most R pixels "
                              f"(default {DEFAULT_RESOLUTION})")
-    parser.add_argument("--quality", type=int, default=DEFAULT_QUALITY, choices=range(1, 10),
+    parser.add_argument("--quality", type=int, default=DEFAULT_QUALITY, choices=QUALITIES,
                         metavar="Q", help="encoder quality for a .csgs output (default "
                                           f"{DEFAULT_QUALITY})")
     parser.add_argument("--ignore-id", type=int, metavar="ID",

@@ -32,7 +32,12 @@ from csgs_codec.codec.anchor_grid import anchor_grid
 from csgs_codec.codec.anchor_payloads import AnchorHeader, mlps_to_bytes
 from csgs_codec.codec.encoder_checks import check_semantic_names
 from csgs_codec.codec.payloads import MAX_SEMANTIC_CHANNELS, names_to_bytes
-from csgs_codec.codec.presets import ANCHOR_BASE_STEPS, DEFAULT_QUALITY, MULTIPLIERS
+from csgs_codec.codec.presets import (
+    ANCHOR_BASE_STEPS,
+    ANCHOR_QUALITIES,
+    DEFAULT_QUALITY,
+    MULTIPLIERS,
+)
 from csgs_codec.entropy.anchor_attributes import (
     FRAC_BITS,
     encode_block,
@@ -128,8 +133,9 @@ class AnchorEncoder:
             lambda_ = float(lambda_)
         if quality is None:
             quality = DEFAULT_QUALITY if lambda_ is None else _nearest_quality(lambda_)
-        if quality not in MULTIPLIERS:
-            raise InputError(f"quality must be 1..9, got {quality}")
+        if quality not in ANCHOR_QUALITIES:
+            raise InputError(f"anchor scenes take quality 1..{ANCHOR_QUALITIES[-1]}, got "
+                             f"{quality}", property="quality")
         if not isinstance(carm_groups, int) or not 1 <= carm_groups <= 64:
             raise InputError(f"carm_groups must be 1..64, got {carm_groups}")
         if semantic not in SEMANTIC_MODES:
@@ -284,7 +290,7 @@ def check_lambda(lam: float) -> None:
 def _nearest_quality(lam: float) -> int:
     """The quality whose feature step is nearest (log scale) to ``lam``'s (informative)."""
     ratio = step_for_lambda(lam) / ANCHOR_BASE_STEPS["f"]
-    return min(MULTIPLIERS, key=lambda q: abs(math.log(MULTIPLIERS[q] / ratio)))
+    return min(ANCHOR_QUALITIES, key=lambda q: abs(math.log(MULTIPLIERS[q] / ratio)))
 
 
 def _check_magnitudes(scene: AnchorScene) -> None:

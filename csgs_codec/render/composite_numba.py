@@ -15,7 +15,8 @@ import math
 import numpy as np
 import torch
 
-from csgs_codec.errors import InputError, UnsupportedError
+from csgs_codec.errors import InputError
+from csgs_codec.render.numba_loader import numba_available, rasterizer_kernels
 from csgs_codec.render.tiles import tile_ranges
 
 #: Tile side in pixels (speed only: the result does not depend on it).
@@ -24,23 +25,13 @@ TRAIN_TILE_SIZE = 16
 
 def numba_compositing_usable(*tensors: torch.Tensor) -> bool:
     """True when numba imports and every tensor is float32 (or integer) on the CPU."""
-    if any(t.device.type != "cpu" or (t.is_floating_point() and t.dtype != torch.float32)
-           for t in tensors):
-        return False
-    try:
-        from csgs_codec.render import numba_kernels  # noqa: F401
-    except ImportError:
-        return False
-    return True
+    return numba_available() and all(
+        t.device.type == "cpu" and (not t.is_floating_point() or t.dtype == torch.float32)
+        for t in tensors)
 
 
 def _kernels():
-    try:
-        from csgs_codec.render import numba_kernels
-    except ImportError as exc:
-        raise UnsupportedError("numba compositing needs numba: pip install 'csgs[fast]' "
-                               f"({exc})") from exc
-    return numba_kernels
+    return rasterizer_kernels("numba compositing")
 
 
 def _array(t: torch.Tensor) -> np.ndarray:

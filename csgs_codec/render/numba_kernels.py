@@ -57,6 +57,44 @@ def bin_tiles(rects: np.ndarray, order: np.ndarray, n_tiles: int,
     return offsets, ids
 
 
+@numba.njit(cache=True)
+def _pack_tile(ids: np.ndarray, start: int, count: int, means2d: np.ndarray,
+               conics: np.ndarray, opacities: np.ndarray) -> np.ndarray:
+    """[count, 7] float32 rows (mean x, mean y, conic a, b, c, opacity, the exponent below
+    which alpha misses the threshold) of a tile's Gaussians ``ids[start:start + count]``,
+    packed contiguously so the per-pixel loop stays in cache."""
+    packed = np.empty((count, 7), np.float32)
+    for k in range(count):
+        g = ids[start + k]
+        packed[k, 0] = means2d[g, 0]
+        packed[k, 1] = means2d[g, 1]
+        packed[k, 2] = conics[g, 0]
+        packed[k, 3] = conics[g, 1]
+        packed[k, 4] = conics[g, 2]
+        packed[k, 5] = opacities[g]
+        packed[k, 6] = np.log(_ALPHA_THRESHOLD / opacities[g]) - _POWER_MARGIN
+    return packed
+
+
+@numba.njit(cache=True, inline="always")
+def _alpha_at(packed: np.ndarray, k: int, pxc: np.float32,
+              pyc: np.float32) -> tuple[np.float32, np.float32, np.float32, np.float32]:
+    """(alpha, exp(power), dx, dy) of packed Gaussian ``k`` at the pixel centre (pxc, pyc),
+    in float32 by the compositing rule; alpha is 0 where it misses the 1/255 threshold."""
+    dx = pxc - packed[k, 0]
+    dy = pyc - packed[k, 1]
+    power = (-_HALF * (packed[k, 2] * dx * dx + packed[k, 4] * dy * dy)
+             - packed[k, 3] * dx * dy)
+    zero = np.float32(0.0)
+    if power < packed[k, 6]:
+        return zero, zero, dx, dy
+    falloff = np.exp(power)
+    alpha = min(_MAX_ALPHA, packed[k, 5] * falloff)
+    if alpha < _ALPHA_THRESHOLD:
+        return zero, falloff, dx, dy
+    return alpha, falloff, dx, dy
+
+
 @numba.njit(parallel=True, cache=True)
 def composite_tiles(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
                     conics: np.ndarray, opacities: np.ndarray, values: np.ndarray,
@@ -76,17 +114,7 @@ def composite_tiles(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
         count = offsets[t + 1] - start
         if count == 0:
             continue
-        # The tile's Gaussians, packed contiguously so the per-pixel loop stays in cache.
-        packed = np.empty((count, 7), np.float32)
-        for k in range(count):
-            g = ids[start + k]
-            packed[k, 0] = means2d[g, 0]
-            packed[k, 1] = means2d[g, 1]
-            packed[k, 2] = conics[g, 0]
-            packed[k, 3] = conics[g, 1]
-            packed[k, 4] = conics[g, 2]
-            packed[k, 5] = opacities[g]
-            packed[k, 6] = np.log(_ALPHA_THRESHOLD / opacities[g]) - _POWER_MARGIN
+        packed = _pack_tile(ids, start, count, means2d, conics, opacities)
         x0 = (t % tiles_x) * tile_size
         y0 = (t // tiles_x) * tile_size
         for py in range(y0, min(y0 + tile_size, height)):
@@ -96,14 +124,8 @@ def composite_tiles(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
                 trans = _ONE
                 stop = count
                 for k in range(count):
-                    dx = pxc - packed[k, 0]
-                    dy = pyc - packed[k, 1]
-                    power = (-_HALF * (packed[k, 2] * dx * dx + packed[k, 4] * dy * dy)
-                             - packed[k, 3] * dx * dy)
-                    if power < packed[k, 6]:
-                        continue
-                    alpha = min(_MAX_ALPHA, packed[k, 5] * np.exp(power))
-                    if alpha < _ALPHA_THRESHOLD:
+                    alpha, _, _, _ = _alpha_at(packed, k, pxc, pyc)
+                    if alpha == 0:
                         continue
                     after = trans * (_ONE - alpha)
                     if after < _T_STOP:
@@ -136,16 +158,7 @@ def blend_weight_slots(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray
         count = offsets[t + 1] - start
         if count == 0:
             continue
-        packed = np.empty((count, 7), np.float32)
-        for k in range(count):
-            g = ids[start + k]
-            packed[k, 0] = means2d[g, 0]
-            packed[k, 1] = means2d[g, 1]
-            packed[k, 2] = conics[g, 0]
-            packed[k, 3] = conics[g, 1]
-            packed[k, 4] = conics[g, 2]
-            packed[k, 5] = opacities[g]
-            packed[k, 6] = np.log(_ALPHA_THRESHOLD / opacities[g]) - _POWER_MARGIN
+        packed = _pack_tile(ids, start, count, means2d, conics, opacities)
         x0 = (t % tiles_x) * tile_size
         y0 = (t // tiles_x) * tile_size
         for py in range(y0, min(y0 + tile_size, height)):
@@ -154,14 +167,8 @@ def blend_weight_slots(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray
                 pxc = np.float32(px) + _HALF
                 trans = _ONE
                 for k in range(count):
-                    dx = pxc - packed[k, 0]
-                    dy = pyc - packed[k, 1]
-                    power = (-_HALF * (packed[k, 2] * dx * dx + packed[k, 4] * dy * dy)
-                             - packed[k, 3] * dx * dy)
-                    if power < packed[k, 6]:
-                        continue
-                    alpha = min(_MAX_ALPHA, packed[k, 5] * np.exp(power))
-                    if alpha < _ALPHA_THRESHOLD:
+                    alpha, _, _, _ = _alpha_at(packed, k, pxc, pyc)
+                    if alpha == 0:
                         continue
                     after = trans * (_ONE - alpha)
                     if after < _T_STOP:
@@ -201,16 +208,7 @@ def composite_tiles_backward(offsets: np.ndarray, ids: np.ndarray, means2d: np.n
         count = offsets[t + 1] - start
         if count == 0:
             continue
-        packed = np.empty((count, 7), np.float32)
-        for k in range(count):
-            g = ids[start + k]
-            packed[k, 0] = means2d[g, 0]
-            packed[k, 1] = means2d[g, 1]
-            packed[k, 2] = conics[g, 0]
-            packed[k, 3] = conics[g, 1]
-            packed[k, 4] = conics[g, 2]
-            packed[k, 5] = opacities[g]
-            packed[k, 6] = np.log(_ALPHA_THRESHOLD / opacities[g]) - _POWER_MARGIN
+        packed = _pack_tile(ids, start, count, means2d, conics, opacities)
         running = np.empty(channels, np.float32)
         x0 = (t % tiles_x) * tile_size
         y0 = (t // tiles_x) * tile_size
@@ -227,17 +225,10 @@ def composite_tiles_backward(offsets: np.ndarray, ids: np.ndarray, means2d: np.n
                     running[ch] = np.float32(0.0)
                 trans = _ONE
                 for k in range(stop):
-                    dx = pxc - packed[k, 0]
-                    dy = pyc - packed[k, 1]
-                    power = (-_HALF * (packed[k, 2] * dx * dx + packed[k, 4] * dy * dy)
-                             - packed[k, 3] * dx * dy)
-                    if power < packed[k, 6]:
+                    alpha, falloff, dx, dy = _alpha_at(packed, k, pxc, pyc)
+                    if alpha == 0:
                         continue
-                    falloff = np.exp(power)
                     raw = packed[k, 5] * falloff
-                    alpha = min(_MAX_ALPHA, raw)
-                    if alpha < _ALPHA_THRESHOLD:
-                        continue
                     keep = _ONE - alpha
                     weight = alpha * trans
                     g = ids[start + k]

@@ -12,7 +12,7 @@ import math
 import numpy as np
 import torch
 
-from csgs_codec.errors import UnsupportedError
+from csgs_codec.render.numba_loader import rasterizer_kernels
 from csgs_codec.render.rasterize_torch import PreparedGaussians
 from csgs_codec.render.render_output import RenderOutput
 from csgs_codec.render.tiles import depth_order, tile_rectangles
@@ -20,24 +20,6 @@ from csgs_codec.scene.camera import Camera
 
 #: Tile side in pixels of the numba kernels (speed only: the result does not depend on it).
 TILE_SIZE = 8
-
-
-def numba_available() -> bool:
-    """True when numba can be imported (the fast CPU path is usable)."""
-    try:
-        import numba  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-def _kernels():
-    try:
-        from csgs_codec.render import numba_kernels
-    except ImportError as exc:
-        raise UnsupportedError("the numba backend needs numba: pip install 'csgs[fast]' "
-                               f"({exc})") from exc
-    return numba_kernels
 
 
 def rasterize_numba(prepared: PreparedGaussians, camera: Camera, *,
@@ -61,7 +43,7 @@ def rasterize_numba(prepared: PreparedGaussians, camera: Camera, *,
     Raises:
         UnsupportedError: numba is not installed.
     """
-    kernels = _kernels()
+    kernels = rasterizer_kernels()
     width, height = camera.width, camera.height
     tiles_x = math.ceil(width / tile_size)
     tiles_y = math.ceil(height / tile_size)

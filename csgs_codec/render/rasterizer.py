@@ -18,8 +18,9 @@ import numpy as np
 import torch
 
 from csgs_codec.errors import CsgsWarning, InputError
+from csgs_codec.render.numba_loader import numba_available
 from csgs_codec.render.rasterize_gsplat import gsplat_available, rasterize_gsplat
-from csgs_codec.render.rasterize_numba import numba_available, rasterize_numba
+from csgs_codec.render.rasterize_numba import rasterize_numba
 from csgs_codec.render.rasterize_torch import prepare_gaussians, rasterize_gaussians
 from csgs_codec.render.render_output import RenderOutput
 from csgs_codec.scene.camera import Camera

@@ -25,7 +25,8 @@ import numpy as np
 import torch
 
 from csgs_codec.errors import UnsupportedError
-from csgs_codec.render.rasterize_numba import TILE_SIZE, numba_available
+from csgs_codec.render.numba_loader import numba_available
+from csgs_codec.render.rasterize_numba import TILE_SIZE
 from csgs_codec.render.rasterize_torch import prepare_gaussians
 from csgs_codec.render.rasterizer import scene_tensors
 from csgs_codec.render.tiles import depth_order, tile_rectangles

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from csgs_codec.codec.presets import ANCHOR_BASE_STEPS, MULTIPLIERS
+from csgs_codec.codec.presets import ANCHOR_BASE_STEPS, ANCHOR_QUALITIES, MULTIPLIERS
 from csgs_codec.errors import InputError, ModelError
 from csgs_codec.metrics.image import psnr
 from csgs_codec.train import defaults
@@ -119,7 +119,7 @@ class ColorStageSettings:
             ("iterations", self.iterations >= 1),
             ("rate_weight", math.isfinite(self.rate_weight) and self.rate_weight >= 0),
             ("mask_weight", math.isfinite(self.mask_weight) and self.mask_weight >= 0),
-            ("quality", self.quality in MULTIPLIERS),
+            ("quality", self.quality in ANCHOR_QUALITIES),
             ("feat_dim", 1 <= self.feat_dim <= 256),
             ("n_offsets", 1 <= self.n_offsets <= 64),
             ("initial_anchors", self.initial_anchors >= 1),

@@ -87,3 +87,15 @@ def test_target_psnr_is_refused_for_anchor_scenes(checkpoint, tmp_path, capsys):
     assert main(["encode", str(checkpoint), "-o", str(out), "--target-psnr", "40", "-q"]) == 2
     assert "anchor scenes" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_near_lossless_quality_codes_a_3dgs_scene_and_is_refused_for_anchors(
+        ply, checkpoint, tmp_path, capsys):
+    out = tmp_path / "q11.csgs"
+    assert main(["encode", str(ply), "-o", str(out), "--quality", "11", "--fast", "-q"]) == 0
+    assert out.read_bytes() == Encoder(quality=11, fast=True).encode(read_ply(ply))
+    refused = tmp_path / "anchors.csgs"
+    assert main(["encode", str(checkpoint), "-o", str(refused), "--quality", "10",
+                 "-q"]) == 2
+    assert "anchor scenes take quality 1..9" in capsys.readouterr().err
+    assert not refused.exists()

@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from csgs_codec.errors import InputError
-from csgs_codec.render.rasterize_numba import numba_available
+from csgs_codec.render.numba_loader import numba_available
 from csgs_codec.render.rasterize_torch import rasterize_gaussians
 from csgs_codec.render.rasterizer import scene_tensors
 from csgs_codec.scene.ply_io import read_ply

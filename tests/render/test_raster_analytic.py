@@ -10,8 +10,8 @@ import math
 import numpy as np
 import pytest
 
+from csgs_codec.render.numba_loader import numba_available
 from csgs_codec.render.projection import LOW_PASS_VARIANCE
-from csgs_codec.render.rasterize_numba import numba_available
 from csgs_codec.render.rasterizer import render
 from tests.render.test_raster_common import camera_at_origin, gaussians
 

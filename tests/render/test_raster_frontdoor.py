@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from csgs_codec.errors import InputError
-from csgs_codec.render.rasterize_numba import numba_available
+from csgs_codec.render.numba_loader import numba_available
 from csgs_codec.render.rasterizer import render, resolve_backend
 from tests.codec.helpers import random_scene
 from tests.render.test_raster_common import look_at_camera

@@ -7,7 +7,7 @@ import pytest
 
 from csgs_codec.errors import CsgsWarning
 from csgs_codec.render import rasterizer
-from csgs_codec.render.rasterize_numba import numba_available
+from csgs_codec.render.numba_loader import numba_available
 from csgs_codec.render.rasterizer import render
 from csgs_codec.scene.ply_io import read_ply
 from tests.codec.helpers import random_scene

@@ -19,8 +19,8 @@ import pytest
 import torch
 
 from csgs_codec.errors import InputError
+from csgs_codec.render.numba_loader import numba_available
 from csgs_codec.render.projection import project_gaussians
-from csgs_codec.render.rasterize_numba import numba_available
 from csgs_codec.render.rasterizer import render, scene_tensors
 from csgs_codec.scene.attribute_forms import normalize_quaternions
 from csgs_codec.scene.orbit import orbit_cameras
