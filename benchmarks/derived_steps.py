@@ -43,10 +43,25 @@ in 1/8-octave step indices):
   and opacity), ``scale_own_value_j2`` (each log-scale by its own value, 16 bins x 4 opacity
   bins: a companded quantizer, simulated with the uniform decode's value), ``all_j2``.
 
+- ``rest_*`` (SH bands 1-3 of SH-3 scenes, issue 32): ``rest_u_formula`` (``_half``,
+  ``_clip48``): 8 quantile bins of u (above), s = e^u, the image energy of a colour error;
+  ``rest_area_opacity_formula``: 8 x 8 bins of log area and clamped opacity logit, s = e^u;
+  ``rest_u_W`` / ``rest_area_opacity_W``: the same bins, s = W; ``rest_all_+K``: every band
+  K step indices coarser (8 = one octave); ``rest_bands_A_B_C``: bands 1, 2, 3 shifted by A,
+  B, C.
+
 Ratios: ``ratio_vs_presets`` is the variant's bytes over the bytes the uniform presets 1..9
-need for the same held-out PSNR (log-linear interpolation).
+need for the same held-out PSNR (log-linear interpolation). The simulation re-plans every
+stream without the encoder's other tools (mode-7 rotations, the hyperprior), so its own
+no-change decode (``simulated_baseline_psnr_db``) can sit dB below the real encode's on SH-3
+scenes; ``delta_db_vs_simulated`` and ``ratio_vs_presets_bias_corrected`` (the preset curve
+shifted by that gap) compare against it. Only real encodes settle a rule
+(benchmarks/sh_step_scale.py): on SH-3 scenes, bias-corrected ratios of 0.82-0.92 for SH
+bands one octave coarser became 0.85x (leica) and 0.93-1.01x (fruit_drops) in real encodes.
 
     .venv/bin/python benchmarks/derived_steps.py donut --qualities 2 5 8 --out rows.json
+    .venv/bin/python benchmarks/derived_steps.py ../shared/data/real_sh3/fruit_drops.ply \
+        --variants rest_u_formula rest_all_+8 --qualities 3 5 7
 """
 
 from __future__ import annotations
@@ -256,7 +271,47 @@ def variants(rec, weights: np.ndarray) -> dict:
     u, v = feasible_scores(rec)
     uv = feasible_classes(u, v)
     formula = np.exp(np.minimum(u, 50.0)) * g
+    # SH bands: a coefficient error changes a Gaussian's colour, whose image energy is about
+    # its area times its opacity squared (e^u); view dependence is the same for every
+    # Gaussian on average, so the per-band weight cancels in the rate-neutral offsets.
+    u_only = np.searchsorted(np.quantile(u, np.linspace(0, 1, 9)[1:-1]), u,
+                             side="right").astype(np.int64)
+    s_sorted = np.sort(np.asarray(rec.scales, np.float64), 1)[:, ::-1]
+    area = s_sorted[:, 0] + s_sorted[:, 1]
+    faint = np.minimum(np.asarray(rec.opacity, np.float64).reshape(-1), 0.0)
+    area_bins = np.searchsorted(np.quantile(area, np.linspace(0, 1, 9)[1:-1]), area,
+                                side="right")
+    faint_bins = np.searchsorted(np.unique(np.quantile(faint, np.linspace(0, 1, 9)[1:-1])),
+                                 faint, side="right")
+    area_opacity = (area_bins * 8 + faint_bins).astype(np.int64)
+    energy = np.exp(np.minimum(u, 50.0))
+    bands = ("rest1", "rest2", "rest3")
+
+    def sh_variant(sens, classes, **kwargs):
+        return {band: make(sens, classes, **kwargs) for band in bands}
+
+    def band_shift(shifts: dict[str, int]):
+        """Every Gaussian of each named band ``shift`` step indices coarser (one class)."""
+        def build_for(shift):
+            def build():
+                table = np.array([shift], np.int64)
+                return np.full(len(u), shift, np.int64), np.zeros(len(u), np.int64), table
+            return build
+        return {band: build_for(shift) for band, shift in shifts.items()}
+
     return {
+        **{f"rest_all_{shift:+d}": band_shift(dict.fromkeys(bands, shift))
+           for shift in (-4, 4, 8, 12)},
+        "rest_bands_0_4_8": band_shift({"rest1": 0, "rest2": 4, "rest3": 8}),
+        "rest_bands_4_8_12": band_shift({"rest1": 4, "rest2": 8, "rest3": 12}),
+        "rest_bands_-4_0_4": band_shift({"rest1": -4, "rest2": 0, "rest3": 4}),
+        "rest_u_formula": sh_variant(energy, u_only),
+        "rest_u_formula_half": sh_variant(energy, u_only, factor=0.5),
+        "rest_u_formula_clip48": sh_variant(energy, u_only, clip=48),
+        "rest_area_opacity_formula": sh_variant(energy, area_opacity),
+        "rest_area_opacity_formula_clip48": sh_variant(energy, area_opacity, clip=48),
+        "rest_u_W": sh_variant(weights, u_only),
+        "rest_area_opacity_W": sh_variant(weights, area_opacity, clip=48),
         "rot_uv_formula": {"rot": make(formula, uv)},
         "rot_uv_formula_half": {"rot": make(formula, uv, factor=0.5)},
         "rot_uv_formula_035": {"rot": make(formula, uv, factor=0.35)},
@@ -343,7 +398,9 @@ def run_scene(name: str, qualities: list[int], names: list[str],
     from csgs_codec.render.sensitivity import blend_sensitivity
     from csgs_codec.render.view_distribution import default_distribution
 
-    scene = read_ply(SCENES / f"{name}.ply")
+    path = Path(name) if name.endswith(".ply") else SCENES / f"{name}.ply"
+    scene = read_ply(path)
+    name = path.stem
     j2 = None
     if j2_cache is not None:
         data = np.load(j2_cache / f"{name}_400x300.npz")
@@ -361,6 +418,7 @@ def run_scene(name: str, qualities: list[int], names: list[str],
         rows.append({"scene": f"{name}.ply", "full_precision": name in FULL_PRECISION,
                      "quality": quality, "variant": "uniform", "bytes": len(result.data),
                      "held_out_fg_psnr_db": psnr})
+    simulated: dict[int, float] = {}
     for quality in qualities:
         result = encodes[quality]
         streams = split_streams(scene.subset(result.order))
@@ -395,11 +453,22 @@ def run_scene(name: str, qualities: list[int], names: list[str],
                 tables[stream] = table.tolist()
             nbytes, decoded = with_derived_steps(result, streams, quality, changes)
             psnr = held.psnr(decoded)
+            if quality not in simulated:
+                simulated[quality] = held.psnr(with_derived_steps(result, streams, quality,
+                                                                  {})[1])
+            # The simulation re-plans every stream without the encoder's other tools (e.g.
+            # mode-7 rotations), so its own no-change decode is the fair baseline; the
+            # preset curve is shifted by that decode's PSNR gap to the real encode.
+            bias = base_psnr - simulated[quality]
             rows.append({"scene": f"{name}.ply", "full_precision": name in FULL_PRECISION,
                          "quality": quality, "variant": vname, "bytes": nbytes,
                          "held_out_fg_psnr_db": psnr, "delta_db": psnr - base_psnr,
                          "bytes_vs_uniform": nbytes / len(result.data),
                          "ratio_vs_presets": nbytes / size_at_psnr(curve, psnr),
+                         "simulated_baseline_psnr_db": simulated[quality],
+                         "delta_db_vs_simulated": psnr - simulated[quality],
+                         "ratio_vs_presets_bias_corrected":
+                             nbytes / size_at_psnr(curve, psnr + bias),
                          "offsets": tables, "sensitivity_s": sensitivity_s})
             print(json.dumps(rows[-1])[:200], file=sys.stderr)
     return rows
