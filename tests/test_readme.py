@@ -79,7 +79,7 @@ def quick_start(tmp_path_factory):
 
 def test_the_readme_is_short():
     lines = README.read_text(encoding="utf-8").splitlines()
-    assert len(lines) <= 200, f"README.md has {len(lines)} lines"
+    assert len(lines) <= 180, f"README.md has {len(lines)} lines"
 
 
 def test_the_python_quick_start_runs_on_the_sample(quick_start):
