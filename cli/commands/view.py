@@ -116,13 +116,15 @@ def run_web(args) -> int:
     except OSError as exc:
         raise InputError(f"cannot listen on {args.host}:{args.port}: {exc.strerror or exc}",
                          property="--port") from None
-    with server:
+    # Ctrl-C (or SIGTERM) is the way to stop, from the moment the address is printed: the
+    # suppression starts before the print, so an interrupt that lands between the print and
+    # the wait (a loaded machine, a quick user) still stops the server cleanly.
+    with server, contextlib.suppress(KeyboardInterrupt):
         what = args.scene if args.scene is not None else "the viewer (open a file there)"
         print(f"serving {what} at {server.url} (Ctrl-C to stop)", flush=True)
         if not args.no_browser:
             webbrowser.open(server.url)
-        with contextlib.suppress(KeyboardInterrupt):  # Ctrl-C or SIGTERM: the way to stop
-            threading.Event().wait()
+        threading.Event().wait()
     return 0
 
 
