@@ -136,7 +136,8 @@ def _fit(streams: SceneStreams, plans: dict[str, StreamPlan], names: list[str],
             with torch.no_grad():
                 targets[v] = rasterize_gaussians(
                     means, goal["log_scales"], goal["quats"], goal["opacity_logits"],
-                    views[v], sh=sh, near_plane=views[v].near_plane).image
+                    views[v], sh=sh, near_plane=views[v].near_plane,
+                    compositor="auto").image
         return targets[v]
 
     rng = np.random.default_rng(settings.seed)
@@ -151,10 +152,13 @@ def _fit(streams: SceneStreams, plans: dict[str, StreamPlan], names: list[str],
         quats = quaternions_from_smallest_three(axis, decoded["rot"])
         loss = 0.0
         for v in rng.choice(len(views), per_step, replace=False):
+            # "auto": the numba compositor on these float32 CPU tensors (the torch
+            # reference's images and gradients to float32 rounding, several times faster).
             image = rasterize_gaussians(means, decoded["scale"], quats,
                                         decoded["opacity"][:, 0], views[v],
                                         sh=_padded(sh_coded, sh.shape[1]),
-                                        near_plane=views[v].near_plane).image
+                                        near_plane=views[v].near_plane,
+                                        compositor="auto").image
             loss = loss + torch.mean((image - target_image(int(v))) ** 2)
         loss.backward()
         optimiser.step()
