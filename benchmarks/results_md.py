@@ -78,6 +78,8 @@ VIEWS: dict[str, list[View]] = {
                            has=("ratio_vs_presets",), max_rows=12)],
     "sh_band_skip": [View(["scene", "quality", "file_share", "sh_band_bits_coded", "bits_now",
                            "bits_with_count", "saving", "count_entropy_bits"])],
+    "sh_colour_transform": [View(["scene", "quality", "variant", "sh_band_bytes", "file_bytes",
+                                  "held_out_fg_psnr_db"])],
     "sh_step_scale": [View(["scene", "quality", "rest_scale", "bytes", "sh_band_bytes",
                             "held_out_fg_psnr_db", "ratio_vs_presets"])],
     "formats": [View(["scene", "format", "bytes", "bits_per_gaussian", "write_s", "read_s"])],
