@@ -12,7 +12,10 @@ orthonormal colour transform (luma (1,1,1)/sqrt 3, (1,0,-1)/sqrt 2, (1,-2,1)/sqr
 (``klt``, 9 floats per band of side information, counted). Orthonormal transforms keep the
 squared error of uniform quantization, so each variant is scored by its SH bytes and by the
 held-out foreground PSNR of the encode's reconstruction with its SH bands replaced by the
-variant's (16 orbit views at 20 degrees + 12 at 45, none used by the encoder).
+variant's (16 orbit views at 20 degrees + 12 at 45, none used by the encoder). Rows
+``dc_rgb`` / ``dc_opponent`` do the same for the DC stream (its bytes in ``dc_bytes``, the
+bands as the encode coded them); the encode may have coded DC with its hyperprior, so compare
+the two rows with each other, not with the file.
 """
 
 from __future__ import annotations
@@ -96,6 +99,18 @@ def main() -> int:
                 candidate.sh_rest = decoded
                 rows.append({"scene": Path(path).name, "quality": quality,
                              "variant": variant, "sh_band_bytes": nbytes,
+                             "file_bytes": len(result.data),
+                             "held_out_fg_psnr_db": held.psnr(candidate)})
+                print(rows[-1], file=sys.stderr)
+            for variant in ("rgb", "opponent"):
+                matrix = np.eye(3) if variant == "rgb" else OPPONENT
+                turned = (original.sh_dc.astype(np.float64) @ matrix.T).astype(np.float32)
+                out = ByteWriter()
+                recon = write_float_stream(out, turned, PRESETS[quality].dc_step)
+                candidate = result.reconstruction.subset(np.arange(len(original)))
+                candidate.sh_dc = (recon.astype(np.float64) @ matrix).astype(np.float32)
+                rows.append({"scene": Path(path).name, "quality": quality,
+                             "variant": f"dc_{variant}", "dc_bytes": len(out.getvalue()),
                              "file_bytes": len(result.data),
                              "held_out_fg_psnr_db": held.psnr(candidate)})
                 print(rows[-1], file=sys.stderr)
