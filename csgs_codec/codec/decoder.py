@@ -32,6 +32,7 @@ from csgs_codec.codec.payloads import (
     names_from_bytes,
 )
 from csgs_codec.codec.semantic_codebook import read_codebook
+from csgs_codec.codec.sh_colour_transform import apply_inverse, read_record
 from csgs_codec.codec.streams import SceneStreams, join_streams
 from csgs_codec.codec.tile_index import TileIndex, TileInfo
 from csgs_codec.entropy.categorical import decode_categorical
@@ -318,6 +319,10 @@ class Decoder:
         finally:
             if pool is not None:
                 pool.shutdown()
+        if any(e.type == "SHXF" for e in container.toc):
+            data, offset = single_payload(container, "SHXF")
+            apply_inverse(streams.float_streams,
+                          read_record(data, offset, header.sh_degree_coded), offset)
         scene = join_streams(streams, positions)
         if "semantic" in wanted:
             self._semantic(container, header, scene)

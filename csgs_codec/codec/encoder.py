@@ -48,6 +48,7 @@ from csgs_codec.codec.semantic_codebook import (
     instance_embeddings,
     write_codebook,
 )
+from csgs_codec.codec.sh_colour_transform import apply_inverse, choose_transforms, record_bytes
 from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
 from csgs_codec.codec.tiling import check_tile_size, effective_tile_size
 from csgs_codec.codec.view_pruning import DEFAULT_BUDGET, decide
@@ -406,10 +407,16 @@ class Encoder:
         cells_in_order = (prior_cells(cells[inside_idx][perm], far_count) if use_prior
                           else None)
         plans = self._plan_color(streams.float_streams, settings)
-        if refine:
+        transforms: tuple[int, ...] = ()
+        if refine:  # refinement optimises the bands as colours: they stay colours
             plans = self._refined_plans(ordered, streams, plans, positions, settings)
+        else:
+            transforms, sh_plans = choose_transforms(
+                lambda name, values: plan_float_stream(values, settings.rest_step),
+                streams.float_streams, sum(n.startswith("rest") for n in plans))
+            plans.update(sh_plans)
         decoded_streams = self._color_chunks(streams, plans, chunks, cells_in_order,
-                                              max(grid.bits, 1))
+                                              max(grid.bits, 1), transforms)
         reconstruction = join_streams(decoded_streams, positions)
 
         if self.semantic == "auto" and (ordered.semantic is not None or
@@ -468,16 +475,19 @@ class Encoder:
                                  {name: plans[name].lattice() for name in refined})
 
     def _color_chunks(self, streams: SceneStreams, plans: dict, chunks: list[Chunk],
-                       cells: np.ndarray | None, pos_bits: int) -> SceneStreams:
+                       cells: np.ndarray | None, pos_bits: int,
+                       transforms: tuple[int, ...] = ()) -> SceneStreams:
         """Append the color layer of planned ``streams`` (CHYP when the hyperprior pays,
-        then one chunk per stream); ``cells`` (N, 3) are the hyperprior's inputs, None to
-        skip it."""
+        SHXF when a band is colour-transformed, then one chunk per stream); ``cells`` (N, 3)
+        are the hyperprior's inputs, None to skip it; ``transforms`` one id per SH band."""
         choice = PriorChoice()
         if cells is not None:
             self.progress("color hyperprior")
             choice = choose_prior(plans, cells, pos_bits, self.fit_progress, self.prior_fit)
         if choice.payload is not None:
             chunks.append(Chunk("CHYP", "color", choice.payload))
+        if any(transforms):
+            chunks.append(Chunk("SHXF", "color", record_bytes(transforms)))
         for name, plan in plans.items():
             out = ByteWriter()
             if name == "rot":
@@ -485,6 +495,7 @@ class Encoder:
             write_planned_stream(out, plan, choice.channels.get(name))
             chunks.append(Chunk(STREAM_CHUNKS[name], "color", out.getvalue()))
         decoded = {name: plan.recon for name, plan in plans.items()}
+        apply_inverse(decoded, transforms)
         return SceneStreams(decoded, streams.rot_axis.copy(), streams.sh_degree_stored)
 
     def _semantic_chunks(self, ordered: GaussianScene, reconstruction: GaussianScene,

@@ -140,6 +140,45 @@ def generate(out_dir: Path) -> None:
     _tiled_vectors(out_dir, donut)
     _derived_steps_vectors(out_dir, donut)
     _scored_steps_vectors(out_dir, donut)
+    sh_colour_transform_vectors(out_dir)
+
+
+def correlated_sh3_scene(n: int = 400, seed: int = 20) -> GaussianScene:
+    """A seeded SH-3 scene whose SH bands are mostly grey (R, G and B of each coefficient
+    close together), as in real captures: the encoder codes them in opponent colours."""
+    rng = np.random.default_rng(seed)
+    grey = rng.normal(0.0, 0.2, size=(n, 15, 1))
+    rest = (grey * rng.uniform(0.8, 1.2, size=(n, 15, 3))
+            + rng.normal(0.0, 0.01, size=(n, 15, 3))).astype(np.float32)
+    quats = rng.normal(size=(n, 4)).astype(np.float32)
+    return GaussianScene(
+        positions=rng.uniform(-1, 1, size=(n, 3)).astype(np.float32),
+        sh_dc=rng.normal(0.0, 0.5, size=(n, 3)).astype(np.float32), sh_rest=rest,
+        opacity=rng.normal(1.0, 1.5, size=n).astype(np.float32),
+        scales=rng.normal(-3.5, 0.4, size=(n, 3)).astype(np.float32), rotations=quats)
+
+
+def sh_colour_transform_vectors(out_dir: Path) -> None:
+    """A correlated SH-3 scene at quality 5, its bands coded in opponent colours (SHXF,
+    §12.24), and damaged records: an unknown transform, a wrong band count, version 2. The
+    base layer reads in each; the color layer is refused."""
+    data = Encoder(quality=5, hyperprior=False).encode(correlated_sh3_scene())
+    record = _chunk_payload(data, "SHXF")
+    if record != bytes([1, 3, 1, 1, 1]):
+        raise AssertionError(f"expected every band in opponent colours, got {record!r}")
+    _write(out_dir, "sh_colour_transform_q5", data,
+           "400 Gaussians, SH 3, grey-ish bands coded in opponent colours (SHXF), quality 5",
+           _reads(data), arrays=Decoder().decode(data))
+    cases = [("sh_colour_transform_unknown_id", bytes([1, 3, 1, 2, 1]),
+              "band 2's transform made 2"),
+             ("sh_colour_transform_band_count", bytes([1, 2, 1, 1]),
+              "two bands listed for a scene that codes three"),
+             ("sh_colour_transform_version_2", bytes([2, 3, 1, 1, 1]),
+              "its version byte made 2")]
+    for name, payload, what in cases:
+        bad = _with_payload(data, "SHXF", payload)
+        _write(out_dir, name, bad, f"sh_colour_transform_q5 with {what} (frame and CRC "
+               "rewritten): the color layer is refused", _reads(bad))
 
 
 def _semantic_name_vectors(out_dir: Path) -> None:

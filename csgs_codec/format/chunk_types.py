@@ -74,6 +74,8 @@ _TABLE = (
     ChunkType("SHBA", Layer.COLOR, "SH band 1 coefficients (float stream, 9 ch)."),
     ChunkType("SHBB", Layer.COLOR, "SH band 2 coefficients (float stream, 15 ch)."),
     ChunkType("SHBC", Layer.COLOR, "SH band 3 coefficients (float stream, 21 ch)."),
+    ChunkType("SHXF", Layer.COLOR,
+              "SH colour transform: which bands are coded in opponent colours."),
     ChunkType("OPAC", Layer.COLOR, "Opacity logits (float stream, 1 ch)."),
     ChunkType("SCAL", Layer.COLOR, "Natural-log scales (float stream, 3 ch)."),
     ChunkType("ROTN", Layer.COLOR,

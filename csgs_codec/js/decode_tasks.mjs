@@ -89,6 +89,6 @@ export function runTask(prep, task, inputs, target = null) {
   const into = target || { array: new Float32Array(channels * n), stride: channels, offset: 0 };
   const attributes = task === 'ROTN'
     ? { logScales: () => inputs.logScales, opacity: () => inputs.opacity } : null;
-  const axis = decodeStream(prep.container, prep.header, task, inputs.priors || null, prep.family, into, attributes);
+  const axis = decodeStream(prep.container, prep.header, task, inputs.priors || null, prep.family, into, attributes, prep.shTransforms);
   return { values: into.array, axis };
 }

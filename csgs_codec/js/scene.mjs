@@ -6,7 +6,7 @@
 
 import { readHeader } from './base_layer.mjs';
 import { single } from './chunks.mjs';
-import { BAND_CODES } from './color_layer.mjs';
+import { BAND_CODES, readShTransforms } from './color_layer.mjs';
 import { modelledStreams, parseColorPrior } from './color_prior.mjs';
 import { readLayers } from './container.mjs';
 import { planDecode, sceneOf } from './decode_plan.mjs';
@@ -48,7 +48,8 @@ export function prepareContainer(container, size, layers, options) {
   const extra = [...BAND_CODES, 'SHDC', 'OPAC', 'SCAL', 'ROTN'].filter((c) => present.has(c) && !codes.includes(c)).sort();
   if (extra.length) throw new FormatError(`unexpected color chunk(s) ${extra} for SH degree ${header.coded}`, { chunk: extra[0] });
   const modelled = prior ? modelledStreams(prior, codes) : new Set();
-  return { layers, family, sine, container, header, codes, prior, modelled };
+  const shTransforms = present.has('SHXF') ? readShTransforms(container, header.coded) : null;
+  return { layers, family, sine, container, header, codes, prior, modelled, shTransforms };
 }
 
 /**

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from csgs_codec.codec import sh_colour_transform as xf
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
 from csgs_codec.codec.presets import preset
@@ -78,7 +79,13 @@ def test_three_point_sh3_fixture_codes_every_band():
     result, decoded = round_trip(scene, quality=9)
     assert {"SHBA", "SHBB", "SHBC"} <= set(result.stream_bytes)
     ref = scene.subset(result.order)
-    assert np.abs(decoded.sh_rest - ref.sh_rest).max() <= 0.523 * preset(9).rest_step + 1e-6
+    # Half a step per coded value (plus grid rounding); a band in opponent colours (SHXF)
+    # mixes three such values into each colour.
+    mix = 1.0
+    if "SHXF" in result.stream_bytes:
+        mix = xf.INVERSE_A + xf.INVERSE_B + xf.INVERSE_C
+    bound = 0.523 * mix * preset(9).rest_step + 1e-6
+    assert np.abs(decoded.sh_rest - ref.sh_rest).max() <= bound
 
 
 def test_constant_channels_cost_no_residual_bytes():

@@ -18,14 +18,16 @@ encode used (the preset's; a rate-controlled encoder's plan where its report has
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from csgs_codec.codec import sh_colour_transform as xf
 from csgs_codec.codec.encoder import EncodeResult
 from csgs_codec.codec.float_stream import MAX_FRAC_BITS, frac_bits_for
 from csgs_codec.codec.presets import Preset
 from csgs_codec.entropy.residual import step_index, step_size
+from csgs_codec.format import read_layers
 from csgs_codec.scene.attribute_forms import (
     OPACITY_LOGIT_LIMIT,
     normalize_quaternions,
@@ -113,6 +115,8 @@ class CodingSteps:
 
     steps: dict[str, float]
     position_bits: int
+    #: SH bands (1..3) some tile codes in opponent colours (SHXF, FORMAT §12.24).
+    opponent_bands: frozenset[int] = frozenset()
 
 
 def preset_steps(preset: Preset) -> CodingSteps:
@@ -128,10 +132,40 @@ def result_steps(result: EncodeResult, preset: Preset) -> CodingSteps:
     """The steps an encode used: a rate-controlled encoder's plan where its report carries one
     (``result.plan`` with ``steps`` and ``position_bits``), else the preset's."""
     steps = preset_steps(preset)
+    opponent = opponent_bands(result.data)
     plan = getattr(result, "plan", None)
     if plan is None:
-        return steps
-    return CodingSteps({**steps.steps, **plan.steps}, plan.position_bits)
+        return replace(steps, opponent_bands=opponent)
+    return CodingSteps({**steps.steps, **plan.steps}, plan.position_bits, opponent)
+
+
+def opponent_bands(data: bytes) -> frozenset[int]:
+    """The SH bands any tile of ``data`` codes in opponent colours (its SHXF records)."""
+    container = read_layers(data, layers={"color"})
+    bands = set()
+    for entry in container.toc:
+        if entry.type == "SHXF":
+            record = bytes(container.payloads[entry.index])
+            bands |= {b for b, t in enumerate(record[2:], start=1) if t == xf.OPPONENT}
+    return frozenset(bands)
+
+
+def assert_opponent_band_within(name: str, decoded: np.ndarray, reference: np.ndarray,
+                                step: float) -> None:
+    """A band coded in opponent colours: each opponent value is within its own bound, and a
+    colour mixes three of them (weights A, B, C of the inverse), plus float32 roundings."""
+    turned = xf.forward(reference)
+    per_value = value_bound(turned, step).reshape(len(turned), -1, 3).max(axis=2)
+    mix = xf.INVERSE_A + xf.INVERSE_B + xf.INVERSE_C
+    bound = (np.repeat(per_value, 3, axis=1) * mix
+             + 4 * np.spacing(np.abs(reference)).astype(np.float64)
+             + 4 * np.spacing(np.repeat(np.abs(turned).reshape(len(turned), -1, 3)
+                                        .max(axis=2), 3, axis=1)).astype(np.float64))
+    error = np.abs(decoded.astype(np.float64) - reference.astype(np.float64))
+    excess = error - bound
+    assert not excess.size or excess.max() <= 0, (
+        f"{name} (opponent colours): error {error.reshape(-1)[np.argmax(excess)]:.6g} "
+        f"exceeds its bound {bound.reshape(-1)[np.argmax(excess)]:.6g}")
 
 
 def assert_within_bounds(decoded: GaussianScene, reference: GaussianScene,
@@ -151,8 +185,10 @@ def assert_within_bounds(decoded: GaussianScene, reference: GaussianScene,
     for band, (lo, hi) in enumerate(((0, 3), (3, 8), (8, 15)), start=1):
         if reference.sh_rest.shape[1] >= hi:
             ref_band = reference.sh_rest[:, lo:hi].reshape(n, -1)
-            assert_values_within(f"sh band {band}", decoded.sh_rest[:, lo:hi].reshape(n, -1),
-                                 ref_band, step[f"rest{band}"])
+            check = (assert_opponent_band_within if band in coding.opponent_bands
+                     else assert_values_within)
+            check(f"sh band {band}", decoded.sh_rest[:, lo:hi].reshape(n, -1), ref_band,
+                  step[f"rest{band}"])
     clamped = np.clip(reference.opacity, -OPACITY_LOGIT_LIMIT, OPACITY_LOGIT_LIMIT)
     assert_values_within("opacity", decoded.opacity, clamped, step["opacity"])
     assert_values_within("scales", decoded.scales, reference.scales, step["scale"])

@@ -1,0 +1,141 @@
+"""The SH bands' colour transform (FORMAT §12.24, chunk ``SHXF``): writer, reader and the
+exact inverse every decoder applies.
+
+A band's three colour values of one coefficient (r, g, b) are strongly correlated, and
+coding them apart lets small, correlated values all quantize to zero. The opponent
+transform codes instead
+
+    y0 = (r + g + b) / sqrt 3,   y1 = (r - b) / sqrt 2,   y2 = (r - 2g + b) / sqrt 6,
+
+an orthonormal rotation (the squared error of a uniform quantizer is kept), at the same step.
+Measured by benchmarks/sh_colour_transform.py: 4-19% fewer SH bytes and 0.3-1.4 dB better
+held-out renders on fruit_drops, leica and playbot at qualities 5 and 7. The encoder
+transforms a band when that plans smaller (:func:`choose_transforms`); DC gains nothing.
+
+The decoder's inverse is specified to the bit: float32 inputs, binary64 products with the
+constants below (exact binary64 values) and sums in a fixed order, each rounded once, and
+one rounding to float32 at the end; numpy and JavaScript give the same values on every
+machine.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from csgs_codec.errors import FormatError
+from csgs_codec.format.primitives import ByteReader, ByteWriter
+
+#: Transform ids of the record.
+IDENTITY = 0
+OPPONENT = 1
+#: The record's version.
+SHXF_VERSION = 1
+#: The inverse's binary64 constants (FORMAT §12.24): about 1/sqrt 3, 1/sqrt 2, 1/sqrt 6 and
+#: twice the last (exact).
+INVERSE_A = float.fromhex("0x1.279a74590331dp-1")
+INVERSE_B = float.fromhex("0x1.6a09e667f3bccp-1")
+INVERSE_C = float.fromhex("0x1.a20bd700c2c3fp-2")
+INVERSE_D = float.fromhex("0x1.a20bd700c2c3fp-1")
+
+
+def forward(values: np.ndarray) -> np.ndarray:
+    """(N, 3K) float32 band values, colours innermost -> the opponent values (encoder only;
+    any accurate arithmetic will do, the decoder's inverse is what is specified)."""
+    v = np.asarray(values, np.float64).reshape(len(values), -1, 3)
+    r, g, b = v[..., 0], v[..., 1], v[..., 2]
+    out = np.stack([(r + g + b) / np.sqrt(3.0), (r - b) / np.sqrt(2.0),
+                    (r - 2.0 * g + b) / np.sqrt(6.0)], axis=-1)
+    return out.reshape(len(values), -1).astype(np.float32)
+
+
+def inverse(values: np.ndarray) -> np.ndarray:
+    """(N, 3K) float32 opponent values -> (r, g, b) float32, exactly as FORMAT §12.24 says:
+    r = (A y0 + B y1) + C y2, g = A y0 - D y2, b = (A y0 - B y1) + C y2 in binary64."""
+    v = np.asarray(values, np.float32).astype(np.float64).reshape(len(values), -1, 3)
+    a0 = INVERSE_A * v[..., 0]
+    b1 = INVERSE_B * v[..., 1]
+    c2 = INVERSE_C * v[..., 2]
+    out = np.stack([(a0 + b1) + c2, a0 - INVERSE_D * v[..., 2], (a0 - b1) + c2], axis=-1)
+    return out.reshape(len(values), -1).astype(np.float32)
+
+
+def record_bytes(transforms: tuple[int, ...]) -> bytes:
+    """The ``SHXF`` payload for one transform id per coded band (bands 1.. in order)."""
+    out = ByteWriter()
+    out.fixed("u8", SHXF_VERSION)
+    out.fixed("u8", len(transforms))
+    for transform in transforms:
+        out.fixed("u8", transform)
+    return out.getvalue()
+
+
+def read_record(data: bytes, offset: int, sh_degree_coded: int) -> tuple[int, ...]:
+    """The transform id of each coded band from an ``SHXF`` payload at file ``offset``.
+
+    Raises:
+        FormatError: a version other than 1, a band count other than ``sh_degree_coded``
+            (or none coded), an unknown id or trailing bytes, at the offending byte.
+    """
+    r = ByteReader(data, base_offset=offset, chunk="SHXF")
+    at = r.offset
+    version = r.fixed("u8", "version")
+    if version != SHXF_VERSION:
+        raise r.error(f"unsupported SH colour transform version {version}", at=at)
+    at = r.offset
+    count = r.fixed("u8", "band_count")
+    if count != sh_degree_coded or count == 0:
+        raise r.error(f"the record lists {count} bands, the scene codes "
+                      f"{sh_degree_coded}", at=at)
+    transforms = []
+    for _ in range(count):
+        at = r.offset
+        transform = r.fixed("u8", "transform")
+        if transform not in (IDENTITY, OPPONENT):
+            raise r.error(f"unknown SH colour transform {transform}", at=at)
+        transforms.append(transform)
+    r.expect_end("the SH colour transform record")
+    return tuple(transforms)
+
+
+def apply_inverse(decoded: dict[str, np.ndarray], transforms: tuple[int, ...],
+                  offset: int | None = None) -> None:
+    """Replace each transformed band ``rest1..`` of ``decoded`` by its colours, in place.
+
+    Raises:
+        FormatError: a colour value overflows float32 (chunk SHXF).
+    """
+    for band, transform in enumerate(transforms, start=1):
+        if transform == OPPONENT:
+            with np.errstate(over="ignore", invalid="ignore"):
+                colours = inverse(decoded[f"rest{band}"])
+            if not np.all(np.isfinite(colours)):
+                raise FormatError(f"SH band {band}'s colours overflow float32",
+                                  chunk="SHXF", offset=offset)
+            decoded[f"rest{band}"] = colours
+
+
+def choose_transforms(plan_band, values: dict[str, np.ndarray], degree: int
+                      ) -> tuple[tuple[int, ...], dict]:
+    """The encoder's choice per band: the opponent transform where its plan codes smaller.
+
+    Args:
+        plan_band: (name, values) -> a :class:`csgs_codec.codec.float_stream.StreamPlan`.
+        values: stream name -> (N, C) coding-form values (``rest1``.. as colours).
+        degree: coded SH degree.
+
+    Returns:
+        (transform id per band, name -> the plan chosen for each band).
+    """
+    transforms, plans = [], {}
+    for band in range(1, degree + 1):
+        name = f"rest{band}"
+        plain = plan_band(name, values[name])
+        turned = plan_band(name, forward(values[name]))
+        better = _bits(turned) < _bits(plain)
+        transforms.append(OPPONENT if better else IDENTITY)
+        plans[name] = turned if better else plain
+    return tuple(transforms), plans
+
+
+def _bits(plan) -> float:
+    return float(sum(channel.cost for channel in plan.channels))
