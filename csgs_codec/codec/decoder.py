@@ -313,16 +313,17 @@ class Decoder:
             # with hyperprior channels need the decoded cells: decode side by side
             # (numpy releases the GIL). Results are taken in a fixed order, so the
             # output and the first error raised do not depend on scheduling.
+            colour_transform = None
+            if any(e.type == "SHXF" for e in container.toc):
+                data, offset = single_payload(container, "SHXF")
+                colour_transform = (read_record(data, offset, header.sh_degree_coded), offset)
             positions_job = _submit(pool, self._positions, container, header)
-            streams = self._color_streams(container, header, pool, prior, positions_job)
+            streams = self._color_streams(container, header, pool, prior, positions_job,
+                                          colour_transform)
             positions, _ = positions_job.result()
         finally:
             if pool is not None:
                 pool.shutdown()
-        if any(e.type == "SHXF" for e in container.toc):
-            data, offset = single_payload(container, "SHXF")
-            apply_inverse(streams.float_streams,
-                          read_record(data, offset, header.sh_degree_coded), offset)
         scene = join_streams(streams, positions)
         if "semantic" in wanted:
             self._semantic(container, header, scene)
@@ -378,7 +379,9 @@ class Decoder:
                                 pos_bits=pos_bits)
 
     def _color_streams(self, container, header: SceneHeader, pool: ThreadPoolExecutor | None,
-                        prior: ColorPrior | None, positions_job: Future) -> SceneStreams:
+                        prior: ColorPrior | None, positions_job: Future,
+                        colour_transform: tuple[tuple[int, ...], int] | None = None
+                        ) -> SceneStreams:
         """Decode the color streams; those with hyperprior channels after the geometry
         (``positions_job``) and the network's evaluation, the others right away."""
         names = _stream_names(header)
@@ -401,8 +404,9 @@ class Decoder:
 
         def submit(name: str, priors=None) -> None:
             derive_from = (scales, opacities) if name == "rot" else (None, None)
+            transform = colour_transform if name.startswith("rest") else None
             jobs[name] = _submit(pool, _color_stream, container, header, name, priors,
-                                 *derive_from)
+                                 *derive_from, transform)
 
         for name in names:
             if name not in later:
@@ -550,11 +554,13 @@ def _stream_names(header: SceneHeader) -> list[str]:
 
 def _color_stream(container, header: SceneHeader, name: str,
                    priors: dict[int, ChannelPrior] | None = None, log_scales=None,
-                   opacity=None) -> tuple[np.ndarray, np.ndarray | None]:
+                   opacity=None, colour_transform: tuple[tuple[int, ...], int] | None = None
+                   ) -> tuple[np.ndarray, np.ndarray | None]:
     """(values (N, C) float32, dropped-component index per Gaussian for "rot" else None) of
-    one color stream; ``priors`` are the hyperprior's for its modelled channels, and
+    one color stream; ``priors`` are the hyperprior's for its modelled channels,
     ``log_scales`` and ``opacity`` (rotations only) return the decoded scales and opacity
-    logits modes 6 and 7 derive steps from."""
+    logits modes 6 and 7 derive steps from, and ``colour_transform`` (SH bands) is the SHXF
+    record (transform per band, its offset) whose inverse this band gets."""
     code = STREAM_CHUNKS[name]
     data, offset = single_payload(container, code)
     r = ByteReader(data, base_offset=offset, chunk=code)
@@ -569,4 +575,11 @@ def _color_stream(container, header: SceneHeader, name: str,
                                log_scales, opacity)
     r.expect_end(f"the {name} stream")
     check_finite(values, code)
+    if colour_transform is not None:  # in this stream's job, beside the other streams
+        transforms, record_offset = colour_transform
+        decoded = {name: values}
+        apply_inverse(decoded, tuple(t if f"rest{b}" == name else 0
+                                     for b, t in enumerate(transforms, start=1)),
+                      record_offset)
+        values = decoded[name]
     return values, rot_axis
