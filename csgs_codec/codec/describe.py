@@ -5,6 +5,7 @@ from __future__ import annotations
 from csgs_codec.codec.derived_steps import SCORE_FEATURES
 from csgs_codec.codec.float_stream import CLASSED_MODES, MODE_DERIVED, rotation_class_table
 from csgs_codec.codec.payloads import SceneHeader
+from csgs_codec.codec.sh_colour_transform import OPPONENT, read_record
 from csgs_codec.codec.view_record import ViewRecord
 from csgs_codec.errors import CsgsError, FormatError
 from csgs_codec.format import describe, read_layers
@@ -61,6 +62,9 @@ def describe_bitstream(source, *, verify: bool = True) -> dict:
     steps = _rotation_steps(source, container)
     if steps is not None:
         facts["rotation_steps"] = steps
+    opponent = _opponent_bands(source, container)
+    if opponent is not None:
+        facts["sh_opponent_bands"] = opponent
     if n:
         facts["bits_per_gaussian"] = 8 * facts["file_bytes"] / n
         for layer in facts["layers"].values():
@@ -68,6 +72,27 @@ def describe_bitstream(source, *, verify: bool = True) -> dict:
         for chunk in facts["chunks"]:
             chunk["bits_per_gaussian"] = 8 * chunk["bytes"] / n
     return facts
+
+
+def _opponent_bands(source, container) -> list[int] | None:
+    """The SH bands the first tile's SHXF record (FORMAT §12.24) codes in opponent colours,
+    or None without a readable record (informative only)."""
+    entry = next((e for e in container.toc if e.type == "SHXF"), None)
+    if entry is None:
+        return None
+    try:
+        src = open_source(source)
+        try:
+            data = read_frame(src, entry)
+        finally:
+            src.close()
+        header = next(e for e in container.toc if e.type == "SCNE")
+        degree = SceneHeader.from_bytes(bytes(container.payloads[header.index]),
+                                        header.offset + 8).sh_degree_coded
+        transforms = read_record(data, entry.offset + 8, degree)
+    except (CsgsError, OSError, StopIteration):
+        return None
+    return [band for band, t in enumerate(transforms, start=1) if t == OPPONENT]
 
 
 def _rotation_steps(source, container) -> dict | None:

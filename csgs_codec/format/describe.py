@@ -106,6 +106,11 @@ def format_description(facts: dict) -> str:
         lines.append(f"  rotation steps   {steps['name']}"
                      + (f" (mode {steps['mode']}, {steps['classes']} classes)"
                         if steps["classes"] > 1 else " (one step)"))
+    opponent = facts.get("sh_opponent_bands")
+    if opponent is not None:
+        lines.append("  SH colours       " + (
+            f"bands {', '.join(map(str, opponent))} in opponent colours" if opponent
+            else "every band as R, G, B"))
     lines.append(f"  header + TOC     {facts['header_bytes']:>12,} bytes")
     for label, layer in facts["layers"].items():
         missing = "" if layer["present"] else "  (not all present)"

@@ -132,3 +132,17 @@ def test_quiet_works_before_the_command(tmp_path, capsys):
     path.write_bytes(make_ply(random_values(2, names), names))
     assert main(["--quiet", "info", str(path)]) == 0
     assert "red" not in capsys.readouterr().err
+
+
+def test_info_says_which_sh_bands_are_in_opponent_colours(capsys):
+    from tests.conftest import REPO
+
+    vectors = REPO / "spec" / "vectors" / "scenes"
+    facts = run_json(capsys, str(vectors / "sh_colour_transform_q5.csgs"))
+    assert facts["sh_opponent_bands"] == [1, 2, 3]
+    assert main(["info", str(vectors / "sh_colour_transform_q5.csgs")]) == 0
+    assert "bands 1, 2, 3 in opponent colours" in capsys.readouterr().out
+    # A file without the record, and one whose record is damaged, say nothing of it.
+    assert "sh_opponent_bands" not in run_json(capsys, str(vectors / "donut_q3_r2.csgs"))
+    damaged = run_json(capsys, str(vectors / "sh_colour_transform_unknown_id.csgs"))
+    assert "sh_opponent_bands" not in damaged
