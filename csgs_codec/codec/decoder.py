@@ -32,7 +32,7 @@ from csgs_codec.codec.payloads import (
     names_from_bytes,
 )
 from csgs_codec.codec.semantic_codebook import read_codebook
-from csgs_codec.codec.sh_colour_transform import apply_inverse, read_record
+from csgs_codec.codec.sh_colour_transform import band_colours, read_record
 from csgs_codec.codec.streams import SceneStreams, join_streams
 from csgs_codec.codec.tile_index import TileIndex, TileInfo
 from csgs_codec.entropy.categorical import decode_categorical
@@ -577,9 +577,5 @@ def _color_stream(container, header: SceneHeader, name: str,
     check_finite(values, code)
     if colour_transform is not None:  # in this stream's job, beside the other streams
         transforms, record_offset = colour_transform
-        decoded = {name: values}
-        apply_inverse(decoded, tuple(t if f"rest{b}" == name else 0
-                                     for b, t in enumerate(transforms, start=1)),
-                      record_offset)
-        values = decoded[name]
+        values = band_colours(values, int(name[len("rest"):]), transforms, record_offset)
     return values, rot_axis

@@ -74,21 +74,33 @@ def describe_bitstream(source, *, verify: bool = True) -> dict:
     return facts
 
 
-def _opponent_bands(source, container) -> list[int] | None:
-    """The SH bands the first tile's SHXF record (FORMAT §12.24) codes in opponent colours,
-    or None without a readable record (informative only)."""
-    entry = next((e for e in container.toc if e.type == "SHXF"), None)
+def _first_frame(source, container, code: str):
+    """(TOC entry, payload bytes) of the first chunk of type ``code``, or None when absent.
+
+    Raises:
+        CsgsError, OSError: the payload cannot be read (callers treat it as informative).
+    """
+    entry = next((e for e in container.toc if e.type == code), None)
     if entry is None:
         return None
+    src = open_source(source)
     try:
-        src = open_source(source)
-        try:
-            data = read_frame(src, entry)
-        finally:
-            src.close()
-        header = next(e for e in container.toc if e.type == "SCNE")
-        degree = SceneHeader.from_bytes(bytes(container.payloads[header.index]),
-                                        header.offset + 8).sh_degree_coded
+        return entry, read_frame(src, entry)
+    finally:
+        src.close()
+
+
+def _opponent_bands(source, container) -> list[int] | None:
+    """The SH bands the first SHXF record (FORMAT §12.24) codes in opponent colours, or None
+    without a readable record (informative only)."""
+    try:
+        found = _first_frame(source, container, "SHXF")
+        if found is None:
+            return None
+        entry, data = found
+        scene = next(e for e in container.toc if e.type == "SCNE" and e.tile == entry.tile)
+        degree = SceneHeader.from_bytes(bytes(container.payloads[scene.index]),
+                                        scene.offset + 8).sh_degree_coded
         transforms = read_record(data, entry.offset + 8, degree)
     except (CsgsError, OSError, StopIteration):
         return None
@@ -99,15 +111,11 @@ def _rotation_steps(source, container) -> dict | None:
     """How the first ROTN chunk's coded channels set their steps ({"mode", "name",
     "classes"}; the encoder gives every coded channel of a stream the same kind), or None
     when the chunk is absent, cut off or unreadable (informative only)."""
-    entry = next((e for e in container.toc if e.type == "ROTN"), None)
-    if entry is None:
-        return None
     try:
-        src = open_source(source)
-        try:
-            data = read_frame(src, entry)
-        finally:
-            src.close()
+        found = _first_frame(source, container, "ROTN")
+        if found is None:
+            return None
+        entry, data = found
         r = ByteReader(data, entry.offset + 8, chunk="ROTN")
         mode = rotation_class_table(r)
         if mode not in CLASSED_MODES:

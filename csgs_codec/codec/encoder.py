@@ -411,9 +411,8 @@ class Encoder:
         if refine:  # refinement optimises the bands as colours: they stay colours
             plans = self._refined_plans(ordered, streams, plans, positions, settings)
         else:
-            transforms, sh_plans = choose_transforms(
-                lambda name, values: plan_float_stream(values, settings.rest_step),
-                streams.float_streams, sum(n.startswith("rest") for n in plans))
+            transforms, sh_plans = choose_transforms(plans, streams.float_streams,
+                                                     settings.rest_step)
             plans.update(sh_plans)
         decoded_streams = self._color_chunks(streams, plans, chunks, cells_in_order,
                                               max(grid.bits, 1), transforms)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from csgs_codec.codec.float_stream import plan_float_stream
 from csgs_codec.errors import FormatError
 from csgs_codec.format.primitives import ByteReader, ByteWriter
 
@@ -115,44 +116,58 @@ def read_record(data: bytes, offset: int, sh_degree_coded: int) -> tuple[int, ..
     return tuple(transforms)
 
 
-def apply_inverse(decoded: dict[str, np.ndarray], transforms: tuple[int, ...],
-                  offset: int | None = None) -> None:
-    """Replace each transformed band ``rest1..`` of ``decoded`` by its colours, in place.
+def band_colours(values: np.ndarray, band: int, transforms: tuple[int, ...],
+                 offset: int | None = None) -> np.ndarray:
+    """Band ``band``'s decoded (N, 3K) values as colours: turned back when ``transforms``
+    (one id per band, from SHXF) marks it opponent, else as they are.
 
     Raises:
-        FormatError: a colour value overflows float32 (chunk SHXF).
+        FormatError: a colour value overflows float32 (chunk SHXF, at ``offset``).
     """
-    for band, transform in enumerate(transforms, start=1):
-        if transform == OPPONENT:
-            with np.errstate(over="ignore", invalid="ignore"):
-                colours = inverse(decoded[f"rest{band}"])
-            if not np.all(np.isfinite(colours)):
-                raise FormatError(f"SH band {band}'s colours overflow float32",
-                                  chunk="SHXF", offset=offset)
-            decoded[f"rest{band}"] = colours
+    if band > len(transforms) or transforms[band - 1] != OPPONENT:
+        return values
+    with np.errstate(over="ignore", invalid="ignore"):
+        colours = inverse(values)
+    if not np.all(np.isfinite(colours)):
+        raise FormatError(f"SH band {band}'s colours overflow float32", chunk="SHXF",
+                          offset=offset)
+    return colours
 
 
-def choose_transforms(plan_band, values: dict[str, np.ndarray], degree: int
+def apply_inverse(decoded: dict[str, np.ndarray], transforms: tuple[int, ...],
+                  offset: int | None = None) -> None:
+    """Replace each transformed band ``rest1..`` of ``decoded`` by its colours, in place
+    (:func:`band_colours`)."""
+    for band in range(1, len(transforms) + 1):
+        decoded[f"rest{band}"] = band_colours(decoded[f"rest{band}"], band, transforms,
+                                              offset)
+
+
+def choose_transforms(plans: dict, values: dict[str, np.ndarray], step: float
                       ) -> tuple[tuple[int, ...], dict]:
     """The encoder's choice per band: the opponent transform where its plan codes smaller.
 
     Args:
-        plan_band: (name, values) -> a :class:`csgs_codec.codec.float_stream.StreamPlan`.
-        values: stream name -> (N, C) coding-form values (``rest1``.. as colours).
-        degree: coded SH degree.
+        plans: stream name -> the :class:`csgs_codec.codec.float_stream.StreamPlan` of the
+            bands as colours (``rest1``.. present for the coded bands).
+        values: stream name -> (N, C) coding-form values (the bands as colours).
+        step: the bands' quantization step.
 
     Returns:
-        (transform id per band, name -> the plan chosen for each band).
+        (transform id per band, name -> the plan of each band in opponent colours where it
+        was chosen).
     """
-    transforms, plans = [], {}
-    for band in range(1, degree + 1):
+    transforms, chosen = [], {}
+    band = 1
+    while f"rest{band}" in plans:
         name = f"rest{band}"
-        plain = plan_band(name, values[name])
-        turned = plan_band(name, forward(values[name]))
-        better = _bits(turned) < _bits(plain)
+        turned = plan_float_stream(forward(values[name]), step)
+        better = _bits(turned) < _bits(plans[name])
         transforms.append(OPPONENT if better else IDENTITY)
-        plans[name] = turned if better else plain
-    return tuple(transforms), plans
+        if better:
+            chosen[name] = turned
+        band += 1
+    return tuple(transforms), chosen
 
 
 def _bits(plan) -> float:
