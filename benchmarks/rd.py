@@ -13,17 +13,20 @@ on the default viewing distribution, a sphere of directions at three distances);
 is the ``--views`` orbit views at 20 degrees alone (what results before 2026-11-24 used).
 
 Variants (``--variants``): ``plain`` is ``Encoder(quality=q)`` at ``--qualities`` (the
-default encoder: rotation steps by footprint, FORMAT §12.8 mode 7); ``uniform`` is the same
-with one rotation step for all (``--uniform-steps``, the default before 2026-11-24, so
-``plain`` of earlier results); ``stacked`` adds the opt-in distortion-side levers of issue 17
+default encoder: rotation steps by footprint, FORMAT §12.8 mode 7, and each scene's step
+allocation, csgs_codec/codec/step_allocation.py); ``preset`` keeps the preset's steps
+(``--no-step-allocation``, the default before 2026-11-27, so ``plain`` of earlier results);
+``allocated`` allocates on every scene (``--step-allocation``; the default skips SH-0 scenes);
+``uniform`` is ``plain`` with one rotation step for all (``--uniform-steps``); ``stacked``
+adds the opt-in distortion-side levers of issue 17
 (view pruning on the default viewing distribution, ``--refine-steps`` refinement steps) at
 ``--stacked-qualities``. For each peer point and variant, ``csgs_size_ratio[variant]`` is the
 size that variant needs for the peer's foreground PSNR (interpolated on its curve, log-size
 linear; null outside it) divided by the peer's size.
 
-Each csgs row of another variant, measured beside ``uniform``, gets
-``size_vs_uniform_at_same_psnr``: its bytes over what the uniform curve needs for its
-foreground PSNR (null outside that curve).
+Each csgs row of another variant, measured beside ``uniform`` or ``preset``, gets
+``size_vs_uniform_at_same_psnr`` / ``size_vs_preset_at_same_psnr``: its bytes over what that
+variant's curve needs for its foreground PSNR (null outside that curve).
 
     .venv/bin/python benchmarks/rd.py --scenes donut biker --out rd.json --plot rd.png
     .venv/bin/python benchmarks/rd.py --variants plain stacked --scenes donut --out a.json
@@ -67,7 +70,11 @@ def scores(refs, scene, cameras, backend) -> dict:
 
 #: Encoder options of each variant (the quality is added per row).
 VARIANTS = {"plain": {}, "uniform": {"rotation_steps": "uniform"},
+            "preset": {"step_allocation": False}, "allocated": {"step_allocation": True},
             "stacked": {"view_pruning": True}}
+#: Variants the others are compared with at equal foreground PSNR
+#: (``size_vs_<variant>_at_same_psnr``).
+BASELINES = ("uniform", "preset")
 
 
 def csgs_rows(name, original, refs, cameras, qualities, backend, variant: str = "plain",
@@ -153,13 +160,16 @@ def add_ratios(rows: list[dict]) -> None:
             ratios[variant] = None if size is None else size / row["bytes"]
         row["csgs_bytes_at_same_psnr"] = sizes
         row["csgs_size_ratio"] = ratios
-    for row in rows:  # each csgs variant against one rotation step for all
-        if row["codec"] != "csgs" or row.get("variant", "plain") == "uniform":
-            continue
-        uniform = [r for r in rows if r["codec"] == "csgs" and r["scene"] == row["scene"]
-                   and r.get("variant") == "uniform"]
-        size = size_at(uniform, row["foreground_psnr"]) if uniform else None
-        row["size_vs_uniform_at_same_psnr"] = None if size is None else row["bytes"] / size
+    for base in BASELINES:  # each csgs variant against each baseline variant measured
+        for row in rows:
+            if row["codec"] != "csgs" or row.get("variant", "plain") == base:
+                continue
+            curve = [r for r in rows if r["codec"] == "csgs" and r["scene"] == row["scene"]
+                     and r.get("variant") == base]
+            if not curve:
+                continue
+            size = size_at(curve, row["foreground_psnr"])
+            row[f"size_vs_{base}_at_same_psnr"] = None if size is None else row["bytes"] / size
 
 
 def plot(rows: list[dict], path: str) -> None:
@@ -213,9 +223,9 @@ def combine(paths: list[str]) -> tuple[list[dict], dict]:
         if settings is not None and these != settings:
             raise SystemExit(f"{path}: measured differently ({these} vs {settings})")
         settings = these
-        rows += [{k: v for k, v in r.items() if k not in ("csgs_size_ratio",
-                                                          "csgs_bytes_at_same_psnr",
-                                                          "size_vs_uniform_at_same_psnr")}
+        derived = ("csgs_size_ratio", "csgs_bytes_at_same_psnr",
+                   *(f"size_vs_{base}_at_same_psnr" for base in BASELINES))
+        rows += [{k: v for k, v in r.items() if k not in derived}
                  for r in doc["results"]]
     return rows, {**settings, "combined_from": [Path(p).name for p in paths]}
 

@@ -288,3 +288,15 @@ def footprint_steps(log_scales: np.ndarray, opacity: np.ndarray, base: int, *,
     if not np.any(offsets[present]):
         return None
     return ScoredSteps(weights, thresholds_u, thresholds_v, offsets, classes)
+
+
+def rotation_classes(rule: str, log_scales: np.ndarray, opacity: np.ndarray):
+    """What makes the rotation stream's step classes under ``rule`` ("footprint",
+    "anisotropy" or "uniform") from decoded ``log_scales`` (N, 3) and opacity logits (N, 1)
+    or (N,): the ``derive`` callable of
+    :func:`csgs_codec.codec.float_stream.plan_float_stream`, or None for one step."""
+    if rule == "uniform":
+        return None
+    if rule == "anisotropy":
+        return lambda base: rotation_steps(log_scales, base)
+    return lambda base: footprint_steps(log_scales, opacity, base)

@@ -27,6 +27,9 @@ class EncodeResult:
         rate_control: the :class:`~csgs_codec.codec.rate_control.RateControlReport` of a
             target-PSNR encode, the :class:`~csgs_codec.codec.rate_control.LambdaReport`
             (chosen multiplier and cost J) of a lambda encode, else None.
+        allocation: the :class:`~csgs_codec.codec.step_allocation.StepAllocation` the
+            encoder chose for a quality encode, or None when it kept the preset's steps
+            (allocation off, fast mode, a target or lambda search).
     """
 
     data: bytes
@@ -39,3 +42,4 @@ class EncodeResult:
     views: str | None = None
     rate_control: object | None = None
     tiles: int = 1
+    allocation: object | None = None

@@ -143,7 +143,7 @@ def apply_inverse(decoded: dict[str, np.ndarray], transforms: tuple[int, ...],
                                               offset)
 
 
-def choose_transforms(plans: dict, values: dict[str, np.ndarray], step: float
+def choose_transforms(plans: dict, values: dict[str, np.ndarray], steps: dict[str, float]
                       ) -> tuple[tuple[int, ...], dict]:
     """The encoder's choice per band: the opponent transform where its plan codes smaller.
 
@@ -151,7 +151,7 @@ def choose_transforms(plans: dict, values: dict[str, np.ndarray], step: float
         plans: stream name -> the :class:`csgs_codec.codec.float_stream.StreamPlan` of the
             bands as colours (``rest1``.. present for the coded bands).
         values: stream name -> (N, C) coding-form values (the bands as colours).
-        step: the bands' quantization step.
+        steps: stream name -> quantization step (each band's, ``rest1``..).
 
     Returns:
         (transform id per band, name -> the plan of each band in opponent colours where it
@@ -161,7 +161,7 @@ def choose_transforms(plans: dict, values: dict[str, np.ndarray], step: float
     band = 1
     while f"rest{band}" in plans:
         name = f"rest{band}"
-        turned = plan_float_stream(forward(values[name]), step)
+        turned = plan_float_stream(forward(values[name]), steps[name])
         better = _bits(turned) < _bits(plans[name])
         transforms.append(OPPONENT if better else IDENTITY)
         if better:

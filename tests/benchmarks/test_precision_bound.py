@@ -68,6 +68,16 @@ def test_variants_are_compared_with_the_uniform_curve_at_equal_psnr():
         1200 / math.sqrt(1000 * 2000))
     assert rows[3]["size_vs_uniform_at_same_psnr"] is None  # beyond the uniform curve
     assert "size_vs_uniform_at_same_psnr" not in rows[0]
+    assert not any("size_vs_preset_at_same_psnr" in row for row in rows)  # none measured
+
+
+def test_variants_are_compared_with_the_preset_curve_at_equal_psnr():
+    rows = [_csgs("s", "preset", 40.0, 1000), _csgs("s", "preset", 50.0, 2000),
+            _csgs("s", "plain", 45.0, 1200)]
+    add_ratios(rows)
+    assert rows[2]["size_vs_preset_at_same_psnr"] == pytest.approx(
+        1200 / math.sqrt(1000 * 2000))
+    assert "size_vs_uniform_at_same_psnr" not in rows[2]
 
 
 def test_combine_refuses_documents_measured_differently(tmp_path):

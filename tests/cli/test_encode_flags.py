@@ -99,3 +99,18 @@ def test_near_lossless_quality_codes_a_3dgs_scene_and_is_refused_for_anchors(
                  "-q"]) == 2
     assert "anchor scenes take quality 1..9" in capsys.readouterr().err
     assert not refused.exists()
+
+
+def test_step_allocation_flags_reach_the_encoder_and_the_report(tmp_path, capsys):
+    ply = tmp_path / "sh.ply"
+    scene = random_scene(1100, sh_degree=1, seed=9)
+    write_ply(scene, ply)
+    scene = read_ply(ply)
+    on, off = tmp_path / "on.csgs", tmp_path / "off.csgs"
+    assert main(["encode", str(ply), "-o", str(on), "--no-hyperprior", "-q"]) == 0
+    assert "step allocation: " in capsys.readouterr().out
+    assert on.read_bytes() == Encoder(hyperprior=False).encode(scene)
+    assert main(["encode", str(ply), "-o", str(off), "--no-hyperprior", "-q",
+                 "--no-step-allocation"]) == 0
+    assert "step allocation" not in capsys.readouterr().out
+    assert off.read_bytes() == Encoder(hyperprior=False, step_allocation=False).encode(scene)

@@ -1,0 +1,276 @@
+"""Per-scene step allocation: how finely each attribute of a standard scene is coded.
+
+A quality preset fixes one ratio between the steps of positions, DC colour, each SH band,
+opacity, scales and rotations. What a step is worth to the picture depends on the scene: on
+full-precision SH-3 captures the ladder over-codes the higher SH bands and under-codes the
+rotations or the scales, by a different amount on each capture (benchmarks/step_allocation.py).
+The encoder therefore moves each group's step from the preset in half-octave steps (positions
+in whole grid bits) to minimise the Lagrangian cost
+
+    J = D + lambda * R,
+
+D the foreground mean squared error of probe renders of the coded scene against the original
+(squared 8-bit levels, :class:`csgs_codec.codec.rate_control.RenderProbe`'s measure, on a few
+small views of the viewing distribution), R the planned bits of every stream (each stream's
+own plan, before the hyperprior: :func:`csgs_codec.codec.float_stream.plan_float_stream`, and
+the octree's bytes for positions), and lambda the slope of the preset's own ladder at the
+preset (D and R of every step half an octave finer and coarser), so the allocation lands near
+the preset's quality with fewer bits, or more quality for its bits.
+
+Everything chosen here is the encoder's decision: each stream's record carries its step and
+the grid header its bits, so the format and the decoder do not change. Scenes over
+:data:`SAMPLE` Gaussians are probed on a fixed random subset of that many.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from csgs_codec.codec.derived_steps import rotation_classes
+from csgs_codec.codec.float_stream import plan_float_stream
+from csgs_codec.codec.presets import Preset
+from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
+from csgs_codec.entropy.geometry import encode_positions
+from csgs_codec.scene.gaussian_scene import GaussianScene
+from csgs_codec.scene.position_grid import PositionGrid
+
+#: Groups whose step the allocation moves (float stream names, and the position grid).
+GROUPS = ("dc", "rest1", "rest2", "rest3", "opacity", "scale", "rot", "position")
+#: A group's step moves by at most this many half octaves from the preset's (3 octaves);
+#: the grid by at most this many bits.
+MAX_OFFSET = 6
+MAX_BIT_OFFSET = 4
+#: Coordinate-descent passes over the groups.
+PASSES = 2
+#: Scenes below this count keep the preset (the probe costs more than it can save there).
+MIN_GAUSSIANS = 1024
+#: Scenes above this count are probed on a fixed random subset of this many Gaussians.
+SAMPLE = 65_536
+#: Probe views: a sphere of directions at the viewing distribution's distances, each seen
+#: through a window of a quarter of its width and height (so a probe costs a sixteenth of a
+#: full view while errors of position, scale and rotation show at the views' own pixel size,
+#: where a downscaled view would hide them behind colour errors).
+PROBE_DIRECTIONS = 4
+PROBE_WINDOW = 4
+
+
+@dataclass(frozen=True)
+class StepAllocation:
+    """The allocation the encoder chose for one scene.
+
+    Attributes:
+        offsets: group name -> half octaves its step moved from the preset's (positive:
+            coarser); ``"position"`` -> grid bits added (negative: fewer bits). Groups the
+            scene does not code are absent.
+        lambda_: the ladder's slope the cost used, squared 8-bit levels per planned bit.
+        trials: probe renders made (one per candidate allocation).
+        cost_ratio: J of the chosen allocation over J of the preset (<= 1).
+    """
+
+    offsets: dict[str, int] = field(default_factory=dict)
+    lambda_: float = 0.0
+    trials: int = 0
+    cost_ratio: float = 1.0
+
+    def apply(self, preset: Preset) -> Preset:
+        """``preset`` with this allocation's steps and grid bits."""
+        def factor(name: str) -> float:
+            return 2.0 ** (self.offsets.get(name, 0) / 2.0)
+
+        return replace(
+            preset,
+            position_bits=int(np.clip(preset.position_bits + self.offsets.get("position", 0),
+                                      1, 21)),
+            dc_step=preset.dc_step * factor("dc"),
+            rest_band_factors=tuple(preset.rest_band_factors[b] * factor(f"rest{b + 1}")
+                                    for b in range(3)),
+            opacity_step=preset.opacity_step * factor("opacity"),
+            scale_step=preset.scale_step * factor("scale"),
+            rotation_step=preset.rotation_step * factor("rot"))
+
+    def summary(self) -> str:
+        """One line for a user: which steps moved."""
+        moved = [f"{name} {'+' if v > 0 else ''}{v}{' bits' if name == 'position' else '/2 oct'}"
+                 for name, v in self.offsets.items() if v]
+        return ("steps as the preset has them" if not moved
+                else "steps moved from the preset: " + ", ".join(moved))
+
+
+def preset_steps(preset: Preset) -> dict[str, float]:
+    """Step of each float stream under ``preset`` (coding-form units)."""
+    rest = [preset.rest_step * f for f in preset.rest_band_factors]
+    return {"dc": preset.dc_step, "rest1": rest[0], "rest2": rest[1], "rest3": rest[2],
+            "opacity": preset.opacity_step, "scale": preset.scale_step,
+            "rot": preset.rotation_step}
+
+
+class _Probe:
+    """Planned bits and probe-render error of candidate allocations of one scene."""
+
+    def __init__(self, scene: GaussianScene, preset: Preset, rotation_rule: str,
+                 cameras: list) -> None:
+        from csgs_codec.metrics.comparison import render_references, to_unit_range
+        from csgs_codec.metrics.image import foreground_mask
+
+        self.scene = scene
+        self.preset = preset
+        self.rotation_rule = rotation_rule
+        self.cameras = cameras
+        self.streams: SceneStreams = split_streams(scene)
+        self.steps = preset_steps(preset)
+        refs = render_references(scene, cameras, backend="auto")
+        self.masks = [foreground_mask(r.alpha) for r in refs]
+        self.references = [to_unit_range(r.image)[m].astype(np.float64)
+                           for r, m in zip(refs, self.masks)]
+        self._plans: dict = {}
+        self._positions: dict = {}
+        self.trials = 0
+
+    def groups(self) -> list[str]:
+        """The groups this scene codes."""
+        present = [g for g in GROUPS[:-1] if g in self.streams.float_streams]
+        return present + ["position"]
+
+    def _plan(self, name: str, offsets: dict[str, int]):
+        key = (name, offsets.get(name, 0))
+        if key not in self._plans:
+            derive = None
+            if name == "rot":
+                # Rotation classes follow the preset's decoded scales and opacities: a
+                # half-octave move of those barely moves the classes, and replanning the
+                # rotations for every such move would double the probe's time.
+                derive = rotation_classes(self.rotation_rule, self._plan("scale", {})[1],
+                                          self._plan("opacity", {})[1])
+            plan = plan_float_stream(self.streams.float_streams[name],
+                                     self.steps[name] * 2.0 ** (offsets.get(name, 0) / 2.0),
+                                     derive)
+            self._plans[key] = (float(sum(ch.cost for ch in plan.channels)), plan.recon)
+        return self._plans[key]
+
+    def _position(self, bits: int):
+        if bits not in self._positions:
+            positions = self.scene.positions
+            grid = PositionGrid.fit(positions, bits)
+            cells, inside = grid.quantize(positions)
+            decoded = positions.astype(np.float32, copy=True)
+            decoded[inside] = grid.dequantize(cells[inside])
+            # Far points are coded apart at about the same relative precision: counted as
+            # exact here (few, and the same for every candidate).
+            size = len(encode_positions(cells[inside], grid.bits))
+            self._positions[bits] = (8.0 * size, decoded)
+        return self._positions[bits]
+
+    def rate_distortion(self, offsets: dict[str, int]) -> tuple[float, float]:
+        """(planned bits R, probe MSE D in squared 8-bit levels) of ``offsets``."""
+        from csgs_codec.metrics.comparison import to_unit_range
+        from csgs_codec.render.rasterizer import render
+
+        bits, positions = self._position(
+            int(np.clip(self.preset.position_bits + offsets.get("position", 0), 1, 21)))
+        decoded = {}
+        for name in self.streams.float_streams:
+            cost, recon = self._plan(name, offsets)
+            bits += cost
+            decoded[name] = recon
+        coded = join_streams(SceneStreams(decoded, self.streams.rot_axis,
+                                          self.streams.sh_degree_stored), positions)
+        errors = []
+        for cam, mask, ref in zip(self.cameras, self.masks, self.references):
+            if mask.any():
+                image = to_unit_range(render(coded, cam, backend="auto").image)[mask]
+                errors.append(float(np.mean((image.astype(np.float64) - ref) ** 2)))
+        self.trials += 1
+        return bits, (float(np.mean(errors)) * 255.0 ** 2 if errors else 0.0)
+
+
+def probe_cameras(scene: GaussianScene, cameras: list | None = None) -> list:
+    """The allocation's probe views: up to 12 of ``cameras`` (evenly spread; None: 4
+    directions on the default viewing distribution's sphere at its 3 distances), each
+    cropped to a window of 1/:data:`PROBE_WINDOW` of its width and height, the windows
+    taking turns over the four quarters around the image centre."""
+    if cameras is None:
+        from csgs_codec.render.view_distribution import default_distribution
+
+        cameras = default_distribution(scene, directions=PROBE_DIRECTIONS).cameras
+    picked = [cameras[i] for i in np.unique(np.linspace(0, len(cameras) - 1, 12).astype(int))]
+    windows = []
+    for i, cam in enumerate(picked):
+        width = max(cam.width // PROBE_WINDOW, 1)
+        height = max(cam.height // PROBE_WINDOW, 1)
+        x0 = cam.width // 2 - width * (1 - i % 2)
+        y0 = cam.height // 2 - height * (1 - (i // 2) % 2)
+        windows.append(replace(cam, width=width, height=height, cx=cam.cx - x0,
+                               cy=cam.cy - y0))
+    return windows
+
+
+def allocate_steps(scene: GaussianScene, preset: Preset, *, rotation_rule: str = "footprint",
+                   cameras: list | None = None,
+                   progress: Callable[[int, int], None] | None = None) -> StepAllocation:
+    """Choose each group's step for ``scene`` around ``preset`` (see the module notes).
+
+    Args:
+        scene: the validated scene as the encoder will code it (input order).
+        preset: the quality preset the allocation starts from.
+        rotation_rule: how rotation steps follow decoded attributes (the encoder's
+            ``rotation_steps``).
+        cameras: the views the scene will be seen from (the probe windows are cut from
+            them, :func:`probe_cameras`); None: the default sphere of views around it.
+        progress: ``progress(done, total)`` told of probe renders (total is an upper bound).
+
+    Returns:
+        The allocation; no offsets for scenes under :data:`MIN_GAUSSIANS`, or when the
+        ladder's slope cannot be measured (a scene no step changes on the probe views).
+    """
+    if len(scene) < MIN_GAUSSIANS:
+        return StepAllocation()
+    if len(scene) > SAMPLE:
+        keep = np.sort(np.random.default_rng(0).choice(len(scene), SAMPLE, replace=False))
+        scene = scene.subset(keep)
+    probe = _Probe(scene, preset, rotation_rule, probe_cameras(scene, cameras))
+    groups = probe.groups()
+    float_groups = [g for g in groups if g != "position"]
+    budget = 3 + PASSES * 2 * len(groups) * 2
+    report = progress or (lambda done, total: None)
+
+    def evaluate(offsets: dict[str, int]) -> tuple[float, float]:
+        result = probe.rate_distortion(offsets)
+        report(probe.trials, budget)
+        return result
+
+    r0, d0 = evaluate({})
+    r_fine, d_fine = evaluate({g: -1 for g in float_groups})
+    r_coarse, d_coarse = evaluate({g: 1 for g in float_groups})
+    lam = (d_coarse - d_fine) / (r_fine - r_coarse) if r_fine > r_coarse else 0.0
+    if not np.isfinite(lam) or lam <= 0.0:
+        return StepAllocation(trials=probe.trials)
+
+    def cost(rd: tuple[float, float]) -> float:
+        return rd[1] + lam * rd[0]
+
+    offsets = {g: 0 for g in groups}
+    start = best = cost((r0, d0))
+    for _ in range(PASSES):
+        moved = False
+        for group in groups:
+            limit = MAX_BIT_OFFSET if group == "position" else MAX_OFFSET
+            for direction in (1, -1):
+                # Walk one way while the cost falls; the other way only if the first
+                # step did not help.
+                stepped = False
+                while abs(offsets[group] + direction) <= limit:
+                    trial = {**offsets, group: offsets[group] + direction}
+                    value = cost(evaluate(trial))
+                    if value >= best:
+                        break
+                    best, offsets, stepped, moved = value, trial, True, True
+                if stepped:
+                    break
+        if not moved:
+            break
+    report(budget, budget)
+    return StepAllocation({g: v for g, v in offsets.items()}, float(lam), probe.trials,
+                          float(best / start) if start > 0 else 1.0)

@@ -1,0 +1,108 @@
+"""Per-scene step allocation (csgs_codec/codec/step_allocation.py): the encoder moves each
+attribute group's step from the preset where probe renders say it pays."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from csgs_codec.codec import step_allocation as sa
+from csgs_codec.codec.decoder import Decoder
+from csgs_codec.codec.encoder import Encoder
+from csgs_codec.codec.presets import PRESETS
+from csgs_codec.codec.step_allocation import StepAllocation, allocate_steps, preset_steps
+from csgs_codec.errors import InputError
+from tests.codec.helpers import random_scene
+
+
+@pytest.fixture(autouse=True)
+def fewer_probe_views(monkeypatch):
+    # One direction at three distances: the same search on a third of the renders.
+    monkeypatch.setattr(sa, "PROBE_DIRECTIONS", 1)
+
+
+def test_apply_moves_each_group_by_its_half_octaves_and_the_grid_by_whole_bits():
+    preset = PRESETS[5]
+    moved = StepAllocation({"dc": 2, "rest3": -1, "rot": -4, "position": -2}).apply(preset)
+    steps, base = preset_steps(moved), preset_steps(preset)
+    assert steps["dc"] == pytest.approx(2.0 * base["dc"])
+    assert steps["rest1"] == base["rest1"] and steps["rest2"] == base["rest2"]
+    assert steps["rest3"] == pytest.approx(base["rest3"] / np.sqrt(2.0))
+    assert steps["rot"] == pytest.approx(base["rot"] / 4.0)
+    assert steps["opacity"] == base["opacity"] and steps["scale"] == base["scale"]
+    assert moved.position_bits == preset.position_bits - 2
+    assert StepAllocation().apply(preset) == preset
+
+
+def test_small_scenes_keep_the_preset_and_write_what_they_wrote_before():
+    scene = random_scene(sa.MIN_GAUSSIANS - 1, sh_degree=2)
+    assert allocate_steps(scene, PRESETS[5]).offsets == {}
+    on = Encoder(quality=5, hyperprior=False).encode_with_report(scene)
+    off = Encoder(quality=5, hyperprior=False, step_allocation=False).encode(scene)
+    assert on.allocation is None and on.data == off
+
+
+def _isotropic(scene):
+    # Sphere-shaped Gaussians: a rotation changes no pixel of them.
+    scene.scales = np.repeat(scene.scales[:, :1], 3, axis=1)
+    return scene
+
+
+def test_rotations_that_never_show_go_to_the_coarsest_step():
+    scene = _isotropic(random_scene(1500, sh_degree=1, seed=3))
+    allocation = allocate_steps(scene, PRESETS[5])
+    assert allocation.offsets["rot"] == sa.MAX_OFFSET
+    assert 0.0 < allocation.cost_ratio < 1.0 and allocation.lambda_ > 0.0
+    assert set(allocation.offsets) == {"dc", "rest1", "opacity", "scale", "rot", "position"}
+
+
+def test_the_allocation_is_the_same_on_every_run_and_the_file_decodes_to_its_reconstruction():
+    scene = random_scene(1500, sh_degree=3, seed=4)
+    first = allocate_steps(scene, PRESETS[4])
+    assert allocate_steps(scene, PRESETS[4]) == first
+    result = Encoder(quality=4, hyperprior=False).encode_with_report(scene)
+    assert result.allocation == first
+    assert Decoder().decode(result.data).equals(result.reconstruction)
+    again = Encoder(quality=4, hyperprior=False).encode(scene)
+    assert again == result.data
+
+
+def test_the_chosen_steps_reach_the_coded_streams():
+    scene = _isotropic(random_scene(1500, sh_degree=1, seed=5))
+    on = Encoder(quality=5, hyperprior=False).encode_with_report(scene)
+    off = Encoder(quality=5, hyperprior=False, step_allocation=False).encode_with_report(scene)
+    # Rotations at the coarsest step: the rotation chunk shrinks, nothing renders worse
+    # for it (the Gaussians are spheres).
+    assert on.stream_bytes["ROTN"] < off.stream_bytes["ROTN"]
+    assert len(on.data) < len(off.data)
+
+
+def test_fast_mode_off_and_sh0_scenes_keep_the_preset_unless_asked():
+    scene = random_scene(1500, sh_degree=1, seed=6)
+    assert Encoder(quality=5, fast=True).encode_with_report(scene).allocation is None
+    assert Encoder(quality=5, step_allocation=False).encode_with_report(scene).allocation is None
+    flat = random_scene(1500, sh_degree=0, seed=6)
+    assert Encoder(quality=5, hyperprior=False).encode_with_report(flat).allocation is None
+    forced = Encoder(quality=5, hyperprior=False, step_allocation=True).encode_with_report(flat)
+    assert forced.allocation is not None and "dc" in forced.allocation.offsets
+
+
+def test_the_file_keeps_the_bounds_of_the_steps_it_used():
+    scene = random_scene(1500, sh_degree=2, seed=7)
+    result = Encoder(quality=6, hyperprior=False).encode_with_report(scene)
+    used = result.allocation.apply(PRESETS[6])
+    decoded, ref = Decoder().decode(result.data), scene.subset(result.order)
+    # Steps snap to a 1/8-octave grid (within 4.5%), so half a step is at most 0.523 * step.
+    assert np.abs(decoded.sh_dc - ref.sh_dc).max() <= 0.523 * used.dc_step + 1e-6
+    assert np.abs(decoded.scales - ref.scales).max() <= 0.523 * used.scale_step + 1e-6
+    for band, (lo, hi) in enumerate(((0, 3), (3, 8))):
+        step = used.rest_step * used.rest_band_factors[band]
+        # Opponent colours: a colour is a sum of three coded values (each off by half a
+        # step) with weights of at most 1 in magnitude.
+        error = np.abs(decoded.sh_rest[:, lo:hi] - ref.sh_rest[:, lo:hi]).max()
+        assert error <= 3 * 0.523 * step + 1e-6
+
+
+def test_an_unknown_setting_is_refused():
+    with pytest.raises(InputError, match="step_allocation"):
+        Encoder(step_allocation="yes")
