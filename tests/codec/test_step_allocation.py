@@ -106,3 +106,11 @@ def test_the_file_keeps_the_bounds_of_the_steps_it_used():
 def test_an_unknown_setting_is_refused():
     with pytest.raises(InputError, match="step_allocation"):
         Encoder(step_allocation="yes")
+
+
+def test_the_ladder_slope_is_the_exponential_fits_derivative_at_the_preset():
+    rates = [1000.0, 1400.0, 1180.0, 860.0, 750.0]
+    points = [(r, float(np.exp(5.0 - 0.004 * r))) for r in rates]
+    assert sa.ladder_slope(points) == pytest.approx(0.004 * np.exp(5.0 - 4.0))
+    assert sa.ladder_slope([(r, 0.0) for r in rates]) is None  # nothing shows
+    assert sa.ladder_slope([(r, r) for r in rates]) is None  # error rising with the rate
