@@ -16,8 +16,7 @@ own plan, before the hyperprior: :func:`csgs_codec.codec.float_stream.plan_float
 the octree's bytes for positions), and lambda the slope of the preset's own ladder at the
 preset (:func:`ladder_slope`: every step moved together up to an octave either way). The
 descent sets the ratio between the steps; every step then moves together back to the
-preset's probe error (:func:`_recentre`), so a quality keeps its level and the ladder its
-order, with fewer bits.
+preset's probe error (:func:`_recentre`), so a quality keeps its level with fewer bits.
 
 Everything chosen here is the encoder's decision: each stream's record carries its step and
 the grid header its bits, so the format and the decoder do not change. Scenes over
@@ -54,12 +53,17 @@ RECENTRE_STEPS = 4
 MIN_GAUSSIANS = 1024
 #: Scenes above this count are probed on a fixed random subset of this many Gaussians.
 SAMPLE = 65_536
-#: Probe views: a sphere of directions at the viewing distribution's distances, each seen
-#: through a window of a quarter of its width and height (so a probe costs a sixteenth of a
-#: full view while errors of position, scale and rotation show at the views' own pixel size,
-#: where a downscaled view would hide them behind colour errors).
-PROBE_DIRECTIONS = 2
-PROBE_WINDOW = 4
+#: Probe views: 12 directions on the viewing distribution's sphere at its framing distance,
+#: each seen through a window of a sixth of its width and height (so a probe costs a 36th
+#: of a full view while errors of position, scale and rotation show at the views' own pixel
+#: size, where a downscaled view would hide them behind colour errors). Many directions
+#: matter more than many pixels: 2 directions at 3 distances (6 windows of a quarter) chose
+#: allocations that coded leica_sofort_top8192 at quality 3 below quality 2's held-out PSNR;
+#: 12 directions kept the ladder's order at 0.80-0.88x the preset's bytes.
+PROBE_DIRECTIONS = 12
+PROBE_DISTANCES = (1.0,)
+PROBE_WINDOW = 6
+PROBE_VIEWS = 12
 
 
 @dataclass(frozen=True)
@@ -212,17 +216,18 @@ def ladder_slope(points: list[tuple[float, float]]) -> float | None:
 
 
 def probe_cameras(scene: GaussianScene, cameras: list | None = None) -> list:
-    """The allocation's probe views: up to 12 of ``cameras`` (evenly spread; None:
-    :data:`PROBE_DIRECTIONS` directions on the default viewing distribution's sphere at its 3
-    distances: 6 windows coded leica_sofort_top8192 at quality 5 as small as 12 at equal
-    held-out PSNR, within 3%, in half the time), each
-    cropped to a window of 1/:data:`PROBE_WINDOW` of its width and height, the windows
-    taking turns over the four quarters around the image centre."""
+    """The allocation's probe views: :data:`PROBE_VIEWS` of ``cameras`` (evenly spread;
+    None: :data:`PROBE_DIRECTIONS` directions of the default viewing distribution at
+    :data:`PROBE_DISTANCES`), each cropped to a window of 1/:data:`PROBE_WINDOW` of its
+    width and height, the windows taking turns over the four quarters around the image
+    centre."""
     if cameras is None:
         from csgs_codec.render.view_distribution import default_distribution
 
-        cameras = default_distribution(scene, directions=PROBE_DIRECTIONS).cameras
-    picked = [cameras[i] for i in np.unique(np.linspace(0, len(cameras) - 1, 12).astype(int))]
+        cameras = default_distribution(scene, directions=PROBE_DIRECTIONS,
+                                       distances=PROBE_DISTANCES).cameras
+    spread = np.unique(np.linspace(0, len(cameras) - 1, PROBE_VIEWS).astype(int))
+    picked = [cameras[i] for i in spread]
     windows = []
     for i, cam in enumerate(picked):
         width = max(cam.width // PROBE_WINDOW, 1)
@@ -310,9 +315,7 @@ def _recentre(offsets: dict[str, int], current: tuple[float, float], target: flo
     """Shift every float group's step together (half an octave at a time, at most
     :data:`RECENTRE_STEPS` times) to the coarsest allocation whose probe error is still at
     most the preset's ``target``: the descent sets the ratio between the steps, the preset
-    its quality level. At low qualities the descent's trade of error for bits, right on the
-    probe windows, measured worse on held-out views (leica_sofort_top8192 at quality 3 coded
-    below quality 2's PSNR), and a preset ladder must keep its order."""
+    its quality level, so neighbouring presets keep their order on the probe views."""
     def shifted(k: int) -> dict[str, int]:
         return {**offsets, **{g: int(np.clip(offsets[g] + k, -MAX_OFFSET, MAX_OFFSET))
                               for g in float_groups}}

@@ -17,8 +17,8 @@ from tests.codec.helpers import random_scene
 
 @pytest.fixture(autouse=True)
 def fewer_probe_views(monkeypatch):
-    # One direction at three distances: the same search on a third of the renders.
-    monkeypatch.setattr(sa, "PROBE_DIRECTIONS", 1)
+    # Four directions: the same search on a third of the renders.
+    monkeypatch.setattr(sa, "PROBE_DIRECTIONS", 4)
 
 
 def test_apply_moves_each_group_by_its_half_octaves_and_the_grid_by_whole_bits():
