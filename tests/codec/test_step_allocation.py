@@ -17,8 +17,10 @@ from tests.codec.helpers import random_scene
 
 @pytest.fixture(autouse=True)
 def fewer_probe_views(monkeypatch):
-    # Four directions: the same search on a third of the renders.
+    # Four directions: the same search on a third of the renders; every saving kept, so
+    # the tests see the search itself (the threshold has its own test).
     monkeypatch.setattr(sa, "PROBE_DIRECTIONS", 4)
+    monkeypatch.setattr(sa, "MIN_SAVING", 0.0)
 
 
 def test_apply_moves_each_group_by_its_half_octaves_and_the_grid_by_whole_bits():
@@ -114,3 +116,14 @@ def test_the_ladder_slope_is_the_exponential_fits_derivative_at_the_preset():
     assert sa.ladder_slope(points) == pytest.approx(0.004 * np.exp(5.0 - 4.0))
     assert sa.ladder_slope([(r, 0.0) for r in rates]) is None  # nothing shows
     assert sa.ladder_slope([(r, r) for r in rates]) is None  # error rising with the rate
+
+
+def test_a_saving_below_what_the_probe_resolves_keeps_the_preset(monkeypatch):
+    scene = _isotropic(random_scene(1500, sh_degree=1, seed=3))
+    found = allocate_steps(scene, PRESETS[5])
+    assert found.offsets and found.rate_ratio < 1.0
+    monkeypatch.setattr(sa, "MIN_SAVING", 1.0 - found.rate_ratio + 1e-9)
+    kept = allocate_steps(scene, PRESETS[5])
+    assert kept.offsets == {} and kept.rate_ratio == found.rate_ratio
+    assert kept.apply(PRESETS[5]) == PRESETS[5]
+    assert "cannot resolve" in kept.summary() and "moved" in found.summary()
