@@ -57,7 +57,7 @@ RECENTRE_STEPS = 4
 #: Scenes below this count keep the preset (the probe costs more than it can save there).
 MIN_GAUSSIANS = 1024
 #: Scenes above this count are probed on a fixed random subset of this many Gaussians.
-SAMPLE = 65_536
+SAMPLE = 32_768
 #: Probe views: 12 directions on the viewing distribution's sphere at its framing distance,
 #: each seen through a window of a sixth of its width and height (so a probe costs a 36th
 #: of a full view while errors of position, scale and rotation show at the views' own pixel
