@@ -22,7 +22,10 @@ from tests.conftest import SAMPLE, shared_path
 from tests.web.browser import wait_for_state
 from tests.web.test_viewer_browser import SCREENSHOT, SCREENSHOT_ENV, save_page_screenshot
 
-SHARED_SCENES = ("donut", "biker", "guitar", "plant", "playbot")
+SHARED_SCENES = ("scenes/donut", "scenes/biker", "scenes/guitar", "scenes/plant",
+                 "scenes/playbot",
+                 # A full-precision SH-3 capture: every band, steps allocated for the scene.
+                 "real_sh3/fruit_drops")
 SIZE = "400x300"
 
 
@@ -71,7 +74,8 @@ def test_a_default_encode_with_a_semantic_layer_opens(browser, default_encode, t
 
 @pytest.mark.parametrize("name", SHARED_SCENES)
 def test_the_default_encode_of_every_shared_scene_opens(browser, default_encode, name):
-    state, python = _open(browser, default_encode(shared_path("scenes", f"{name}.ply")))
+    folder, stem = name.split("/")
+    state, python = _open(browser, default_encode(shared_path(folder, f"{stem}.ply")))
     assert _decoded_as_in_python(state, python), state["error"]
 
 
