@@ -61,7 +61,7 @@ SAMPLE = 32_768
 #: Probe views: 12 directions on the viewing distribution's sphere at its framing distance,
 #: each seen through a window of a sixth of its width and height (so a probe costs a 36th
 #: of a full view while errors of position, scale and rotation show at the views' own pixel
-#: size, where a downscaled view would hide them behind colour errors). Many directions
+#: size, where a downscaled view would shrink them against colour errors). Many directions
 #: matter more than many pixels: 2 directions at 3 distances (6 windows of a quarter) chose
 #: allocations that coded leica_sofort_top8192 at quality 3 below quality 2's held-out PSNR;
 #: 12 directions kept the ladder's order at 0.80-0.88x the preset's bytes.
