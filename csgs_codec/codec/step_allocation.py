@@ -48,8 +48,9 @@ MAX_BIT_OFFSET = 4
 PASSES = 2
 #: The allocation is kept only when it plans at least this share fewer bits than the preset
 #: at the preset's probe error: on fruit_drops and leica_sofort_top8192 (qualities 4-9),
-#: estimated savings of 8-15% came out as 0.82-0.89x the preset's bytes at equal held-out
-#: PSNR, while estimates under 5% came out at 0.96-1.06x: the probe cannot resolve less.
+#: the five allocations estimated to save 8-15% came out at 0.82-0.95x the preset's bytes at
+#: equal held-out PSNR, the seven estimated under 8% (or at a cost) at 0.88-1.06x, three of
+#: them above 1: the probe does not resolve smaller savings.
 MIN_SAVING = 0.08
 #: At most this many half-octave shifts of every step together bring the probe error back
 #: to the preset's (:func:`_recentre`).
