@@ -16,7 +16,11 @@ from csgs_codec.scene.position_grid import PositionGrid
 from tests.codec.helpers import SHORT_PRIOR_FIT, random_scene
 from tests.conftest import SAMPLE, SCENES, fixture, fixture_files
 
-ALL_FILES = sorted(SCENES.glob("*.ply")) + fixture_files()
+# sh3_iter7000 (a 9k-Gaussian SH-3 fixture) says nothing the two real SH-3 captures do not
+# (tests/js/test_js_shared_scenes.py checks their default encodes decode to the encoder's
+# reconstruction), and its step allocation and prior fit take 25 s: under -m slow.
+ALL_FILES = [pytest.param(p, marks=pytest.mark.slow) if p.name == "sh3_iter7000.ply" else p
+             for p in sorted(SCENES.glob("*.ply")) + fixture_files()]
 
 
 def round_trip(scene, quality=6, **kw):
@@ -26,7 +30,7 @@ def round_trip(scene, quality=6, **kw):
     return result, decoded
 
 
-@pytest.mark.parametrize("path", ALL_FILES, ids=lambda p: p.name)
+@pytest.mark.parametrize("path", ALL_FILES, ids=lambda p: getattr(p, "values", [p])[0].name)
 def test_every_shared_scene_round_trips_exactly(path, default_encoding):
     """With the encoder's default settings (quality 5): the session's shared encode."""
     scene = read_ply(path)

@@ -27,10 +27,12 @@ def _check(relative: str, tmp_path, qualities=QUALITIES) -> None:
     scene = read_ply(shared_path(*relative.split("/")))
     files, expected = [], []
     for quality in qualities:
-        data = Encoder(quality=quality).encode(scene)
+        result = Encoder(quality=quality).encode_with_report(scene)
+        data = result.data
         path = tmp_path / f"q{quality}.csgs"
         path.write_bytes(data)
         decoded = Decoder().decode(data)
+        assert decoded.equals(result.reconstruction), f"{relative} q{quality}"
         files.append(path)
         expected.append((len(decoded), scene_hashes(decoded)))
     for threads in (1, 2):
