@@ -41,6 +41,7 @@ from csgs_codec.codec.presets import (
     ROTATION_STEPS,
     Preset,
     preset,
+    preset_steps,
     scaled_preset,
 )
 from csgs_codec.codec.semantic_codebook import (
@@ -49,7 +50,6 @@ from csgs_codec.codec.semantic_codebook import (
     write_codebook,
 )
 from csgs_codec.codec.sh_colour_transform import apply_inverse, choose_transforms, record_bytes
-from csgs_codec.codec.step_allocation import preset_steps
 from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
 from csgs_codec.codec.tiling import check_tile_size, effective_tile_size
 from csgs_codec.codec.view_pruning import DEFAULT_BUDGET, decide
@@ -128,8 +128,8 @@ class Encoder:
             (:mod:`csgs_codec.codec.step_allocation`; quality encodes of scenes of 1,024+
             Gaussians in one tile, not in fast mode). None (default): for scenes that code
             SH bands (two SH-3 captures: 0.68-0.95x the preset's bytes at equal held-out
-            PSNR at the 7 of 22 presets where it moved steps, the others unchanged; SH-0
-            scenes measured no gain for seconds of probing); True: for every
+            PSNR at the 7 of 22 presets where it moved steps, the others unchanged; the SH-0
+            sample measured no gain for seconds of probing); True: for every
             scene; False: never. The preset's error bounds (:mod:`csgs_codec.codec.presets`)
             hold for the steps actually used (``EncodeResult.allocation``).
         allocation_progress: a callable ``allocation_progress(done, total)`` told of the

@@ -95,6 +95,14 @@ DEFAULT_ROTATION_STEPS = "footprint"
 ANCHOR_BASE_STEPS = {"f": 0.02, "offsets": 0.01, "scaling": 0.005, "semantic": 1.0 / 64}
 
 
+def preset_steps(preset: Preset) -> dict[str, float]:
+    """Step of each float stream under ``preset`` (coding-form units)."""
+    rest = [preset.rest_step * f for f in preset.rest_band_factors]
+    return {"dc": preset.dc_step, "rest1": rest[0], "rest2": rest[1], "rest3": rest[2],
+            "opacity": preset.opacity_step, "scale": preset.scale_step,
+            "rot": preset.rotation_step}
+
+
 def preset(quality: int) -> Preset:
     """The preset for ``quality`` in 1..11.
 

@@ -32,7 +32,7 @@ import numpy as np
 
 from csgs_codec.codec.derived_steps import rotation_classes
 from csgs_codec.codec.float_stream import plan_float_stream
-from csgs_codec.codec.presets import Preset
+from csgs_codec.codec.presets import Preset, preset_steps
 from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
 from csgs_codec.entropy.geometry import encode_positions
 from csgs_codec.scene.gaussian_scene import GaussianScene
@@ -124,14 +124,6 @@ class StepAllocation:
         return "steps as the preset has them"
 
 
-def preset_steps(preset: Preset) -> dict[str, float]:
-    """Step of each float stream under ``preset`` (coding-form units)."""
-    rest = [preset.rest_step * f for f in preset.rest_band_factors]
-    return {"dc": preset.dc_step, "rest1": rest[0], "rest2": rest[1], "rest3": rest[2],
-            "opacity": preset.opacity_step, "scale": preset.scale_step,
-            "rot": preset.rotation_step}
-
-
 class _Probe:
     """Planned bits and probe-render error of candidate allocations of one scene."""
 
@@ -152,6 +144,7 @@ class _Probe:
                            for r, m in zip(refs, self.masks)]
         self._plans: dict = {}
         self._positions: dict = {}
+        self._scores: dict = {}  # the descent and the recentring meet some candidates twice
         self.trials = 0
 
     def groups(self) -> list[str]:
@@ -190,6 +183,12 @@ class _Probe:
 
     def rate_distortion(self, offsets: dict[str, int]) -> tuple[float, float]:
         """(planned bits R, probe MSE D in squared 8-bit levels) of ``offsets``."""
+        key = tuple(sorted((g, v) for g, v in offsets.items() if v))
+        if key not in self._scores:
+            self._scores[key] = self._measure(offsets)
+        return self._scores[key]
+
+    def _measure(self, offsets: dict[str, int]) -> tuple[float, float]:
         from csgs_codec.metrics.comparison import to_unit_range
         from csgs_codec.render.rasterizer import render
 

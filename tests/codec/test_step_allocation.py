@@ -9,8 +9,8 @@ import pytest
 from csgs_codec.codec import step_allocation as sa
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
-from csgs_codec.codec.presets import PRESETS
-from csgs_codec.codec.step_allocation import StepAllocation, allocate_steps, preset_steps
+from csgs_codec.codec.presets import PRESETS, preset_steps
+from csgs_codec.codec.step_allocation import StepAllocation, allocate_steps
 from csgs_codec.errors import InputError
 from tests.codec.helpers import random_scene
 
