@@ -24,10 +24,10 @@ demo: $(STAMP)
 # default of a thread per core in every process oversubscribed them (2 cores: 314 -> 221 s).
 # Tests that need several threads ask for them explicitly.
 test: $(STAMP)
-	OMP_NUM_THREADS=1 $(PY) -m pytest -q -n auto --dist loadfile
+	OMP_NUM_THREADS=1 $(PY) -m pytest -q -n auto --dist loadfile --no-loadscope-reorder
 
 test-slow: $(STAMP)
-	OMP_NUM_THREADS=1 $(PY) -m pytest -q -n auto --dist loadfile -m slow
+	OMP_NUM_THREADS=1 $(PY) -m pytest -q -n auto --dist loadfile --no-loadscope-reorder -m slow
 
 # Peer codecs for benchmarks/ (npm splat-transform, PyPI DracoPy); not needed to test.
 bench-deps: $(STAMP)

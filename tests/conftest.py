@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import fcntl
+import hashlib
+import os
+import pickle
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -36,26 +41,56 @@ def fixture_files() -> list[Path]:
     return local + [p for p in sorted(FIXTURES.glob("*.ply")) if p.name not in names]
 
 
+def _shared_folder(tmp_path_factory, name: str) -> Path:
+    """A folder every pytest-xdist worker of this run sees (the parent of the workers' own
+    temporary folders), or this process's temporary folder when there are no workers."""
+    base = tmp_path_factory.getbasetemp()
+    root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+    folder = root / name
+    folder.mkdir(exist_ok=True)
+    return folder
+
+
+@contextmanager
+def _held(lock_path: Path):
+    """Hold an exclusive lock on ``lock_path`` (a file) while the block runs, so a worker
+    that wants an encode another worker is making waits for it instead of repeating it."""
+    with open(lock_path, "a") as handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
 @pytest.fixture(scope="session")
 def default_encoding(tmp_path_factory):
     """``default_encoding(source) -> (path, EncodeResult)``: ``Encoder()`` with its default
     settings on the scene file ``source`` (what `csgs encode SOURCE` writes, checked in
-    tests/cli/test_codec_cli.py), encoded once per session and written to ``path``, so the
-    round-trip, JavaScript and browser tests of what users make share one encode."""
-    from csgs_codec import Encoder
-    from csgs_codec.scene_files import read_scene
-
-    folder = tmp_path_factory.mktemp("default_encodings")
+    tests/cli/test_codec_cli.py), encoded once per test run and written to ``path``, so the
+    round-trip, JavaScript and browser tests of what users make share one encode. Workers
+    share it through a folder keyed by the source file's bytes (the encoder is
+    deterministic: tests/codec/test_codec_determinism.py)."""
+    folder = _shared_folder(tmp_path_factory, "default_encodings")
     made: dict[str, tuple[Path, object]] = {}
 
     def encode(source: Path):
-        key = str(Path(source).resolve())
+        key = hashlib.sha256(Path(source).read_bytes()).hexdigest()[:20]
         if key not in made:
-            scene, _ = read_scene(source)
-            result = Encoder().encode_with_report(scene)
-            path = folder / str(len(made)) / f"{Path(source).stem}.csgs"
-            path.parent.mkdir()
-            path.write_bytes(result.data)
+            path = folder / key / f"{Path(source).stem}.csgs"
+            report = folder / key / "result.pickle"
+            with _held(folder / f"{key}.lock"):
+                if report.exists():
+                    result = pickle.loads(report.read_bytes())
+                else:
+                    from csgs_codec import Encoder
+                    from csgs_codec.scene_files import read_scene
+
+                    scene, _ = read_scene(source)
+                    result = Encoder().encode_with_report(scene)
+                    path.parent.mkdir(exist_ok=True)
+                    path.write_bytes(result.data)
+                    report.write_bytes(pickle.dumps(result))
             made[key] = (path, result)
         return made[key]
 
@@ -87,9 +122,39 @@ def default_encode(tmp_path_factory, default_encoding):
     return encode
 
 
+#: The test files that take longest (seconds of one worker each, measured on the 2-core
+#: machine), in the order they start: `make test` hands whole files to its workers in
+#: collection order (``--dist loadfile --no-loadscope-reorder``), so these go first and the
+#: short files fill the gaps, and the two workers finish together. Files that share default
+#: encodes (tests/conftest.py) are kept apart in the order, so one makes what the other reads.
+LONGEST_FIRST = (
+    "tests/codec/test_codec_roundtrip.py",
+    "tests/web/test_viewer_default_encodes.py",
+    "tests/codec/test_view_pruning.py",
+    "tests/web/test_viewer_browser.py",
+    "tests/fuzz/test_decoder_fuzz.py",
+    "tests/web/test_viewer_shared_scenes.py",
+    "tests/js/test_js_shared_scenes.py",
+    "tests/codec/test_accepted_scenes_decode.py",
+    "tests/tiles/test_parallel_tiles.py",
+    "tests/web/test_server.py",
+    "tests/cli/test_encode_flags.py",
+    "tests/codec/test_step_allocation.py",
+    "tests/codec/test_codec_determinism.py",
+    "tests/tiles/test_tiled_codec.py",
+    "tests/train/test_pipeline.py",
+    "tests/cli/test_anchor_cli.py",
+    "tests/js/test_js_decoder.py",
+    "tests/stability/test_fit_stability.py",
+)
+
+
 def pytest_collection_modifyitems(config, items):
-    """Skip `gpu` tests when torch sees no CUDA device (torch is imported only when a `gpu`
-    test was collected, so that collection stays fast)."""
+    """Run :data:`LONGEST_FIRST` first (other files keep their order), and skip `gpu` tests
+    when torch sees no CUDA device (torch is imported only when a `gpu` test was
+    collected, so that collection stays fast)."""
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.nodeid.split("::")[0], len(rank)))
     if not any("gpu" in item.keywords for item in items):
         return
     try:
@@ -104,3 +169,4 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if "gpu" in item.keywords:
             item.add_marker(skip)
+

@@ -24,6 +24,8 @@ ALL_FILES = [pytest.param(p, marks=pytest.mark.slow) if p.name == "sh3_iter7000.
 
 
 def round_trip(scene, quality=6, **kw):
+    # Step allocation has its own tests (tests/codec/test_step_allocation.py): off here.
+    kw.setdefault("step_allocation", False)
     result = Encoder(quality=quality, **kw).encode_with_report(scene)
     decoded = Decoder().decode(result.data, layers="color,semantic")
     assert decoded.equals(result.reconstruction)

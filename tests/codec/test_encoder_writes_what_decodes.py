@@ -27,7 +27,8 @@ def _identical(n: int, semantic: int = 0):
 
 def test_identical_gaussians_decode_with_the_default_decoder():
     scene = _identical(200_000, semantic=2)
-    result = Encoder(quality=5, hyperprior=False).encode_with_report(scene)
+    result = Encoder(quality=5, hyperprior=False,
+                     step_allocation=False).encode_with_report(scene)
     assert len(result.data) >= 200_000 // 64
     assert result.stream_bytes.get("fill", 0) > 0
     decoded = Decoder().decode(result.data, layers="color,semantic")
@@ -36,7 +37,7 @@ def test_identical_gaussians_decode_with_the_default_decoder():
 
 
 def test_the_padding_sits_in_the_base_layer():
-    data = Encoder(quality=5, hyperprior=False).encode(_identical(50_000))
+    data = Encoder(quality=5, hyperprior=False, step_allocation=False).encode(_identical(50_000))
     fills = [entry for entry in read_layers(data).toc if entry.type == "fill"]
     assert len(fills) == 1 and fills[0].layer.label == "base"
 

@@ -127,3 +127,35 @@ def test_a_saving_below_what_the_probe_resolves_keeps_the_preset(monkeypatch):
     assert kept.offsets == {} and kept.rate_ratio == found.rate_ratio
     assert kept.apply(PRESETS[5]) == PRESETS[5]
     assert "cannot resolve" in kept.summary() and "moved" in found.summary()
+
+
+def test_a_window_renders_the_same_from_the_gaussians_that_reach_it():
+    """The probe renders each window from :func:`window_reach`'s Gaussians only: at the
+    coarsest steps the descent can try, the windows equal renders of the whole scene."""
+    from csgs_codec.render.rasterizer import render
+    from csgs_codec.scene.ply_io import read_ply
+    from tests.conftest import SAMPLE
+
+    scene = read_ply(SAMPLE)
+    scene = scene.subset(np.arange(0, len(scene), 4))
+    cameras = sa.probe_cameras(scene)
+    probe = sa._Probe(scene, PRESETS[1], "footprint", cameras)
+    coarsest = {"dc": sa.MAX_OFFSET, "opacity": sa.MAX_OFFSET, "scale": sa.MAX_OFFSET,
+                "rot": sa.MAX_OFFSET, "position": -sa.MAX_BIT_OFFSET}
+    _, coded = probe.coded(coarsest)
+    shown = 0
+    for camera, reach in zip(cameras, probe.reach):
+        assert 0 < len(reach) < len(scene)
+        whole = render(coded, camera, backend="numba")
+        part = render(coded.subset(reach), camera, backend="numba")
+        assert np.abs(whole.image - part.image).max() <= 1e-6
+        assert np.abs(whole.alpha - part.alpha).max() <= 1e-6
+        shown += int((whole.alpha > 0.5).sum())
+    assert shown > 0
+
+
+def test_many_copies_of_a_few_gaussians_keep_the_preset_without_probing():
+    few = random_scene(sa.MIN_GAUSSIANS - 24, sh_degree=2, seed=6)
+    copies = few.subset(np.arange(20 * len(few)) % len(few))
+    allocation = allocate_steps(copies, PRESETS[5])
+    assert allocation.offsets == {} and allocation.trials == 0

@@ -13,6 +13,7 @@ import pytest
 
 from benchmarks._js_receiver import node_executable, run_js, scene_hashes
 from csgs_codec import Decoder, Encoder, read_ply
+from csgs_codec.codec.presets import DEFAULT_QUALITY
 from tests.conftest import SHARED_DATA, shared_path
 
 pytestmark = pytest.mark.skipif(node_executable() is None,
@@ -23,11 +24,14 @@ LARGE = [f"scenes/{name}.ply" for name in ("donut", "biker", "guitar", "plant", 
 QUALITIES = (1, 5, 9)
 
 
-def _check(relative: str, tmp_path, qualities=QUALITIES) -> None:
-    scene = read_ply(shared_path(*relative.split("/")))
+def _check(relative: str, tmp_path, default_encoding, qualities=QUALITIES) -> None:
+    source = shared_path(*relative.split("/"))
+    scene = read_ply(source)
     files, expected = [], []
     for quality in qualities:
-        result = Encoder(quality=quality).encode_with_report(scene)
+        # The default quality is the run's shared default encode (tests/conftest.py).
+        result = (default_encoding(source)[1] if quality == DEFAULT_QUALITY
+                  else Encoder(quality=quality).encode_with_report(scene))
         data = result.data
         path = tmp_path / f"q{quality}.csgs"
         path.write_bytes(data)
@@ -45,21 +49,22 @@ def _check(relative: str, tmp_path, qualities=QUALITIES) -> None:
 
 
 @pytest.mark.parametrize("relative", SMALL)
-def test_small_real_scenes_decode_as_in_python(relative, tmp_path):
+def test_small_real_scenes_decode_as_in_python(relative, tmp_path, default_encoding):
     # Each encode probes its step allocation for seconds: the default quality only here.
-    _check(relative, tmp_path, (5,))
+    _check(relative, tmp_path, default_encoding, (DEFAULT_QUALITY,))
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("relative", SMALL)
-def test_the_small_scenes_decode_as_in_python_at_every_quality(relative, tmp_path):
-    _check(relative, tmp_path)
+def test_the_small_scenes_decode_as_in_python_at_every_quality(relative, tmp_path,
+                                                               default_encoding):
+    _check(relative, tmp_path, default_encoding)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("relative", LARGE)
-def test_shared_scenes_decode_as_in_python(relative, tmp_path):
-    _check(relative, tmp_path)
+def test_shared_scenes_decode_as_in_python(relative, tmp_path, default_encoding):
+    _check(relative, tmp_path, default_encoding)
 
 
 def test_the_scene_lists_name_files_that_exist():

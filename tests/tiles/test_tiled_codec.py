@@ -144,7 +144,7 @@ def test_bad_tiles_and_regions_are_input_errors(tiled, kwargs):
 
 
 def test_untiled_file_is_tile_zero(scene):
-    data = Encoder(quality=5, hyperprior=False).encode(scene)
+    data = Encoder(quality=5, hyperprior=False, step_allocation=False).encode(scene)
     report = Decoder().decode_with_report(data, region=(5, 5, 5, 6, 6, 6))
     assert report.tiles == [0] and report.tile_count == 1 and len(report.scene) == len(scene)
     with pytest.raises(InputError, match="tile 1"):

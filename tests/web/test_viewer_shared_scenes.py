@@ -1,0 +1,23 @@
+"""The browser viewer opens the default encode of every shared scene (issue #28): the five
+standard scenes and a full-precision SH-3 capture, when ../shared is present (an absent scene
+is skipped, saying so). Kept apart from the sample's tests so that test workers share them.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.conftest import shared_path
+from tests.web.test_viewer_default_encodes import decoded_as_in_python, open_in_page
+
+SHARED_SCENES = ("scenes/donut", "scenes/biker", "scenes/guitar", "scenes/plant",
+                 "scenes/playbot",
+                 # A full-precision SH-3 capture: every band, steps allocated for the scene.
+                 "real_sh3/fruit_drops")
+
+
+@pytest.mark.parametrize("name", SHARED_SCENES)
+def test_the_default_encode_of_every_shared_scene_opens(browser, default_encode, name):
+    folder, stem = name.split("/")
+    state, python = open_in_page(browser, default_encode(shared_path(folder, f"{stem}.ply")))
+    assert decoded_as_in_python(state, python), state["error"]
