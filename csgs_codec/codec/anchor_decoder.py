@@ -11,12 +11,12 @@ import os
 
 import numpy as np
 
+from csgs_codec.chunks.semantic import read_label_payload
 from csgs_codec.codec.anchor_grid import dequantize
 from csgs_codec.codec.anchor_payloads import (
     AnchorHeader,
     mlps_from_bytes,
 )
-from csgs_codec.codec.container_access import single_payload
 from csgs_codec.codec.decoder import check_layers
 from csgs_codec.codec.payloads import names_from_bytes
 from csgs_codec.entropy.anchor_attributes import (
@@ -31,7 +31,7 @@ from csgs_codec.entropy.intnet import IntMLP
 from csgs_codec.entropy.intnet_bytes import intnet_from_bytes
 from csgs_codec.entropy.intnet_dense import IntDenseMLP
 from csgs_codec.entropy.offset_masks import decode_masks
-from csgs_codec.entropy.residual import decode_symbols, from_grid
+from csgs_codec.entropy.residual import from_grid
 from csgs_codec.errors import FormatError
 from csgs_codec.format import read_layers
 from csgs_codec.format.primitives import ByteReader
@@ -93,9 +93,9 @@ class AnchorDecoder:
             raise
 
     def _decode(self, container, wanted: set[str]) -> AnchorScene:
-        header = AnchorHeader.from_bytes(*single_payload(container, "ANCH"))
+        header = AnchorHeader.from_bytes(*container.single_payload("ANCH"))
         m, f, k = header.count, header.feat_dim, header.n_offsets
-        data, offset = single_payload(container, "GEOM")
+        data, offset = container.single_payload("GEOM")
         try:
             cells = decode_positions(data, max_points=m).astype(np.int64)
         except FormatError as err:
@@ -112,24 +112,24 @@ class AnchorDecoder:
         if not np.all(np.isfinite(positions)):
             raise FormatError("anchor positions overflow float32", chunk="ANCH")
         hyper = self._position_net(container, "AHYP", pos_bits)
-        data, offset = single_payload(container, "ACRM")
+        data, offset = container.single_payload("ACRM")
         carm = [IntDenseMLP.from_bytes(d, chunk="ACRM", base_offset=o)
                 for d, o in _streams(data, offset, "ACRM", header.carm_groups - 1)]
-        data, offset = single_payload(container, "AMSK")
+        data, offset = container.single_payload("AMSK")
         mask = decode_masks(data, m, k, chunk="AMSK", base_offset=offset)
         mlps = None
         if header.has_mlps:
-            data, offset = single_payload(container, "AMLP")
+            data, offset = container.single_payload("AMLP")
             mlps = mlps_from_bytes(data, f, k, offset)
 
         p_f, p_off, p_scl = hyper_params(hyper, cells, [f, 3 * k, 6], "AHYP")
-        data, offset = single_payload(container, "AFEA")
+        data, offset = container.single_payload("AFEA")
         features = decode_features(_streams(data, offset, "AFEA", header.carm_groups), p_f,
                                    carm, chunk="AFEA")
-        data, offset = single_payload(container, "AOFF")
+        data, offset = container.single_payload("AOFF")
         kept = decode_block(data, masked_params(p_off, mask), chunk="AOFF",
                             base_offset=offset)
-        data, offset = single_payload(container, "ASCL")
+        data, offset = container.single_payload("ASCL")
         scaling = decode_block(data, p_scl, chunk="ASCL", base_offset=offset)
         offsets = np.zeros((m, k, 3), dtype=np.float32)
         offsets[mask] = _floats(kept)
@@ -145,7 +145,7 @@ class AnchorDecoder:
         return scene
 
     def _position_net(self, container, code: str, pos_bits: int) -> IntMLP:
-        data, offset = single_payload(container, code)
+        data, offset = container.single_payload(code)
         net = intnet_from_bytes(data, chunk=code, base_offset=offset)
         if net.pos_bits != pos_bits:
             raise FormatError(f"network pos_bits {net.pos_bits} differs from the grid's "
@@ -161,7 +161,7 @@ class AnchorDecoder:
                               chunk="ASEM" if "ASEM" not in present else "SHYP")
         if "ASEM" in present:
             hyper = self._position_net(container, "SHYP", pos_bits)
-            data, offset = single_payload(container, "ASEM")
+            data, offset = container.single_payload("ASEM")
             r = ByteReader(data, base_offset=offset, chunk="ASEM")
             names = names_from_bytes(r, MAX_SEMANTIC_CHANNELS)
             stream = r.byte_string("stream")
@@ -173,17 +173,4 @@ class AnchorDecoder:
             if not np.all(np.isfinite(scene.semantic)):
                 raise FormatError("decoded semantic features overflow float32", chunk="ASEM")
         if "SEML" in present:
-            data, offset = single_payload(container, "SEML")
-            r = ByteReader(data, base_offset=offset, chunk="SEML")
-            base = r.svarint("label_base")
-            at = r.offset
-            table = r.fixed("u8", "scale_index")
-            if table >= 64:
-                raise r.error(f"scale index {table} out of range", at=at)
-            stream = r.byte_string("label_stream")
-            r.expect_end("the label stream")
-            labels = decode_symbols(stream, np.full(m, table, np.int64), chunk="SEML",
-                                    base_offset=r.offset - len(stream)) + base
-            if labels.size and (labels.min() < -(1 << 31) or labels.max() >= 1 << 31):
-                raise r.error("label outside the int32 range")
-            scene.labels = labels.astype(np.int32)
+            scene.labels = read_label_payload(*container.single_payload("SEML"), m)

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from csgs_codec.chunks.semantic import label_payload
 from csgs_codec.codec.anchor_grid import anchor_grid
 from csgs_codec.codec.anchor_payloads import AnchorHeader, mlps_to_bytes
 from csgs_codec.codec.encoder_checks import check_semantic_names
@@ -49,8 +50,7 @@ from csgs_codec.entropy.anchor_attributes import (
 from csgs_codec.entropy.geometry import canonical_order, encode_positions
 from csgs_codec.entropy.intnet_bytes import intnet_to_bytes
 from csgs_codec.entropy.offset_masks import encode_masks
-from csgs_codec.entropy.residual import encode_symbols, from_grid, to_grid
-from csgs_codec.entropy.table_choice import best_table
+from csgs_codec.entropy.residual import from_grid, to_grid
 from csgs_codec.errors import InputError
 from csgs_codec.format import Chunk, write_container
 from csgs_codec.format.primitives import ByteWriter
@@ -260,14 +260,7 @@ class AnchorEncoder:
             recon.semantic, recon.semantic_names = _floats(rec), s.semantic_names
             steps["semantic"] = step_values(params.step)
         if s.labels is not None:
-            labels = s.labels.astype(np.int64)
-            base = int(np.median(labels)) if labels.size else 0
-            table = best_table(labels - base)
-            out = ByteWriter()
-            out.svarint(base)
-            out.fixed("u8", table)
-            out.byte_string(encode_symbols(labels - base, np.full(labels.size, table)))
-            chunks.append(Chunk("SEML", "semantic", out.getvalue()))
+            chunks.append(Chunk("SEML", "semantic", label_payload(s.labels)))
             recon.labels = s.labels.copy()
         return steps
 

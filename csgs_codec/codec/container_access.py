@@ -1,8 +1,8 @@
-"""What both decoders ask of a read container: the layers to read and one chunk's payload."""
+"""What both decoders ask of a layers argument: the layers to read."""
 
 from __future__ import annotations
 
-from csgs_codec.errors import FormatError, InputError
+from csgs_codec.errors import InputError
 
 
 def parse_layers(layers) -> set[str]:
@@ -23,21 +23,3 @@ def parse_layers(layers) -> set[str]:
                          property="layers")
     return (names | {"color"}) - {"base"}
 
-
-def single_payload(container, code: str) -> tuple[bytes, int]:
-    """(payload, absolute offset of the payload) of the one chunk of type ``code``.
-
-    Raises:
-        FormatError: the chunk is missing, appears more than once, or was cut off.
-    """
-    entries = [e for e in container.toc if e.type == code]
-    if not entries:
-        raise FormatError(f"required chunk {code} is missing", chunk=code)
-    if len(entries) > 1:
-        raise FormatError(f"chunk {code} appears {len(entries)} times", chunk=code,
-                          offset=entries[1].offset)
-    entry = entries[0]
-    if entry.index not in container.payloads:
-        raise FormatError(f"chunk {code} is cut off (stream truncated)", chunk=code,
-                          offset=entry.offset)
-    return bytes(container.payloads[entry.index]), entry.offset + 8

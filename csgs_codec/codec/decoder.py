@@ -12,6 +12,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from csgs_codec.chunks.color_streams import read_color_stream
+from csgs_codec.chunks.far_points import read_far_positions
+from csgs_codec.chunks.semantic import read_semantic_layer
 from csgs_codec.codec.color_prior import (
     ColorPrior,
     channel_priors,
@@ -19,29 +22,20 @@ from csgs_codec.codec.color_prior import (
     prior_cells,
     prior_from_bytes,
 )
-from csgs_codec.codec.container_access import parse_layers, single_payload
-from csgs_codec.codec.far_payload import read_far_payload
-from csgs_codec.codec.float_stream import ChannelPrior, read_float_stream
+from csgs_codec.codec.container_access import parse_layers
 from csgs_codec.codec.payloads import (
     CHUNK_STREAMS,
-    MAX_SEMANTIC_CHANNELS,
-    STREAM_CHANNELS,
     STREAM_CHUNKS,
     SceneHeader,
     check_finite,
-    names_from_bytes,
 )
-from csgs_codec.codec.semantic_codebook import read_codebook
-from csgs_codec.codec.sh_colour_transform import band_colours, read_record
+from csgs_codec.codec.sh_colour_transform import read_record
 from csgs_codec.codec.streams import SceneStreams, join_streams
 from csgs_codec.codec.tile_index import TileIndex, TileInfo
-from csgs_codec.entropy.categorical import decode_categorical
 from csgs_codec.entropy.geometry import decode_positions
-from csgs_codec.entropy.residual import decode_symbols
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format import Container
 from csgs_codec.format.chunk import to_layer_set
-from csgs_codec.format.primitives import ByteReader
 from csgs_codec.format.reader import name_source, needed_entries, read_frame
 from csgs_codec.format.source import CountingSource, open_source
 from csgs_codec.format.toc import read_toc
@@ -293,17 +287,17 @@ class Decoder:
         if len(scene) != info.count:
             raise FormatError(f"tile {number} holds {len(scene)} Gaussians, the tile index "
                               f"says {info.count}", chunk="SCNE",
-                              offset=single_payload(container, "SCNE")[1])
+                              offset=container.single_payload("SCNE")[1])
         p = scene.positions
         if len(p) and (np.any(p.min(axis=0) < np.float32(info.lower))
                        or np.any(p.max(axis=0) > np.float32(info.upper))):
             raise FormatError(f"tile {number} has a Gaussian outside its box in the tile "
-                              "index", chunk="GEOM", offset=single_payload(container, "GEOM")[1])
+                              "index", chunk="GEOM", offset=container.single_payload("GEOM")[1])
         return scene
 
     def _decode_container(self, container, wanted: set[str], threads: int) -> GaussianScene:
         """The scene of one tile's chunks (``container`` holds only that tile's entries)."""
-        header = SceneHeader.from_bytes(*single_payload(container, "SCNE"))
+        header = SceneHeader.from_bytes(*container.single_payload("SCNE"))
         self._check_count(header, container.source_size)
         prior = (self._color_prior(container, header)
                  if any(e.type == "CHYP" for e in container.toc) else None)
@@ -315,7 +309,7 @@ class Decoder:
             # output and the first error raised do not depend on scheduling.
             colour_transform = None
             if any(e.type == "SHXF" for e in container.toc):
-                data, offset = single_payload(container, "SHXF")
+                data, offset = container.single_payload("SHXF")
                 colour_transform = (read_record(data, offset, header.sh_degree_coded), offset)
             positions_job = _submit(pool, self._positions, container, header)
             streams = self._color_streams(container, header, pool, prior, positions_job,
@@ -343,7 +337,7 @@ class Decoder:
     def _positions(self, container, header: SceneHeader) -> tuple[np.ndarray, np.ndarray]:
         """(positions (N, 3) float32, grid cells (N - far_count, 3)) of the base layer."""
         grid_count = header.count - header.far_count
-        data, offset = single_payload(container, "GEOM")
+        data, offset = container.single_payload("GEOM")
         try:
             cells = decode_positions(data, max_points=grid_count)
         except FormatError as err:
@@ -357,11 +351,7 @@ class Decoder:
                               offset=offset)
         grid = PositionGrid(header.grid_origin, header.grid_cell, max(header.grid_bits, 1))
         positions = grid.dequantize(cells)
-        if header.far_count:
-            far = _far_positions(container, header)
-        else:
-            for code in ("OUTQ", "OUTL"):
-                _refuse_chunk(container, code, "the header declares no far points")
+        far = read_far_positions(container, header.far_count)
         check_finite(positions, "GEOM")
         if header.far_count:
             positions = np.concatenate([positions, far])
@@ -370,7 +360,7 @@ class Decoder:
     # ------------------------------------------------------------------ color layer
     def _color_prior(self, container, header: SceneHeader) -> ColorPrior:
         """The color hyperprior of the CHYP chunk (parsed, not yet evaluated)."""
-        data, offset = single_payload(container, "CHYP")
+        data, offset = container.single_payload("CHYP")
         pos_bits = max(header.grid_bits, 1)
         if pos_bits > 32:
             raise FormatError(f"the color hyperprior needs a grid of at most 32 bits, the "
@@ -405,7 +395,7 @@ class Decoder:
         def submit(name: str, priors=None) -> None:
             derive_from = (scales, opacities) if name == "rot" else (None, None)
             transform = colour_transform if name.startswith("rest") else None
-            jobs[name] = _submit(pool, _color_stream, container, header, name, priors,
+            jobs[name] = _submit(pool, read_color_stream, container, header.count, name, priors,
                                  *derive_from, transform)
 
         for name in names:
@@ -429,37 +419,7 @@ class Decoder:
 
     # ------------------------------------------------------------------ semantic layer
     def _semantic(self, container, header: SceneHeader, scene: GaussianScene) -> None:
-        present = {e.type for e in container.toc}
-        if "SEMF" in present:
-            data, offset = single_payload(container, "SEMF")
-            r = ByteReader(data, base_offset=offset, chunk="SEMF")
-            names = names_from_bytes(r, MAX_SEMANTIC_CHANNELS)
-            values = read_float_stream(r, header.count, len(names))
-            r.expect_end("the semantic feature stream")
-            check_finite(values, "SEMF")
-            scene.semantic, scene.semantic_names = values, names
-        if "SEMC" in present:
-            data, offset = single_payload(container, "SEMC")
-            if "SEMF" in present:
-                raise FormatError("a tile holds both SEMF and SEMC", chunk="SEMC",
-                                  offset=offset)
-            r = ByteReader(data, base_offset=offset, chunk="SEMC")
-            scene.semantic_names, scene.semantic, scene.instances = read_codebook(
-                r, header.count, MAX_SEMANTIC_CHANNELS)
-        if "SEML" in present:
-            data, offset = single_payload(container, "SEML")
-            r = ByteReader(data, base_offset=offset, chunk="SEML")
-            base = r.svarint("label_base")
-            table = r.fixed("u8", "scale_index")
-            stream = r.byte_string("label_stream")
-            r.expect_end("the label stream")
-            if table >= 64:
-                raise r.error(f"scale index {table} out of range")
-            labels = decode_symbols(stream, np.full(header.count, table, np.int64),
-                                    chunk="SEML", base_offset=r.offset - len(stream)) + base
-            if labels.size and (labels.min() < -(1 << 31) or labels.max() >= 1 << 31):
-                raise r.error("label outside the int32 range")
-            scene.labels = labels.astype(np.int32)
+        read_semantic_layer(container, header.count, scene)
 
 
 def _read_container(src, toc, entries, wanted: set[str]) -> Container:
@@ -501,7 +461,7 @@ def _check_same_kind(scene: GaussianScene, number: int, first: GaussianScene,
     if not same:
         raise FormatError(f"tile {number} differs from tile {first_number} in SH degree or "
                           "semantic layer", chunk="SCNE",
-                          offset=single_payload(container, "SCNE")[1])
+                          offset=container.single_payload("SCNE")[1])
 
 
 def _submit(pool: ThreadPoolExecutor | None, fn, *args) -> Future:
@@ -517,65 +477,7 @@ def _submit(pool: ThreadPoolExecutor | None, fn, *args) -> Future:
     return future
 
 
-def _far_positions(container, header: SceneHeader) -> np.ndarray:
-    """(far_count, 3) float32 positions of the far points: those of OUTQ (relative
-    precision, when present) then those of OUTL (exact float32), FORMAT §12.4."""
-    parts = []
-    if any(e.type == "OUTQ" for e in container.toc):
-        data, offset = single_payload(container, "OUTQ")
-        parts.append(read_far_payload(data, offset, header.far_count))
-    exact = header.far_count - sum(len(p) for p in parts)
-    if not exact:
-        _refuse_chunk(container, "OUTL", "OUTQ holds every far point")
-        return np.concatenate(parts)
-    data, offset = single_payload(container, "OUTL")
-    r = ByteReader(data, base_offset=offset, chunk="OUTL")
-    n = r.varint("far_count", maximum=exact)
-    if n != exact:
-        raise r.error(f"{n} outliers, the header and OUTQ leave {exact}")
-    far = r.array(n * 3, "<f4", "positions").reshape(n, 3).astype(np.float32)
-    r.expect_end("the outlier list")
-    check_finite(far, "OUTL")
-    return np.concatenate(parts + [far])
-
-
-def _refuse_chunk(container, code: str, why: str) -> None:
-    """FormatError at the chunk when ``container`` holds a ``code`` chunk it must not."""
-    entry = next((e for e in container.toc if e.type == code), None)
-    if entry is not None:
-        raise FormatError(f"unexpected {code} chunk: {why}", chunk=code, offset=entry.offset)
-
-
 def _stream_names(header: SceneHeader) -> list[str]:
     """The color streams a scene with this header has, in order."""
     return (["dc"] + [f"rest{b}" for b in range(1, header.sh_degree_coded + 1)]
             + ["opacity", "scale", "rot"])
-
-
-def _color_stream(container, header: SceneHeader, name: str,
-                   priors: dict[int, ChannelPrior] | None = None, log_scales=None,
-                   opacity=None, colour_transform: tuple[tuple[int, ...], int] | None = None
-                   ) -> tuple[np.ndarray, np.ndarray | None]:
-    """(values (N, C) float32, dropped-component index per Gaussian for "rot" else None) of
-    one color stream; ``priors`` are the hyperprior's for its modelled channels,
-    ``log_scales`` and ``opacity`` (rotations only) return the decoded scales and opacity
-    logits modes 6 and 7 derive steps from, and ``colour_transform`` (SH bands) is the SHXF
-    record (transform per band, its offset) whose inverse this band gets."""
-    code = STREAM_CHUNKS[name]
-    data, offset = single_payload(container, code)
-    r = ByteReader(data, base_offset=offset, chunk=code)
-    rot_axis = None
-    if name == "rot":
-        axis_stream = r.byte_string("axis_stream")
-        rot_axis = decode_categorical(axis_stream, header.count, chunk=code,
-                                      base_offset=r.offset - len(axis_stream))
-        if rot_axis.size and rot_axis.max() > 3:
-            raise r.error("dropped-component index above 3")
-    values = read_float_stream(r, header.count, STREAM_CHANNELS[name], priors,
-                               log_scales, opacity)
-    r.expect_end(f"the {name} stream")
-    check_finite(values, code)
-    if colour_transform is not None:  # in this stream's job, beside the other streams
-        transforms, record_offset = colour_transform
-        values = band_colours(values, int(name[len("rest"):]), transforms, record_offset)
-    return values, rot_axis

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-from csgs_codec.codec.derived_steps import SCORE_FEATURES
-from csgs_codec.codec.float_stream import CLASSED_MODES, MODE_DERIVED, rotation_class_table
+from csgs_codec.chunks.color_streams import rotation_step_summary
+from csgs_codec.chunks.far_points import relative_far_count
 from csgs_codec.codec.payloads import SceneHeader
 from csgs_codec.codec.sh_colour_transform import OPPONENT, read_record
 from csgs_codec.codec.view_record import ViewRecord
 from csgs_codec.errors import CsgsError, FormatError
 from csgs_codec.format import describe, read_layers
-from csgs_codec.format.primitives import ByteReader
 from csgs_codec.format.reader import read_frame
 from csgs_codec.format.source import open_source
 
@@ -49,7 +48,7 @@ def describe_bitstream(source, *, verify: bool = True) -> dict:
                  sh_degree_coded=max(h.sh_degree_coded for h in headers),
                  quality=header.quality, grid_bits=max(h.grid_bits for h in headers),
                  far_outliers=far, tiles=len(headers))
-    relative = _outq_count(container)
+    relative = relative_far_count(container)
     facts.update(far_relative=relative, far_exact=far - relative)
     try:
         record = _view_record(container)
@@ -116,18 +115,7 @@ def _rotation_steps(source, container) -> dict | None:
         if found is None:
             return None
         entry, data = found
-        r = ByteReader(data, entry.offset + 8, chunk="ROTN")
-        mode = rotation_class_table(r)
-        if mode not in CLASSED_MODES:
-            return {"mode": mode, "name": "uniform", "classes": 1}
-        if mode == MODE_DERIVED:
-            return {"mode": 6, "name": "anisotropy", "classes": r.fixed("u8", "class_count")}
-        for _ in range(2 * SCORE_FEATURES):
-            r.fixed("f32", "score_weight")
-        k_u = r.fixed("u8", "bin_count_u")
-        for _ in range(k_u - 1):
-            r.fixed("f32", "threshold_u")
-        return {"mode": 7, "name": "footprint", "classes": k_u * r.fixed("u8", "bin_count_v")}
+        return rotation_step_summary(data, entry.offset + 8)
     except (CsgsError, OSError):
         return None
 
@@ -139,13 +127,3 @@ def _view_record(container) -> ViewRecord | None:
         return None
     return ViewRecord.from_bytes(bytes(container.payloads[entry.index]), entry.offset + 8)
 
-
-def _outq_count(container) -> int:
-    """The point count of the OUTQ chunks of all tiles (0 without one)."""
-    total = 0
-    for entry in container.toc:
-        if entry.type == "OUTQ" and entry.index in container.payloads:
-            reader = ByteReader(bytes(container.payloads[entry.index]), entry.offset + 8,
-                                chunk="OUTQ")
-            total += reader.varint("count")
-    return total

@@ -14,6 +14,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from csgs_codec.chunks.color_streams import color_stream_payload
+from csgs_codec.chunks.semantic import feature_payload, label_payload
 from csgs_codec.codec.color_prior import prior_cells
 from csgs_codec.codec.color_prior_choice import (
     DEFAULT_PRIOR_FIT,
@@ -27,13 +29,10 @@ from csgs_codec.codec.encoder_checks import check_count, check_encodable, decoda
 from csgs_codec.codec.far_points import plan_far_points
 from csgs_codec.codec.float_stream import (
     plan_float_stream,
-    write_float_stream,
-    write_planned_stream,
 )
 from csgs_codec.codec.payloads import (
     STREAM_CHUNKS,
     SceneHeader,
-    names_to_bytes,
 )
 from csgs_codec.codec.presets import (
     DEFAULT_QUALITY,
@@ -54,10 +53,7 @@ from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
 from csgs_codec.codec.tiling import check_tile_size, effective_tile_size
 from csgs_codec.codec.view_pruning import DEFAULT_BUDGET, decide
 from csgs_codec.codec.view_record import ViewRecord
-from csgs_codec.entropy.categorical import encode_categorical
 from csgs_codec.entropy.geometry import canonical_order, encode_positions
-from csgs_codec.entropy.residual import encode_symbols
-from csgs_codec.entropy.table_choice import best_table
 from csgs_codec.errors import InputError
 from csgs_codec.format import Chunk
 from csgs_codec.format.primitives import ByteWriter
@@ -518,11 +514,8 @@ class Encoder:
         if any(transforms):
             chunks.append(Chunk("SHXF", "color", record_bytes(transforms)))
         for name, plan in plans.items():
-            out = ByteWriter()
-            if name == "rot":
-                out.byte_string(encode_categorical(streams.rot_axis, 4))
-            write_planned_stream(out, plan, choice.channels.get(name))
-            chunks.append(Chunk(STREAM_CHUNKS[name], "color", out.getvalue()))
+            chunks.append(Chunk(STREAM_CHUNKS[name], "color", color_stream_payload(
+                name, plan, choice.channels.get(name), streams.rot_axis)))
         decoded = {name: plan.recon for name, plan in plans.items()}
         apply_inverse(decoded, transforms)
         return SceneStreams(decoded, streams.rot_axis.copy(), streams.sh_degree_stored)
@@ -530,12 +523,10 @@ class Encoder:
     def _semantic_chunks(self, ordered: GaussianScene, reconstruction: GaussianScene,
                          chunks: list[Chunk], settings: Preset) -> None:
         if ordered.semantic is not None:
-            out = ByteWriter()
-            names_to_bytes(out, ordered.semantic_names)
-            reconstruction.semantic = write_float_stream(out, ordered.semantic,
-                                                         settings.semantic_step)
+            payload, reconstruction.semantic = feature_payload(
+                ordered.semantic_names, ordered.semantic, settings.semantic_step)
             reconstruction.semantic_names = ordered.semantic_names
-            chunk = Chunk("SEMF", "semantic", out.getvalue())
+            chunk = Chunk("SEMF", "semantic", payload)
             codebook = codebook_of(ordered.semantic)
             embeddings = instance_embeddings(ordered, codebook)
             if codebook is not None:
@@ -550,15 +541,7 @@ class Encoder:
                                                 else InstanceTable(codebook[0], stored))
             chunks.append(chunk)
         if ordered.labels is not None:
-            labels = ordered.labels.astype(np.int64)
-            base = int(np.median(labels)) if labels.size else 0
-            residuals = labels - base
-            table = best_table(residuals)
-            out = ByteWriter()
-            out.svarint(base)
-            out.fixed("u8", table)
-            out.byte_string(encode_symbols(residuals, np.full(labels.size, table, np.int64)))
             reconstruction.labels = ordered.labels.copy()
-            chunks.append(Chunk("SEML", "semantic", out.getvalue()))
+            chunks.append(Chunk("SEML", "semantic", label_payload(ordered.labels)))
 
 

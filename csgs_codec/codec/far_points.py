@@ -1,4 +1,5 @@
-"""The encoder's plan for Gaussians outside the position grid ("far points").
+"""The encoder's plan for Gaussians outside the position grid ("far points"); their chunks'
+bytes, both directions, are :mod:`csgs_codec.chunks.far_points`.
 
 Up to :data:`EXACT_FAR_LIMIT` far points are kept exactly (OUTL, 12 bytes each: a handful of
 floaters costs nothing worth saving). More are coded with relative precision (OUTQ,
@@ -16,10 +17,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from csgs_codec.codec.far_payload import far_payload
+from csgs_codec.chunks.far_points import exact_far_payload, relative_far_payload
 from csgs_codec.errors import CsgsWarning
 from csgs_codec.format import Chunk
-from csgs_codec.format.primitives import ByteWriter
 from csgs_codec.scene.far_positions import MAX_MANTISSA_BITS, dequantize_far, quantize_far
 from csgs_codec.scene.position_grid import PositionGrid
 
@@ -61,12 +61,12 @@ def plan_far_points(positions: np.ndarray, far_idx: np.ndarray, grid: PositionGr
         exps, mants, ok = quantize_far(positions[far_idx], grid.centre, bits)
         if ok.any():
             exact_mask = ~ok
-            chunks.append(Chunk("OUTQ", "base", far_payload(grid.centre, bits, exps[ok],
+            chunks.append(Chunk("OUTQ", "base", relative_far_payload(grid.centre, bits, exps[ok],
                                                              mants[ok])))
             relative_positions = dequantize_far(grid.centre, bits, exps[ok], mants[ok])
     exact_idx = far_idx[exact_mask]
     if len(exact_idx):
-        chunks.append(Chunk("OUTL", "base", _exact_payload(positions[exact_idx])))
+        chunks.append(Chunk("OUTL", "base", exact_far_payload(positions[exact_idx])))
     relative = len(far_idx) - len(exact_idx)
     share = 100.0 * len(far_idx) / len(positions)
     how = [f"{len(exact_idx)} exactly (float32)"] if len(exact_idx) else []
@@ -82,10 +82,3 @@ def plan_far_points(positions: np.ndarray, far_idx: np.ndarray, grid: PositionGr
                                      positions[exact_idx].astype(np.float32)]),
                      chunks, relative, len(exact_idx))
 
-
-def _exact_payload(positions: np.ndarray) -> bytes:
-    """The OUTL payload: varint count, then (x, y, z) float32 per point."""
-    out = ByteWriter()
-    out.varint(len(positions))
-    out.array(positions.astype(np.float32), "<f4")
-    return out.getvalue()

@@ -504,27 +504,6 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None,
     return np.ascontiguousarray(out.T)
 
 
-def rotation_class_table(r: ByteReader) -> int:
-    """Walk a ROTN payload (``r`` at its start) to its first channel that is not a constant;
-    returns that channel's mode, with ``r`` just past its step index when the mode is 6 or 7
-    (where its class table starts), else just past the mode byte (0 when every channel is a
-    constant). For inspection (``csgs info``, tests, vector damage), not for decoding."""
-    r.byte_string("axis_stream")
-    r.varint("count")
-    channels = r.fixed("u8", "channel_count")
-    r.fixed("u8", "frac_bits")
-    mode = MODE_CONSTANT
-    for _ in range(channels):
-        mode = r.fixed("u8", "mode")
-        if mode != MODE_CONSTANT:
-            break
-        r.fixed("f32", "constant_value")
-    if mode in CLASSED_MODES:
-        r.svarint("mean")
-        r.fixed("u8", "step_index")
-    return mode
-
-
 def _read_derived_channel(r: ByteReader, c: int, n: int, indices: np.ndarray, peak: int,
                           mode: int, log_scales, opacity, class_cache: dict
                           ) -> tuple[tuple[np.ndarray, int], np.ndarray]:

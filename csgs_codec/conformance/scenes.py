@@ -17,10 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from csgs_codec.codec.container_access import single_payload
+from csgs_codec.chunks.color_streams import rotation_class_table
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
-from csgs_codec.codec.float_stream import rotation_class_table
 from csgs_codec.errors import CsgsError
 from csgs_codec.format import Chunk, read_layers, write_container
 from csgs_codec.format.primitives import ByteReader
@@ -450,6 +449,6 @@ def _scored_steps_vectors(out_dir: Path, donut: GaussianScene) -> None:
 def _after_rotn_step_index(data: bytes) -> int:
     """Offset in the ROTN payload of ``data`` where its first coded channel's class table
     starts (a channel in mode 6 or 7)."""
-    r = ByteReader(single_payload(read_layers(data, layers={"color"}), "ROTN")[0])
+    r = ByteReader(read_layers(data, layers={"color"}).single_payload("ROTN")[0])
     rotation_class_table(r)
     return r.offset

@@ -162,6 +162,33 @@ class Container:
         return [Chunk(e.type, e.layer, self.payloads[e.index], e.tile) for e in self.toc
                 if e.index in self.payloads and (wanted is None or e.layer == wanted)]
 
+    def single_payload(self, code: str) -> tuple[bytes, int]:
+        """(payload, absolute offset of the payload) of the one chunk of type ``code``
+        (any tile: a tile's decoder reads a container of that tile's chunks).
+
+        Raises:
+            FormatError: the chunk is missing, appears more than once, or was cut off.
+        """
+        entries = [e for e in self.toc if e.type == code]
+        if not entries:
+            raise FormatError(f"required chunk {code} is missing", chunk=code)
+        if len(entries) > 1:
+            raise FormatError(f"chunk {code} appears {len(entries)} times", chunk=code,
+                              offset=entries[1].offset)
+        entry = entries[0]
+        if entry.index not in self.payloads:
+            raise FormatError(f"chunk {code} is cut off (stream truncated)", chunk=code,
+                              offset=entry.offset)
+        return bytes(self.payloads[entry.index]), entry.offset + 8
+
+    def refuse_chunk(self, code: str, why: str) -> None:
+        """Raise FormatError at the first ``code`` chunk when there is one (it must not be
+        there, for reason ``why``)."""
+        entry = next((e for e in self.toc if e.type == code), None)
+        if entry is not None:
+            raise FormatError(f"unexpected {code} chunk: {why}", chunk=code,
+                              offset=entry.offset)
+
     def payload(self, type: str, tile: int = 0) -> bytes:
         """The payload of the single chunk ``type`` in ``tile``.
 

@@ -45,7 +45,7 @@ def color_chunks(data: bytes) -> list:
 def rotn_channel_reader(payload: bytes):
     """(reader just past the first coded channel's step index, its mode, the step index's
     offset) of a ROTN payload whose coded channels are in mode 6 or 7."""
-    from csgs_codec.codec.float_stream import rotation_class_table
+    from csgs_codec.chunks.color_streams import rotation_class_table
     from csgs_codec.format.primitives import ByteReader
 
     r = ByteReader(payload)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from csgs_codec.codec.container_access import single_payload
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.derived_steps import (
     THRESHOLDS,
@@ -105,7 +104,7 @@ def _with_rotn(payload: bytes) -> bytes:
 
 def _payload_offset(data: bytes) -> int:
     """Absolute offset of the ROTN payload's first byte in ``data``."""
-    return single_payload(read_layers(data, layers={"color"}), "ROTN")[1]
+    return read_layers(data, layers={"color"}).single_payload("ROTN")[1]
 
 
 def test_decreasing_thresholds_are_rejected_at_their_offset():

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from csgs_codec import Decoder, Encoder
-from csgs_codec.codec.far_payload import far_payload
+from csgs_codec.chunks.far_points import relative_far_payload
 from csgs_codec.codec.payloads import SceneHeader
 from csgs_codec.codec.presets import preset
 from csgs_codec.errors import CsgsWarning, FormatError
@@ -160,7 +160,7 @@ def _empty_geometry() -> bytes:
 
 
 def test_a_valid_hand_made_outq_decodes_exactly():
-    payload = far_payload((1.0, 2.0, 3.0), 4, np.array([10, -2]),
+    payload = relative_far_payload((1.0, 2.0, 3.0), 4, np.array([10, -2]),
                           np.array([[15, -16, 0], [1, 2, -3]]))
     positions = Decoder().decode(_far_file(payload)).positions
     expected = [[1 + 15 * 2.0**6, 2 - 16 * 2.0**6, 3], [1 + 2.0**-6, 2 + 2 * 2.0**-6,
@@ -181,7 +181,7 @@ def test_a_valid_hand_made_outq_decodes_exactly():
      "float32 range"),
 ])
 def test_damaged_outq_is_refused_naming_chunk_and_offset(damage, message):
-    payload = far_payload((0.0, 0.0, 0.0), 4, np.array([10, -2]),
+    payload = relative_far_payload((0.0, 0.0, 0.0), 4, np.array([10, -2]),
                           np.array([[15, -16, 0], [1, 2, -3]]))
     assert len(payload) == 1 + 1 + 24 + 2 + 4  # 6 fields x 5 bits = 30 bits -> 4 bytes
     with pytest.raises(FormatError, match=message) as info:
@@ -194,7 +194,7 @@ def test_outq_without_far_points_is_refused(donut_subset):
     container = read_layers(data, layers={"color"})
     chunks = [Chunk(e.type, e.layer, bytes(container.payloads[e.index]), e.tile)
               for e in container.toc]
-    chunks.insert(2, Chunk("OUTQ", "base", far_payload((0, 0, 0), 4, np.array([1]),
+    chunks.insert(2, Chunk("OUTQ", "base", relative_far_payload((0, 0, 0), 4, np.array([1]),
                                                        np.zeros((1, 3), np.int64))))
     with pytest.raises(FormatError, match="unexpected OUTQ") as info:
         Decoder().decode(write_container(chunks))

@@ -6,7 +6,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from csgs_codec.codec.container_access import single_payload
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.derived_steps import (
     FOOTPRINT_MIN_GAUSSIANS,
@@ -57,7 +56,7 @@ def _rotn_fields(payload: bytes) -> dict[str, int]:
 
 
 def _payload_offset(data: bytes) -> int:
-    return single_payload(read_layers(data, layers={"color"}), "ROTN")[1]
+    return read_layers(data, layers={"color"}).single_payload("ROTN")[1]
 
 
 def test_the_default_encoder_writes_mode_7_and_decodes_to_its_reconstruction():

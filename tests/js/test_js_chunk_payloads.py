@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from benchmarks._js_receiver import REPO, node_executable
+from csgs_codec.chunks.far_points import read_relative_far_payload
+from csgs_codec.chunks.far_points import relative_far_payload as outq
 from csgs_codec.codec.describe import describe_bitstream
-from csgs_codec.codec.far_payload import far_payload, read_far_payload
 from csgs_codec.codec.view_record import ViewRecord
 from csgs_codec.errors import FormatError
 
@@ -41,7 +42,7 @@ def _outq(payload: bytes, far_count: int) -> dict:
 
 def _python_outq(payload: bytes, far_count: int) -> dict:
     try:
-        positions = read_far_payload(payload, AT, far_count)
+        positions = read_relative_far_payload(payload, AT, far_count)
     except FormatError as err:
         return {"ok": False, "chunk": err.chunk, "offset": err.offset}
     return {"ok": True, "float32": positions.astype("<f4").tobytes().hex()}
@@ -50,7 +51,7 @@ def _python_outq(payload: bytes, far_count: int) -> dict:
 def test_outq_hand_example():
     # b = 2, e = 3 (byte 131): a scale of 2^(3 - 2) = 2; mantissas (-4, 3, 0) are the 3-bit
     # fields u = m + 4 = (0, 7, 4), LSB first: bits 000 111 001 -> bytes 0x38 0x01.
-    payload = far_payload((1.0, -2.0, 0.5), 2, np.array([3]), np.array([[-4, 3, 0]]))
+    payload = outq((1.0, -2.0, 0.5), 2, np.array([3]), np.array([[-4, 3, 0]]))
     assert payload[-3:] == bytes([131, 0x38, 0x01])
     (js,) = _run([_outq(payload, 1)])
     assert js["ok"]
@@ -67,7 +68,7 @@ def _random_payloads(rng) -> list[tuple[bytes, int]]:
         exponents = rng.integers(-128, 100, size=count)
         exponents[0] = -128  # the smallest scale, 2^(-128 - b)
         centre = rng.normal(0, 1e3, 3) * 10.0 ** rng.integers(-6, 8)
-        cases.append((far_payload(centre, bits, exponents, mantissas), count + 3))
+        cases.append((outq(centre, bits, exponents, mantissas), count + 3))
     return cases
 
 
@@ -76,17 +77,17 @@ def _edge_payloads() -> list[tuple[bytes, int]]:
     one = np.array([[0, 0, 0]])
     return [
         # Float32 range limits: 2^127 (1 - 2^-30) is finite, 2^127 + 2^127 is not.
-        (far_payload((0.0, 0.0, 0.0), 30, np.array([127]), np.array([[top - 1, -top, 1]])), 1),
-        (far_payload((2.0 ** 127, 0.0, 0.0), 30, np.array([127]), np.array([[top - 1, 0, 0]])), 1),
+        (outq((0.0, 0.0, 0.0), 30, np.array([127]), np.array([[top - 1, -top, 1]])), 1),
+        (outq((2.0 ** 127, 0.0, 0.0), 30, np.array([127]), np.array([[top - 1, 0, 0]])), 1),
         # Sums that round: a large centre and offsets below its float64 ulp / float32 ulp.
-        (far_payload((1e8, -3e7, 16777217.0), 12, np.array([-5, 3]),
+        (outq((1e8, -3e7, 16777217.0), 12, np.array([-5, 3]),
                      np.array([[1, -1, 1], [4095, -4096, 3]])), 2),
-        (far_payload((0.1, 0.2, 0.3), 20, np.array([0]), one), 1),
+        (outq((0.1, 0.2, 0.3), 20, np.array([0]), one), 1),
     ]
 
 
 def _invalid_payloads() -> list[tuple[bytes, int]]:
-    good = far_payload((1.0, 2.0, 3.0), 5, np.array([1, 2]), np.array([[1, 2, 3], [-32, 31, 0]]))
+    good = outq((1.0, 2.0, 3.0), 5, np.array([1, 2]), np.array([[1, 2, 3], [-32, 31, 0]]))
     body = good[1:]  # after the one-byte count
     padded = bytearray(good)
     padded[-1] |= 0x80  # 6 fields of 6 bits: bits 36..39 of the last byte are padding

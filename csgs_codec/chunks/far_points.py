@@ -1,6 +1,10 @@
-"""The OUTQ payload (FORMAT §12.20): far points with relative precision, both directions.
+"""Far points (FORMAT §12.4, §12.20), both directions: OUTQ, far points with relative
+precision, then OUTL, the rest as exact float32. Which points go where is the encoder's
+decision (:mod:`csgs_codec.codec.far_points`).
 
-Layout: varint count Q, u8 mantissa bits b, the centre as three f64, Q exponent bytes
+OUTL: varint count, then (x, y, z) float32 per point.
+
+OUTQ: varint count Q, u8 mantissa bits b, the centre as three f64, Q exponent bytes
 (e = byte - 128), then the 3 Q mantissas as unsigned (b + 1)-bit fields u = m + 2^b, packed
 least significant bit first (field k = 3 i + a holds point i's axis a), the last byte's unused
 high bits zero. The arithmetic is in :mod:`csgs_codec.scene.far_positions`.
@@ -10,13 +14,66 @@ from __future__ import annotations
 
 import numpy as np
 
+from csgs_codec.codec.payloads import check_finite
 from csgs_codec.format.primitives import ByteReader, ByteWriter
 from csgs_codec.scene.far_positions import MAX_MANTISSA_BITS, dequantize_far
 
 EXPONENT_BIAS = 128
 
 
-def far_payload(centre, mantissa_bits: int, exponents: np.ndarray,
+def exact_far_payload(positions: np.ndarray) -> bytes:
+    """The OUTL payload of ``positions`` (F, 3), stored as float32."""
+    out = ByteWriter()
+    out.varint(len(positions))
+    out.array(positions.astype(np.float32), "<f4")
+    return out.getvalue()
+
+
+def read_far_positions(container, far_count: int) -> np.ndarray:
+    """(far_count, 3) float32 positions of a container's far points: those of OUTQ (when
+    present) then those of OUTL; with ``far_count`` 0 (the scene header's), neither chunk
+    may be there.
+
+    Raises:
+        FormatError: naming the chunk and byte offset, when a chunk is missing, present
+            where it must not be, or holds another count or a non-finite position.
+    """
+    if not far_count:
+        for code in ("OUTQ", "OUTL"):
+            container.refuse_chunk(code, "the header declares no far points")
+        return np.zeros((0, 3), np.float32)
+    parts = []
+    if any(e.type == "OUTQ" for e in container.toc):
+        data, offset = container.single_payload("OUTQ")
+        parts.append(read_relative_far_payload(data, offset, far_count))
+    exact = far_count - sum(len(p) for p in parts)
+    if not exact:
+        container.refuse_chunk("OUTL", "OUTQ holds every far point")
+        return np.concatenate(parts)
+    data, offset = container.single_payload("OUTL")
+    r = ByteReader(data, base_offset=offset, chunk="OUTL")
+    n = r.varint("far_count", maximum=exact)
+    if n != exact:
+        raise r.error(f"{n} outliers, the header and OUTQ leave {exact}")
+    far = r.array(n * 3, "<f4", "positions").reshape(n, 3).astype(np.float32)
+    r.expect_end("the outlier list")
+    check_finite(far, "OUTL")
+    return np.concatenate(parts + [far])
+
+
+def relative_far_count(container) -> int:
+    """The point count of the OUTQ chunks read in all tiles (0 without one), from their
+    count fields only (what ``csgs info`` reports)."""
+    total = 0
+    for entry in container.toc:
+        if entry.type == "OUTQ" and entry.index in container.payloads:
+            reader = ByteReader(bytes(container.payloads[entry.index]), entry.offset + 8,
+                                chunk="OUTQ")
+            total += reader.varint("count")
+    return total
+
+
+def relative_far_payload(centre, mantissa_bits: int, exponents: np.ndarray,
                 mantissas: np.ndarray) -> bytes:
     """The OUTQ payload of Q points: ``centre`` (3,) float64, ``exponents`` (Q,) int in
     [-128, 127], ``mantissas`` (Q, 3) int in [-2^b, 2^b - 1]."""
@@ -32,7 +89,7 @@ def far_payload(centre, mantissa_bits: int, exponents: np.ndarray,
     return out.getvalue()
 
 
-def read_far_payload(data, base_offset: int, max_count: int) -> np.ndarray:
+def read_relative_far_payload(data, base_offset: int, max_count: int) -> np.ndarray:
     """The decoded far positions (Q, 3) float32 of an OUTQ payload, Q <= ``max_count``.
 
     Raises:
