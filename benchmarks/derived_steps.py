@@ -372,7 +372,7 @@ def position_rule_variant(result, original, j2_position: np.ndarray, level_bits:
 
 def result_grid(result) -> tuple[np.ndarray, float]:
     """(origin (3,), cell) of the position grid of the encode behind ``result``."""
-    from csgs_codec.codec.payloads import SceneHeader
+    from csgs_codec.chunks.scene_header import SceneHeader
     from csgs_codec.format import read_layers
 
     container = read_layers(result.data, layers=set())

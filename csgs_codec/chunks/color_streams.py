@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from csgs_codec.chunks.checks import check_finite
 from csgs_codec.codec.derived_steps import SCORE_FEATURES
 from csgs_codec.codec.float_stream import (
     CLASSED_MODES,
@@ -17,10 +18,16 @@ from csgs_codec.codec.float_stream import (
     read_float_stream,
     write_planned_stream,
 )
-from csgs_codec.codec.payloads import STREAM_CHANNELS, STREAM_CHUNKS, check_finite
 from csgs_codec.codec.sh_colour_transform import band_colours
 from csgs_codec.entropy.categorical import decode_categorical, encode_categorical
 from csgs_codec.format.primitives import ByteReader, ByteWriter
+
+#: Color stream name -> its chunk type, and back; channels per stream.
+STREAM_CHUNKS = {"dc": "SHDC", "rest1": "SHBA", "rest2": "SHBB", "rest3": "SHBC",
+                 "opacity": "OPAC", "scale": "SCAL", "rot": "ROTN"}
+CHUNK_STREAMS = {v: k for k, v in STREAM_CHUNKS.items()}
+STREAM_CHANNELS = {"dc": 3, "rest1": 9, "rest2": 15, "rest3": 21, "opacity": 1, "scale": 3,
+                   "rot": 3}
 
 
 def color_stream_payload(name: str, plan: StreamPlan, prior_channels=None,

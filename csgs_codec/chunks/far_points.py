@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from csgs_codec.codec.payloads import check_finite
+from csgs_codec.chunks.checks import check_finite
 from csgs_codec.format.primitives import ByteReader, ByteWriter
 from csgs_codec.scene.far_positions import MAX_MANTISSA_BITS, dequantize_far
 

@@ -1,6 +1,6 @@
 """The semantic layer's chunks of a standard scene (FORMAT §12.16-12.18), both directions:
 SEMF (channel names + a float stream of the features), SEMC (a codebook of distinct feature
-rows, :mod:`csgs_codec.codec.semantic_codebook`) and SEML (integer labels, one residual
+rows, :mod:`csgs_codec.chunks.semantic_codebook`) and SEML (integer labels, one residual
 stream with step 1, lossless; anchor scenes use the same payload).
 """
 
@@ -8,14 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from csgs_codec.chunks.checks import check_finite
+from csgs_codec.chunks.semantic_codebook import read_codebook
+from csgs_codec.chunks.semantic_names import MAX_SEMANTIC_CHANNELS, names_from_bytes, names_to_bytes
 from csgs_codec.codec.float_stream import read_float_stream, write_float_stream
-from csgs_codec.codec.payloads import (
-    MAX_SEMANTIC_CHANNELS,
-    check_finite,
-    names_from_bytes,
-    names_to_bytes,
-)
-from csgs_codec.codec.semantic_codebook import read_codebook
 from csgs_codec.entropy.residual import decode_symbols, encode_symbols
 from csgs_codec.entropy.table_choice import best_table
 from csgs_codec.errors import FormatError

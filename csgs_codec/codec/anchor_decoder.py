@@ -11,14 +11,14 @@ import os
 
 import numpy as np
 
-from csgs_codec.chunks.semantic import read_label_payload
-from csgs_codec.codec.anchor_grid import dequantize
-from csgs_codec.codec.anchor_payloads import (
+from csgs_codec.chunks.anchor_payloads import (
     AnchorHeader,
     mlps_from_bytes,
 )
+from csgs_codec.chunks.semantic import read_label_payload
+from csgs_codec.chunks.semantic_names import names_from_bytes
+from csgs_codec.codec.anchor_grid import dequantize
 from csgs_codec.codec.decoder import check_layers
-from csgs_codec.codec.payloads import names_from_bytes
 from csgs_codec.entropy.anchor_attributes import (
     FRAC_BITS,
     decode_block,

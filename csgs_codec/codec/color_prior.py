@@ -17,8 +17,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from csgs_codec.chunks.color_streams import STREAM_CHANNELS
 from csgs_codec.codec.float_stream import ChannelPrior
-from csgs_codec.codec.payloads import STREAM_CHANNELS
 from csgs_codec.entropy.intnet import IntMLP
 from csgs_codec.entropy.intnet_bytes import intnet_from_bytes, intnet_to_bytes
 from csgs_codec.entropy.tables import SCALE_COUNT

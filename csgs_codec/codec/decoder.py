@@ -12,9 +12,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from csgs_codec.chunks.color_streams import read_color_stream
+from csgs_codec.chunks.checks import check_finite
+from csgs_codec.chunks.color_streams import CHUNK_STREAMS, STREAM_CHUNKS, read_color_stream
 from csgs_codec.chunks.far_points import read_far_positions
+from csgs_codec.chunks.scene_header import SceneHeader
 from csgs_codec.chunks.semantic import read_semantic_layer
+from csgs_codec.chunks.tile_index import TileIndex, TileInfo
 from csgs_codec.codec.color_prior import (
     ColorPrior,
     channel_priors,
@@ -23,15 +26,8 @@ from csgs_codec.codec.color_prior import (
     prior_from_bytes,
 )
 from csgs_codec.codec.container_access import parse_layers
-from csgs_codec.codec.payloads import (
-    CHUNK_STREAMS,
-    STREAM_CHUNKS,
-    SceneHeader,
-    check_finite,
-)
 from csgs_codec.codec.sh_colour_transform import read_record
 from csgs_codec.codec.streams import SceneStreams, join_streams
-from csgs_codec.codec.tile_index import TileIndex, TileInfo
 from csgs_codec.entropy.geometry import decode_positions
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format import Container

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from csgs_codec.chunks.color_streams import rotation_step_summary
 from csgs_codec.chunks.far_points import relative_far_count
-from csgs_codec.codec.payloads import SceneHeader
+from csgs_codec.chunks.scene_header import SceneHeader
+from csgs_codec.chunks.view_record import ViewRecord
 from csgs_codec.codec.sh_colour_transform import OPPONENT, read_record
-from csgs_codec.codec.view_record import ViewRecord
 from csgs_codec.errors import CsgsError, FormatError
 from csgs_codec.format import describe, read_layers
 from csgs_codec.format.reader import read_frame

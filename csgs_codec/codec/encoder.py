@@ -14,8 +14,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from csgs_codec.chunks.color_streams import color_stream_payload
+from csgs_codec.chunks.color_streams import STREAM_CHUNKS, color_stream_payload
+from csgs_codec.chunks.scene_header import SceneHeader
 from csgs_codec.chunks.semantic import feature_payload, label_payload
+from csgs_codec.chunks.semantic_codebook import (
+    codebook_of,
+    instance_embeddings,
+    write_codebook,
+)
+from csgs_codec.chunks.view_record import ViewRecord
 from csgs_codec.codec.color_prior import prior_cells
 from csgs_codec.codec.color_prior_choice import (
     DEFAULT_PRIOR_FIT,
@@ -30,10 +37,6 @@ from csgs_codec.codec.far_points import plan_far_points
 from csgs_codec.codec.float_stream import (
     plan_float_stream,
 )
-from csgs_codec.codec.payloads import (
-    STREAM_CHUNKS,
-    SceneHeader,
-)
 from csgs_codec.codec.presets import (
     DEFAULT_QUALITY,
     DEFAULT_ROTATION_STEPS,
@@ -43,16 +46,10 @@ from csgs_codec.codec.presets import (
     preset_steps,
     scaled_preset,
 )
-from csgs_codec.codec.semantic_codebook import (
-    codebook_of,
-    instance_embeddings,
-    write_codebook,
-)
 from csgs_codec.codec.sh_colour_transform import apply_inverse, choose_transforms, record_bytes
 from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
 from csgs_codec.codec.tiling import check_tile_size, effective_tile_size
 from csgs_codec.codec.view_pruning import DEFAULT_BUDGET, decide
-from csgs_codec.codec.view_record import ViewRecord
 from csgs_codec.entropy.geometry import canonical_order, encode_positions
 from csgs_codec.errors import InputError
 from csgs_codec.format import Chunk

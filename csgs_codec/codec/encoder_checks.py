@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from csgs_codec.codec.decoder import MAX_GAUSSIANS, MAX_GAUSSIANS_PER_BYTE
-from csgs_codec.codec.payloads import (
+from csgs_codec.chunks.semantic_names import (
     MAX_FLOAT_STREAM_CHANNELS,
     MAX_NAME_BYTES,
     semantic_name_problem,
 )
+from csgs_codec.codec.decoder import MAX_GAUSSIANS, MAX_GAUSSIANS_PER_BYTE
 from csgs_codec.errors import InputError
 from csgs_codec.format import Chunk, write_container
 from csgs_codec.format.layout import Layer

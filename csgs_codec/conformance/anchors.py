@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
+from csgs_codec.chunks.anchor_payloads import MLP_VERSION_F16, mlps_to_bytes
 from csgs_codec.codec.anchor_decoder import AnchorDecoder
 from csgs_codec.codec.anchor_encoder import AnchorEncoder
-from csgs_codec.codec.anchor_payloads import MLP_VERSION_F16, mlps_to_bytes
 from csgs_codec.entropy.intnet_dense import DENSE_VERSION_RAW, IntDenseMLP
 from csgs_codec.errors import CsgsError
 from csgs_codec.format import Chunk, read_layers, write_container

@@ -208,7 +208,7 @@ def _semantic_codebook_vectors(out_dir: Path) -> None:
     reads in each; the semantic layer is refused."""
     from dataclasses import replace
 
-    from csgs_codec.codec.semantic_codebook import write_codebook
+    from csgs_codec.chunks.semantic_codebook import write_codebook
     from csgs_codec.format.primitives import ByteWriter
 
     small = small_semantic_scene()
@@ -276,7 +276,7 @@ def _codebook_embedding_vectors(out_dir: Path, scene: GaussianScene,
 
 def _codebook_payload(names: tuple[str, ...], prototypes: np.ndarray, ids: np.ndarray
                       ) -> bytes:
-    from csgs_codec.codec.semantic_codebook import write_codebook
+    from csgs_codec.chunks.semantic_codebook import write_codebook
     from csgs_codec.format.primitives import ByteWriter
 
     out = ByteWriter()
@@ -380,7 +380,7 @@ def _tiled_vectors(out_dir: Path, donut: GaussianScene) -> None:
     first: a tile count one short in the index, and a tile box that misses a Gaussian."""
     from dataclasses import replace
 
-    from csgs_codec.codec.tile_index import TileIndex
+    from csgs_codec.chunks.tile_index import TileIndex
 
     head = donut.subset(np.arange(0, len(donut), 6))
     data = Encoder(quality=5, hyperprior=False, tile_size=2000, **UNIFORM).encode(head)

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from csgs_codec.chunks.anchor_payloads import AnchorHeader
 from csgs_codec.codec.anchor_decoder import AnchorDecoder
 from csgs_codec.codec.anchor_encoder import AnchorEncoder
-from csgs_codec.codec.anchor_payloads import AnchorHeader
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format import Chunk, read_layers, write_container
 from tests.anchors.helpers import encoded, small_scene

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from csgs_codec.codec import anchor_payloads as ap
+from csgs_codec.chunks import anchor_payloads as ap
 from csgs_codec.entropy.residual import CODED_VALUE_SLACK
 from csgs_codec.errors import FormatError
 from csgs_codec.format.primitives import ByteWriter

@@ -9,6 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from csgs_codec.chunks.scene_header import SceneHeader
 from csgs_codec.codec.color_prior import (
     ColorPrior,
     keep_outputs,
@@ -18,7 +19,6 @@ from csgs_codec.codec.color_prior import (
 from csgs_codec.codec.color_prior_choice import PriorFitPolicy
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
-from csgs_codec.codec.payloads import SceneHeader
 from csgs_codec.errors import FormatError
 from csgs_codec.format import Chunk, read_layers, write_container
 from csgs_codec.model.color_hyperprior import ColorFitSettings

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from csgs_codec import Decoder, Encoder
+from csgs_codec.chunks.scene_header import SceneHeader
 from csgs_codec.codec import encoder_checks
-from csgs_codec.codec.payloads import SceneHeader
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format import Chunk, read_layers, write_container
 from tests.codec.helpers import random_scene

@@ -21,7 +21,7 @@ import pytest
 
 from csgs_codec import Decoder, Encoder
 from csgs_codec.chunks.far_points import relative_far_payload
-from csgs_codec.codec.payloads import SceneHeader
+from csgs_codec.chunks.scene_header import SceneHeader
 from csgs_codec.codec.presets import preset
 from csgs_codec.errors import CsgsWarning, FormatError
 from csgs_codec.format import Chunk, read_layers, write_container

@@ -12,7 +12,7 @@ import pytest
 
 from csgs_cli.main import main
 from csgs_codec import Decoder, Encoder, read_ply
-from csgs_codec.codec.payloads import SEMANTIC_NAME
+from csgs_codec.chunks.semantic_names import SEMANTIC_NAME
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format.source import open_source
 from csgs_codec.format.toc import read_toc

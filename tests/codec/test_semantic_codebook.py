@@ -7,9 +7,9 @@ import dataclasses
 import numpy as np
 import pytest
 
+from csgs_codec.chunks.semantic_codebook import codebook_of, read_codebook, write_codebook
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
-from csgs_codec.codec.semantic_codebook import codebook_of, read_codebook, write_codebook
 from csgs_codec.errors import FormatError
 from csgs_codec.format.primitives import ByteReader, ByteWriter
 from csgs_codec.semantic.synthetic import labelled_blob_scene

@@ -168,7 +168,7 @@ def test_the_file_records_the_distribution_and_info_reports_it(tmp_path, capsys,
 
 
 def test_view_record_round_trips_and_refuses_damage():
-    from csgs_codec.codec.view_record import ViewRecord
+    from csgs_codec.chunks.view_record import ViewRecord
     from csgs_codec.errors import FormatError
 
     record = ViewRecord("cameras", 96, 1234, "96 of 311 cameras from cams.json")

@@ -15,8 +15,8 @@ import pytest
 from benchmarks._js_receiver import REPO, node_executable
 from csgs_codec.chunks.far_points import read_relative_far_payload
 from csgs_codec.chunks.far_points import relative_far_payload as outq
+from csgs_codec.chunks.view_record import ViewRecord
 from csgs_codec.codec.describe import describe_bitstream
-from csgs_codec.codec.view_record import ViewRecord
 from csgs_codec.errors import FormatError
 
 pytestmark = pytest.mark.skipif(node_executable() is None,

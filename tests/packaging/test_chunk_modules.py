@@ -13,7 +13,12 @@ PACKAGE = Path(__file__).resolve().parents[2] / "csgs_codec"
 FAMILIES = {"SHDC": "color_streams", "SHBA": "color_streams", "SHBB": "color_streams",
             "SHBC": "color_streams", "OPAC": "color_streams", "SCAL": "color_streams",
             "ROTN": "color_streams", "OUTL": "far_points", "OUTQ": "far_points",
-            "SEMF": "semantic", "SEML": "semantic", "SEMC": "semantic"}
+            "SEMF": "semantic", "SEML": "semantic", "SEMC": "semantic",
+            "SCNE": "scene_header", "TIDX": "tile_index", "vdis": "view_record",
+            "ANCH": "anchor_payloads", "AMLP": "anchor_payloads"}
+#: Families whose payload is a class with ``to_bytes``/``from_bytes`` (or that the anchor
+#: codec assembles from streams) rather than module functions.
+CLASS_FAMILIES = {"scene_header", "tile_index", "view_record", "anchor_payloads"}
 
 
 def _readers() -> dict[str, set[str]]:
@@ -40,7 +45,7 @@ def test_the_chunk_families_are_parsed_only_in_their_module():
 
 
 def test_each_chunk_module_writes_and_reads():
-    for module in set(FAMILIES.values()):
+    for module in set(FAMILIES.values()) - CLASS_FAMILIES:
         tree = ast.parse((PACKAGE / "chunks" / f"{module}.py").read_text())
         names = {n.name for n in tree.body if isinstance(n, ast.FunctionDef)}
         assert any(n.startswith("read_") for n in names), module

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from csgs_codec import Decoder, Encoder
-from csgs_codec.codec.payloads import SceneHeader
+from csgs_codec.chunks.scene_header import SceneHeader
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format import Chunk, read_layers, write_container
 from csgs_codec.render.rasterizer import render

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from csgs_codec import Decoder, Encoder
-from csgs_codec.codec.tile_index import TileIndex
+from csgs_codec.chunks.tile_index import TileIndex
 from csgs_codec.codec.tiling import split_tiles
 from csgs_codec.errors import CsgsWarning, FormatError, InputError
 from csgs_codec.format import Chunk, read_layers, write_container

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from csgs_codec.codec.payloads import names_from_bytes, names_to_bytes
+from csgs_codec.chunks.semantic_names import names_from_bytes, names_to_bytes
 from csgs_codec.entropy.categorical import decode_categorical, encode_categorical
 from csgs_codec.errors import InputError
 from csgs_codec.format.primitives import ByteReader, ByteWriter
