@@ -26,8 +26,8 @@ from bench_common import SCENES, document, emit  # noqa: E402
 
 from csgs_codec import read_ply  # noqa: E402
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
-from csgs_codec.codec.presets import Preset, preset, scaled_preset  # noqa: E402
-from csgs_codec.codec.rate_control import RenderProbe  # noqa: E402
+from csgs_codec.decisions.presets import Preset, preset, scaled_preset  # noqa: E402
+from csgs_codec.decisions.rate_control import RenderProbe  # noqa: E402
 
 STEP_FIELDS = ("dc_step", "rest_step", "opacity_step", "scale_step", "rotation_step")
 
@@ -57,7 +57,7 @@ class SceneScore:
 
     def exchange_rate(self) -> float:
         """Bits per Gaussian per dB along the uniform trade around the preset."""
-        from csgs_codec.codec.presets import MULTIPLIERS
+        from csgs_codec.decisions.presets import MULTIPLIERS
 
         m = MULTIPLIERS[self.quality]
         fine = self.measure(scaled_preset(m / 2**0.5))

@@ -35,8 +35,8 @@ from csgs_codec.chunks.color_streams import STREAM_CHUNKS  # noqa: E402
 from csgs_codec.codec.decoder import Decoder  # noqa: E402
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
 from csgs_codec.codec.float_stream import MODE_CONSTANT, plan_float_stream  # noqa: E402
-from csgs_codec.codec.presets import preset  # noqa: E402
 from csgs_codec.codec.streams import split_streams  # noqa: E402
+from csgs_codec.decisions.presets import preset  # noqa: E402
 from csgs_codec.entropy.histogram import histogram_cost  # noqa: E402
 from csgs_codec.entropy.residual import quantize, to_grid  # noqa: E402
 from csgs_codec.entropy.table_choice import table_costs  # noqa: E402

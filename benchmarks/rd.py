@@ -14,7 +14,7 @@ is the ``--views`` orbit views at 20 degrees alone (what results before 2026-11-
 
 Variants (``--variants``): ``plain`` is ``Encoder(quality=q)`` at ``--qualities`` (the
 default encoder: rotation steps by footprint, FORMAT §12.8 mode 7, and each scene's step
-allocation, csgs_codec/codec/step_allocation.py); ``preset`` keeps the preset's steps
+allocation, csgs_codec/decisions/step_allocation.py); ``preset`` keeps the preset's steps
 (``--no-step-allocation``, the default before 2026-11-27, so ``plain`` of earlier results);
 ``allocated`` allocates on every scene (``--step-allocation``; the default skips SH-0 scenes);
 ``uniform`` is ``plain`` with one rotation step for all (``--uniform-steps``); ``stacked``

@@ -35,7 +35,7 @@ from csgs_codec.codec.anchor_encoder import AnchorEncoder  # noqa: E402
 from csgs_codec.codec.decoder import Decoder  # noqa: E402
 from csgs_codec.codec.describe import describe_bitstream  # noqa: E402
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
-from csgs_codec.codec.presets import PRESETS  # noqa: E402
+from csgs_codec.decisions.presets import PRESETS  # noqa: E402
 from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene  # noqa: E402
 from csgs_codec.semantic.clustering import spherical_kmeans, unit_rows  # noqa: E402
 from csgs_codec.semantic.evaluation import click_object_ious, mean_iou  # noqa: E402

@@ -112,7 +112,7 @@ from bench_common import REPO, document, emit  # noqa: E402
 from csgs_codec.codec.decoder import Decoder  # noqa: E402
 from csgs_codec.codec.describe import describe_bitstream  # noqa: E402
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
-from csgs_codec.codec.presets import PRESETS  # noqa: E402
+from csgs_codec.decisions.presets import PRESETS  # noqa: E402
 from csgs_codec.errors import InputError  # noqa: E402
 from csgs_codec.scene.gaussian_scene import GaussianScene  # noqa: E402
 from csgs_codec.scene.orbit import orbit_cameras  # noqa: E402

@@ -33,7 +33,7 @@ from derived_steps import HeldOut  # noqa: E402
 
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
 from csgs_codec.codec.float_stream import write_float_stream  # noqa: E402
-from csgs_codec.codec.presets import PRESETS  # noqa: E402
+from csgs_codec.decisions.presets import PRESETS  # noqa: E402
 from csgs_codec.format.primitives import ByteWriter  # noqa: E402
 from csgs_codec.scene.gaussian_scene import SH_REST_COUNTS  # noqa: E402
 from csgs_codec.scene.ply_io import read_ply  # noqa: E402

@@ -26,7 +26,7 @@ from bench_common import document, emit  # noqa: E402
 from derived_steps import HeldOut, size_at_psnr  # noqa: E402
 
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
-from csgs_codec.codec.presets import PRESETS  # noqa: E402
+from csgs_codec.decisions.presets import PRESETS  # noqa: E402
 from csgs_codec.scene.ply_io import read_ply  # noqa: E402
 
 

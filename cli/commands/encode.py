@@ -8,7 +8,7 @@ from time import perf_counter
 
 from tqdm import tqdm
 
-from csgs_codec.codec.presets import (
+from csgs_codec.decisions.presets import (
     DEFAULT_QUALITY,
     DEFAULT_ROTATION_STEPS,
     QUALITIES,

@@ -18,7 +18,7 @@ DEFAULT_RESOLUTION = 640
 
 def add_arguments(parser) -> None:
     """Arguments of ``csgs segment``."""
-    from csgs_codec.codec.presets import DEFAULT_QUALITY, QUALITIES
+    from csgs_codec.decisions.presets import DEFAULT_QUALITY, QUALITIES
     from csgs_codec.train import defaults
 
     parser.add_argument("scene", help="the trained scene: any 3DGS file 'csgs encode' reads, "

@@ -1,6 +1,6 @@
 """Far points (FORMAT §12.4, §12.20), both directions: OUTQ, far points with relative
 precision, then OUTL, the rest as exact float32. Which points go where is the encoder's
-decision (:mod:`csgs_codec.codec.far_points`).
+decision (:mod:`csgs_codec.decisions.far_points`).
 
 OUTL: varint count, then (x, y, z) float32 per point.
 

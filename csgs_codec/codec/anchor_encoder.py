@@ -33,7 +33,7 @@ from csgs_codec.chunks.semantic import label_payload
 from csgs_codec.chunks.semantic_names import MAX_SEMANTIC_CHANNELS, names_to_bytes
 from csgs_codec.codec.anchor_grid import anchor_grid
 from csgs_codec.codec.encoder_checks import check_semantic_names
-from csgs_codec.codec.presets import (
+from csgs_codec.decisions.presets import (
     ANCHOR_BASE_STEPS,
     ANCHOR_QUALITIES,
     DEFAULT_QUALITY,

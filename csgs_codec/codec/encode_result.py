@@ -22,12 +22,12 @@ class EncodeResult:
         stream_bytes: chunk type -> payload bytes.
         seconds: encode wall time.
         view_pruned: Gaussians removed for contributing too little to the views (see
-            :mod:`csgs_codec.codec.view_pruning`); ``order`` skips them.
+            :mod:`csgs_codec.decisions.view_pruning`); ``order`` skips them.
         views: the viewing distribution the pruning followed, or None when none ran.
-        rate_control: the :class:`~csgs_codec.codec.rate_control.RateControlReport` of a
-            target-PSNR encode, the :class:`~csgs_codec.codec.rate_control.LambdaReport`
+        rate_control: the :class:`~csgs_codec.decisions.rate_control.RateControlReport` of a
+            target-PSNR encode, the :class:`~csgs_codec.decisions.rate_control.LambdaReport`
             (chosen multiplier and cost J) of a lambda encode, else None.
-        allocation: the :class:`~csgs_codec.codec.step_allocation.StepAllocation` the
+        allocation: the :class:`~csgs_codec.decisions.step_allocation.StepAllocation` the
             encoder chose for a quality encode, or None when it kept the preset's steps
             (allocation off, fast mode, a target or lambda search).
     """

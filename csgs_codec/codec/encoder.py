@@ -24,20 +24,23 @@ from csgs_codec.chunks.semantic_codebook import (
 )
 from csgs_codec.chunks.view_record import ViewRecord
 from csgs_codec.codec.color_prior import prior_cells
-from csgs_codec.codec.color_prior_choice import (
+from csgs_codec.codec.derived_steps import rotation_classes
+from csgs_codec.codec.encode_result import EncodeResult
+from csgs_codec.codec.encoder_checks import check_count, check_encodable, decodable_container
+from csgs_codec.codec.float_stream import (
+    plan_float_stream,
+)
+from csgs_codec.codec.sh_colour_transform import apply_inverse, choose_transforms, record_bytes
+from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
+from csgs_codec.codec.tiling import check_tile_size, effective_tile_size
+from csgs_codec.decisions.color_prior_choice import (
     DEFAULT_PRIOR_FIT,
     PriorChoice,
     PriorFitPolicy,
     choose_prior,
 )
-from csgs_codec.codec.derived_steps import rotation_classes
-from csgs_codec.codec.encode_result import EncodeResult
-from csgs_codec.codec.encoder_checks import check_count, check_encodable, decodable_container
-from csgs_codec.codec.far_points import plan_far_points
-from csgs_codec.codec.float_stream import (
-    plan_float_stream,
-)
-from csgs_codec.codec.presets import (
+from csgs_codec.decisions.far_points import plan_far_points
+from csgs_codec.decisions.presets import (
     DEFAULT_QUALITY,
     DEFAULT_ROTATION_STEPS,
     ROTATION_STEPS,
@@ -46,10 +49,7 @@ from csgs_codec.codec.presets import (
     preset_steps,
     scaled_preset,
 )
-from csgs_codec.codec.sh_colour_transform import apply_inverse, choose_transforms, record_bytes
-from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
-from csgs_codec.codec.tiling import check_tile_size, effective_tile_size
-from csgs_codec.codec.view_pruning import DEFAULT_BUDGET, decide
+from csgs_codec.decisions.view_pruning import DEFAULT_BUDGET, decide
 from csgs_codec.entropy.geometry import canonical_order, encode_positions
 from csgs_codec.errors import InputError
 from csgs_codec.format import Chunk
@@ -79,14 +79,14 @@ class Encoder:
     """Encodes standard 3DGS scenes to .csgs.
 
     Args:
-        quality: preset 1 (smallest) .. 9 (near-lossless); see csgs_codec/codec/presets.py.
+        quality: preset 1 (smallest) .. 9 (near-lossless); see csgs_codec/decisions/presets.py.
             Default 5.
         target_psnr: instead of the preset, the smallest encode whose renders reach this
             foreground PSNR (dB) on the rate control's probe views
-            (:mod:`csgs_codec.codec.rate_control`; several encodes and renders).
+            (:mod:`csgs_codec.decisions.rate_control`; several encodes and renders).
         lambda_: instead of a quality or target, the encode minimising J = D + lambda * R on
             the probe views: D the foreground MSE in squared 8-bit levels, R the file's bits
-            per Gaussian (:func:`~csgs_codec.codec.rate_control.encode_for_lambda`).
+            per Gaussian (:func:`~csgs_codec.decisions.rate_control.encode_for_lambda`).
         fast: no color hyperprior fit, and shorter searches: target PSNR with fewer trial
             encodes and a looser tolerance (the target is still met; the file may be
             larger), lambda with fewer encodes on half the probe views.
@@ -94,7 +94,7 @@ class Encoder:
             least 8,192 Gaussians) and use it for the channels where it makes the file
             smaller. It changes the rate only: the decoded scene is the same either way.
         prior_fit: how that fit runs and when its network is kept
-            (:class:`~csgs_codec.codec.color_prior_choice.PriorFitPolicy`); the default
+            (:class:`~csgs_codec.decisions.color_prior_choice.PriorFitPolicy`); the default
             is what the CLI uses. Shorter fits change the bytes, never the decoded scene.
         semantic: "auto" writes the semantic layer when the scene has semantic channels or
             labels; "none" never writes it.
@@ -102,7 +102,7 @@ class Encoder:
             opt-in); None keeps every Gaussian.
         view_pruning: leave out the Gaussians that contribute least to renders over the
             viewing distribution, within a budget of the quantization's own error
-            (:mod:`csgs_codec.codec.view_pruning`; scenes of 1,024+ Gaussians, needs numba;
+            (:mod:`csgs_codec.decisions.view_pruning`; scenes of 1,024+ Gaussians, needs numba;
             lossy, opt-in: ``--view-prune``). False (default) codes every Gaussian.
         cameras: the views the scene will be seen from (e.g. its capture cameras), or None
             for the default sphere of views around it
@@ -118,18 +118,18 @@ class Encoder:
         step_allocation: move each attribute group's step (DC, each SH band, opacity,
             scales, rotations) and the position grid's bits from the preset's, per scene,
             where probe renders say the file gets smaller at equal quality
-            (:mod:`csgs_codec.codec.step_allocation`; quality encodes of scenes of 1,024+
+            (:mod:`csgs_codec.decisions.step_allocation`; quality encodes of scenes of 1,024+
             Gaussians in one tile, not in fast mode). None (default): for scenes that code
             SH bands (two SH-3 captures: 0.68-0.95x the preset's bytes at equal held-out
             PSNR at the 7 of 22 presets where it moved steps, the others unchanged; the SH-0
             sample measured no gain for seconds of probing); True: for every
-            scene; False: never. The preset's error bounds (:mod:`csgs_codec.codec.presets`)
+            scene; False: never. The preset's error bounds (:mod:`csgs_codec.decisions.presets`)
             hold for the steps actually used (``EncodeResult.allocation``).
         allocation_progress: a callable ``allocation_progress(done, total)`` told of the
             allocation's probe renders, or None.
         refine: Adam steps that move each coded value to the lattice point whose decoded
             scene renders closest to the original over the viewing distribution (``cameras``
-            or the default sphere; :mod:`csgs_codec.codec.refinement`). Same format and
+            or the default sphere; :mod:`csgs_codec.decisions.refinement`). Same format and
             decoder, lower render error at about the same size; seconds to minutes on a
             CPU. 0 (default) codes each value at its nearest lattice point. Scenes of one
             tile.
@@ -170,11 +170,11 @@ class Encoder:
                              property="lambda")
         self.preset: Preset = preset(DEFAULT_QUALITY if quality is None else quality)
         if target_psnr is not None:
-            from csgs_codec.codec.rate_control import check_target
+            from csgs_codec.decisions.rate_control import check_target
 
             check_target(target_psnr)
         if lambda_ is not None:
-            from csgs_codec.codec.rate_control import check_render_lambda
+            from csgs_codec.decisions.rate_control import check_render_lambda
 
             check_render_lambda(lambda_)
             lambda_ = float(lambda_)
@@ -264,7 +264,7 @@ class Encoder:
     def _allocate(self, scene: GaussianScene):
         """The :class:`StepAllocation` of ``scene`` around the preset, or None when the
         allocation is off or the scene too small for it."""
-        from csgs_codec.codec.step_allocation import MIN_GAUSSIANS, allocate_steps
+        from csgs_codec.decisions.step_allocation import MIN_GAUSSIANS, allocate_steps
 
         # A tiled scene keeps the preset: its streamed encode (csgs encode of a large binary
         # PLY) never holds the whole scene, and must write what a whole read writes.
@@ -301,7 +301,7 @@ class Encoder:
     def _search(self, scene: GaussianScene, original: GaussianScene) -> EncodeResult:
         """The target-PSNR or lambda search over the step multiplier (rate_control.py),
         scored on probe renders of ``original``; the report goes to ``rate_control``."""
-        from csgs_codec.codec import rate_control as rc
+        from csgs_codec.decisions import rate_control as rc
 
         self.progress("rate control")
         # A target is a promise about the probe views, so only the lambda search (a trade
@@ -478,10 +478,10 @@ class Encoder:
 
     def _refined_plans(self, ordered: GaussianScene, streams: SceneStreams, plans: dict,
                        positions: np.ndarray, p: Preset) -> dict:
-        """The color plans after refinement (:mod:`csgs_codec.codec.refinement`): the
+        """The color plans after refinement (:mod:`csgs_codec.decisions.refinement`): the
         refined values planned on the lattices of ``plans``. ``streams`` is updated in
         place to the refined values."""
-        from csgs_codec.codec.refinement import RefineSettings, refine_streams
+        from csgs_codec.decisions.refinement import RefineSettings, refine_streams
 
         self.progress("refinement")
         views = self._viewing_distribution(ordered)

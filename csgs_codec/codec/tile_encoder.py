@@ -19,8 +19,8 @@ import numpy as np
 from csgs_codec.chunks.tile_index import TileIndex, TileInfo, tile_info
 from csgs_codec.codec.encode_result import EncodeResult
 from csgs_codec.codec.parallel import run_jobs
-from csgs_codec.codec.presets import Preset
 from csgs_codec.codec.tiling import effective_tile_size, split_tiles, tile_grid
+from csgs_codec.decisions.presets import Preset
 from csgs_codec.errors import InputError
 from csgs_codec.format import Chunk
 from csgs_codec.scene.gaussian_scene import GaussianScene

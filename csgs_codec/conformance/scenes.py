@@ -306,7 +306,7 @@ def _color_prior_vectors(out_dir: Path, donut: GaussianScene) -> None:
     """A file with the color hyperprior (CHYP, channel mode 5) and the same file without its
     CHYP chunk. A short fit on 4,000 Gaussians, kept even where the network costs more than
     it saves, so the vector stays small."""
-    from csgs_codec.codec.color_prior_choice import PriorFitPolicy
+    from csgs_codec.decisions.color_prior_choice import PriorFitPolicy
     from csgs_codec.model.color_hyperprior import ColorFitSettings
 
     head = donut.subset(np.arange(4000))

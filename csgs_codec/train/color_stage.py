@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from csgs_codec.codec.presets import ANCHOR_BASE_STEPS, ANCHOR_QUALITIES, MULTIPLIERS
+from csgs_codec.decisions.presets import ANCHOR_BASE_STEPS, ANCHOR_QUALITIES, MULTIPLIERS
 from csgs_codec.errors import InputError, ModelError
 from csgs_codec.metrics.image import psnr
 from csgs_codec.train import defaults

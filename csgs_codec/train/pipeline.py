@@ -28,7 +28,7 @@ import torch
 from torch import nn
 
 from csgs_codec.codec.anchor_encoder import AnchorEncoder, AnchorEncodeResult
-from csgs_codec.codec.presets import ANCHOR_BASE_STEPS, MULTIPLIERS
+from csgs_codec.decisions.presets import ANCHOR_BASE_STEPS, MULTIPLIERS
 from csgs_codec.errors import CsgsWarning, InputError, ModelError
 from csgs_codec.model.anchor_hyperprior import STEP_RANGE, FitSettings
 from csgs_codec.model.scaffold import ScaffoldDecoder

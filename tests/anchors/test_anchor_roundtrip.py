@@ -7,7 +7,7 @@ import pytest
 
 from csgs_codec.chunks.anchor_payloads import MLP_RELATIVE_STEP
 from csgs_codec.codec.anchor_decoder import AnchorDecoder, is_anchor_file
-from csgs_codec.codec.presets import DEFAULT_QUALITY, MULTIPLIERS
+from csgs_codec.decisions.presets import DEFAULT_QUALITY, MULTIPLIERS
 from csgs_codec.entropy.anchor_attributes import FRAC_BITS
 from csgs_codec.format import Chunk, read_layers, write_container
 from tests.anchors.helpers import encoded, small_scene

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from benchmarks.allocation import apply
-from csgs_codec.codec.presets import preset
+from csgs_codec.decisions.presets import preset
 
 
 def test_offsets_scale_steps_by_powers_of_two_and_shift_grid_bits():

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from csgs_codec.codec.color_prior_choice import PriorFitPolicy
+from csgs_codec.decisions.color_prior_choice import PriorFitPolicy
 from csgs_codec.model.color_hyperprior import ColorFitSettings
 from csgs_codec.scene import GaussianScene
 

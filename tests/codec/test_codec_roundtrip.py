@@ -8,7 +8,7 @@ import pytest
 from csgs_codec.codec import sh_colour_transform as xf
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
-from csgs_codec.codec.presets import preset
+from csgs_codec.decisions.presets import preset
 from csgs_codec.format import read_layers
 from csgs_codec.scene.attribute_forms import normalize_quaternions
 from csgs_codec.scene.ply_io import read_ply

@@ -16,9 +16,9 @@ from csgs_codec.codec.color_prior import (
     prior_from_bytes,
     prior_to_bytes,
 )
-from csgs_codec.codec.color_prior_choice import PriorFitPolicy
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
+from csgs_codec.decisions.color_prior_choice import PriorFitPolicy
 from csgs_codec.errors import FormatError
 from csgs_codec.format import Chunk, read_layers, write_container
 from csgs_codec.model.color_hyperprior import ColorFitSettings
@@ -203,7 +203,7 @@ def test_a_trial_that_saves_little_stops_the_fit():
 def test_the_default_encoder_runs_the_full_fit_and_keeps_the_prior(donut):
     """The encoder as users run it (no test settings): the whole 1,500-step fit on the
     sample, the prior kept, and the file decodes to the reconstruction."""
-    from csgs_codec.codec.color_prior_choice import DEFAULT_PRIOR_FIT
+    from csgs_codec.decisions.color_prior_choice import DEFAULT_PRIOR_FIT
 
     steps = []
     encoder = Encoder(fit_progress=lambda done, total: steps.append((done, total)))

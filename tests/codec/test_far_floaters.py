@@ -2,7 +2,7 @@
 
 A scene is a subset of samples/donut.ply (every 8th Gaussian, 5,703 of them) in which a share
 of the Gaussians is moved to about ``distance`` units in random directions. The bound the
-preset documents (csgs_codec/codec/presets.py, FORMAT §12.5 and §12.20) is asserted:
+preset documents (csgs_codec/decisions/presets.py, FORMAT §12.5 and §12.20) is asserted:
 
 - on every Gaussian that reaches a pixel — here: opacity sigmoid >= 1/255 and within the
   dense core's viewing distance, taken as 100 times the core's extent from its centre (the
@@ -22,7 +22,7 @@ import pytest
 from csgs_codec import Decoder, Encoder
 from csgs_codec.chunks.far_points import relative_far_payload
 from csgs_codec.chunks.scene_header import SceneHeader
-from csgs_codec.codec.presets import preset
+from csgs_codec.decisions.presets import preset
 from csgs_codec.errors import CsgsWarning, FormatError
 from csgs_codec.format import Chunk, read_layers, write_container
 from csgs_codec.scene.far_positions import quantize_far

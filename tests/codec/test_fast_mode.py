@@ -9,7 +9,7 @@ from csgs_codec.codec.anchor_decoder import AnchorDecoder
 from csgs_codec.codec.anchor_encoder import AnchorEncoder
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
-from csgs_codec.codec.rate_control import FAST_SEARCH_STEPS, RenderProbe
+from csgs_codec.decisions.rate_control import FAST_SEARCH_STEPS, RenderProbe
 from csgs_codec.model.anchor_hyperprior import FAST_FIT, FitSettings
 from csgs_codec.scene.ply_io import read_ply
 from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene
@@ -81,7 +81,7 @@ def test_a_fast_target_psnr_search_tries_fewer_encodes_and_meets_the_target(donu
                                                                            monkeypatch):
     probe = RenderProbe(donut_subset, views=2, size=(96, 72))
     asked = []
-    monkeypatch.setattr("csgs_codec.codec.rate_control.RenderProbe",
+    monkeypatch.setattr("csgs_codec.decisions.rate_control.RenderProbe",
                         lambda scene, **options: asked.append(options) or probe)
     result = Encoder(target_psnr=38.0, fast=True).encode_with_report(donut_subset)
     assert asked == [{}]  # a target is met on the full probe, fast or not

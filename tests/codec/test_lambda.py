@@ -11,7 +11,7 @@ from csgs_codec.codec.anchor_decoder import AnchorDecoder
 from csgs_codec.codec.anchor_encoder import AnchorEncoder
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
-from csgs_codec.codec.rate_control import (
+from csgs_codec.decisions.rate_control import (
     FAST_LAMBDA_STEPS,
     FAST_PROBE_VIEWS,
     LambdaReport,
@@ -43,7 +43,7 @@ def lambda_run(donut_subset, probe):
     report)}, the options each encode asked RenderProbe for)."""
     results, asked = {}, []
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr("csgs_codec.codec.rate_control.RenderProbe",
+        patch.setattr("csgs_codec.decisions.rate_control.RenderProbe",
                       lambda scene, **options: asked.append(options) or probe)
         for lam in (0.02, 0.4, 8.0):
             result = Encoder(lambda_=lam, fast=True).encode_with_report(donut_subset)

@@ -8,7 +8,7 @@ import pytest
 from csgs_codec.codec.anchor_encoder import AnchorEncoder
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
-from csgs_codec.codec.presets import ANCHOR_QUALITIES, PRESETS, QUALITIES
+from csgs_codec.decisions.presets import ANCHOR_QUALITIES, PRESETS, QUALITIES
 from csgs_codec.errors import InputError
 from csgs_codec.metrics.image import psnr
 from csgs_codec.render.rasterizer import render

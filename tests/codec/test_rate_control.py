@@ -7,8 +7,8 @@ import pytest
 
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
-from csgs_codec.codec.presets import PRESETS, scaled_preset
-from csgs_codec.codec.rate_control import RenderProbe
+from csgs_codec.decisions.presets import PRESETS, scaled_preset
+from csgs_codec.decisions.rate_control import RenderProbe
 from csgs_codec.errors import CsgsWarning, InputError
 from csgs_codec.scene.ply_io import read_ply
 from tests.conftest import SAMPLE
@@ -36,7 +36,7 @@ def test_scaled_presets_reproduce_the_preset_ladder():
 @pytest.mark.parametrize("target", [30.0, 42.0])
 def test_the_target_is_met_and_decodes_as_reconstructed(small_scene, probe, target,
                                                          monkeypatch):
-    monkeypatch.setattr("csgs_codec.codec.rate_control.RenderProbe", lambda scene: probe)
+    monkeypatch.setattr("csgs_codec.decisions.rate_control.RenderProbe", lambda scene: probe)
     result = Encoder(target_psnr=target).encode_with_report(small_scene)
     report = result.rate_control
     assert report.psnr >= target
@@ -48,7 +48,7 @@ def test_the_target_is_met_and_decodes_as_reconstructed(small_scene, probe, targ
 
 
 def test_a_higher_target_gives_a_larger_file(small_scene, probe, monkeypatch):
-    monkeypatch.setattr("csgs_codec.codec.rate_control.RenderProbe", lambda scene: probe)
+    monkeypatch.setattr("csgs_codec.decisions.rate_control.RenderProbe", lambda scene: probe)
     low = Encoder(target_psnr=28.0).encode(small_scene)
     high = Encoder(target_psnr=45.0).encode(small_scene)
     assert len(high) > len(low)
@@ -56,7 +56,7 @@ def test_a_higher_target_gives_a_larger_file(small_scene, probe, monkeypatch):
 
 def test_an_unreachable_target_warns_and_keeps_the_finest_encode(small_scene, probe,
                                                                  monkeypatch):
-    monkeypatch.setattr("csgs_codec.codec.rate_control.RenderProbe", lambda scene: probe)
+    monkeypatch.setattr("csgs_codec.decisions.rate_control.RenderProbe", lambda scene: probe)
     with pytest.warns(CsgsWarning, match="not reached"):
         result = Encoder(target_psnr=89.0).encode_with_report(small_scene)
     assert result.rate_control.multiplier == pytest.approx(2.0 ** -4)
@@ -71,7 +71,7 @@ def test_a_target_outside_the_range_is_refused(small_scene, target):
 def test_a_refined_final_encode_still_meets_the_target(small_scene, probe, monkeypatch):
     """The search runs without refinement; its settings are encoded once more refined, and
     that file is kept only where it still reaches the target on the probe views."""
-    monkeypatch.setattr("csgs_codec.codec.rate_control.RenderProbe", lambda scene: probe)
+    monkeypatch.setattr("csgs_codec.decisions.rate_control.RenderProbe", lambda scene: probe)
     steps = []
     result = Encoder(target_psnr=34.0, refine=3, hyperprior=False,
                      refine_progress=lambda done, total: steps.append(done)
@@ -86,7 +86,7 @@ def test_a_refined_encode_that_misses_the_target_falls_back_to_the_hyperprior_en
         small_scene, probe, monkeypatch):
     """When the refined final encode renders below the target, the searched settings are
     coded once more without refinement, with the color hyperprior."""
-    from csgs_codec.codec.color_prior_choice import PriorFitPolicy
+    from csgs_codec.decisions.color_prior_choice import PriorFitPolicy
     from csgs_codec.model.color_hyperprior import ColorFitSettings
 
     refined = []
@@ -100,7 +100,7 @@ def test_a_refined_encode_that_misses_the_target_falls_back_to_the_hyperprior_en
                 return 0.0
             return probe.psnr(candidate)
 
-    monkeypatch.setattr("csgs_codec.codec.rate_control.RenderProbe",
+    monkeypatch.setattr("csgs_codec.decisions.rate_control.RenderProbe",
                         lambda scene: PessimisticAboutRefinement())
     policy = PriorFitPolicy(ColorFitSettings(steps=60, batch=256), min_gaussians=0,
                             keep_when_larger=True)

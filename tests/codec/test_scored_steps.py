@@ -67,7 +67,7 @@ def test_the_default_encoder_writes_mode_7_and_decodes_to_its_reconstruction():
 
 
 def test_mode_7_with_the_color_hyperprior_decodes_exactly():
-    from csgs_codec.codec.color_prior_choice import PriorFitPolicy
+    from csgs_codec.decisions.color_prior_choice import PriorFitPolicy
     from csgs_codec.model.color_hyperprior import ColorFitSettings
 
     policy = PriorFitPolicy(ColorFitSettings(steps=60), min_gaussians=0, keep_when_larger=True)

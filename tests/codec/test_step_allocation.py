@@ -1,4 +1,4 @@
-"""Per-scene step allocation (csgs_codec/codec/step_allocation.py): the encoder moves each
+"""Per-scene step allocation (csgs_codec/decisions/step_allocation.py): the encoder moves each
 attribute group's step from the preset where probe renders say it pays."""
 
 from __future__ import annotations
@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from csgs_codec.codec import step_allocation as sa
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
-from csgs_codec.codec.presets import PRESETS, preset_steps
-from csgs_codec.codec.step_allocation import StepAllocation, allocate_steps
+from csgs_codec.decisions import step_allocation as sa
+from csgs_codec.decisions.presets import PRESETS, preset_steps
+from csgs_codec.decisions.step_allocation import StepAllocation, allocate_steps
 from csgs_codec.errors import InputError
 from tests.codec.helpers import random_scene
 

@@ -31,7 +31,7 @@ def test_scored_steps_decode_in_javascript(tmp_path, threads):
 
 
 def test_scored_steps_with_the_hyperprior_decode_in_javascript(tmp_path):
-    from csgs_codec.codec.color_prior_choice import PriorFitPolicy
+    from csgs_codec.decisions.color_prior_choice import PriorFitPolicy
     from csgs_codec.model.color_hyperprior import ColorFitSettings
 
     policy = PriorFitPolicy(ColorFitSettings(steps=60), min_gaussians=0, keep_when_larger=True)

@@ -13,7 +13,7 @@ import pytest
 
 from benchmarks._js_receiver import node_executable, run_js, scene_hashes
 from csgs_codec import Decoder, Encoder, read_ply
-from csgs_codec.codec.presets import DEFAULT_QUALITY
+from csgs_codec.decisions.presets import DEFAULT_QUALITY
 from tests.conftest import SHARED_DATA, shared_path
 
 pytestmark = pytest.mark.skipif(node_executable() is None,

@@ -95,3 +95,26 @@ def test_no_module_of_csgs_codec_is_in_an_import_cycle():
     graph = import_graph()
     assert len(graph) > 100
     assert cycles(graph) == []
+
+
+def _reachable(graph: dict[str, set[str]], root: str) -> set[str]:
+    """Every module ``root`` imports, directly or through others."""
+    seen, stack = set(), [root]
+    while stack:
+        for dep in graph.get(stack.pop(), ()):
+            if dep not in seen:
+                seen.add(dep)
+                stack.append(dep)
+    return seen
+
+
+def test_the_decoders_import_no_encoder_decision():
+    """csgs_codec.decisions holds what only the encoder decides (presets, allocation, rate
+    control, ...); a decoder that needed one of them would read something the format does
+    not record."""
+    graph = import_graph()
+    assert "csgs_codec.decisions.presets" in graph
+    for decoder in ("csgs_codec.codec.decoder", "csgs_codec.codec.anchor_decoder",
+                    "csgs_codec.chunks.color_streams"):
+        assert decoder in graph
+        assert not {m for m in _reachable(graph, decoder) if m.startswith("csgs_codec.decisions")}

@@ -1,6 +1,6 @@
 """The color codec's documented error bounds, as checks on a decoded scene.
 
-Bounds (spec/FORMAT.md §12.4, §12.8, §16.3.1; csgs_codec/codec/presets.py), for the steps an
+Bounds (spec/FORMAT.md §12.4, §12.8, §16.3.1; csgs_codec/decisions/presets.py), for the steps an
 encode used (the preset's; a rate-controlled encoder's plan where its report has one):
 
 - a coded value is ``mu + q k`` with k the round-half-up of (a - mu) / q on the value grid of F
@@ -25,7 +25,7 @@ import numpy as np
 from csgs_codec.codec import sh_colour_transform as xf
 from csgs_codec.codec.encoder import EncodeResult
 from csgs_codec.codec.float_stream import MAX_FRAC_BITS, frac_bits_for
-from csgs_codec.codec.presets import Preset
+from csgs_codec.decisions.presets import Preset
 from csgs_codec.entropy.residual import step_index, step_size
 from csgs_codec.format import read_layers
 from csgs_codec.scene.attribute_forms import (

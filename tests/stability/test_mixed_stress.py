@@ -12,7 +12,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from csgs_codec.codec.presets import preset
+from csgs_codec.decisions.presets import preset
 from tests.stability.bounds import assert_all_finite, assert_within_bounds, result_steps
 from tests.stability.mixed_scenes import mixed_scene
 from tests.stability.round_trips import round_trip

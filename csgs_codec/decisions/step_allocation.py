@@ -10,7 +10,7 @@ in whole grid bits) to minimise the Lagrangian cost
     J = D + lambda * R,
 
 D the foreground mean squared error of probe renders of the coded scene against the original
-(squared 8-bit levels, :class:`csgs_codec.codec.rate_control.RenderProbe`'s measure, on a few
+(squared 8-bit levels, :class:`csgs_codec.decisions.rate_control.RenderProbe`'s measure, on a few
 small views of the viewing distribution), R the planned bits of every stream (each stream's
 own plan, before the hyperprior: :func:`csgs_codec.codec.float_stream.plan_float_stream`, and
 the octree's bytes for positions), and lambda the slope of the preset's own ladder at the
@@ -32,8 +32,8 @@ import numpy as np
 
 from csgs_codec.codec.derived_steps import rotation_classes
 from csgs_codec.codec.float_stream import plan_float_stream
-from csgs_codec.codec.presets import Preset, preset_steps
 from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
+from csgs_codec.decisions.presets import Preset, preset_steps
 from csgs_codec.entropy.geometry import encode_positions
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.scene.position_grid import PositionGrid

@@ -3,7 +3,7 @@ encode that minimises a rate-distortion cost J = D + lambda * R.
 
 The encoder renders the original scene from a few low-resolution orbit views once, then
 searches the step multiplier (all steps and the grid bits scale together, as between the
-quality presets; :func:`csgs_codec.codec.presets.scaled_preset`): it encodes, renders the
+quality presets; :func:`csgs_codec.decisions.presets.scaled_preset`): it encodes, renders the
 encoder's own reconstruction (which equals what the decoder will output) and searches the
 multiplier's logarithm, along which PSNR falls almost linearly (about 6 dB per octave), by
 interpolation inside a bracket that always holds the target (the Illinois variant of
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from csgs_codec.codec.presets import scaled_preset
+from csgs_codec.decisions.presets import scaled_preset
 from csgs_codec.errors import CsgsWarning, InputError
 from csgs_codec.scene.gaussian_scene import GaussianScene
 

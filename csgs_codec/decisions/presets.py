@@ -13,7 +13,7 @@ against the original render): about 26 dB at 1, 31 at 2, 40 at 4, 47 at 6, 53 at
 full-precision SH-3 scenes (../shared/data/real_sh3, 28 held-out views at 400x300):
 fruit_drops 51.4 dB at 9, 60.2 at 10, 66.7 at 11; leica_sofort_top8192 48.7, 57.2, 65.1 dB.
 
-The encoder's step allocation (:mod:`csgs_codec.codec.step_allocation`, on by default for
+The encoder's step allocation (:mod:`csgs_codec.decisions.step_allocation`, on by default for
 scenes with SH bands) moves a scene's steps and grid bits from its preset's: the bounds below
 then hold for the settings it used (``EncodeResult.allocation.apply(preset)``; the file
 records each stream's step and the grid's bits), and for the preset itself with
@@ -60,7 +60,7 @@ class Preset:
     rotation_step: float
     semantic_step: float
     #: Each SH band's step over ``rest_step`` (bands 1, 2, 3): 1 in every preset; the
-    #: encoder's step allocation moves them per scene (:mod:`csgs_codec.codec.step_allocation`).
+    #: encoder's step allocation moves them per scene (:mod:`csgs_codec.decisions.step_allocation`).
     rest_band_factors: tuple[float, float, float] = (1.0, 1.0, 1.0)
 
 
