@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from csgs_codec.codec.anchor_decoder import AnchorDecoder
-from csgs_codec.conformance import VECTORS_DIR
-from csgs_codec.conformance.anchors import anchor_digest
 from csgs_codec.errors import CsgsError
+from tests.conformance import VECTORS_DIR
+from tests.conformance.anchors import anchor_digest
 
 VECTORS = sorted((VECTORS_DIR / "anchors").glob("*.json"))
 

@@ -12,8 +12,8 @@ from csgs_codec.codec.float_stream import (
     read_float_stream,
     write_float_stream,
 )
-from csgs_codec.conformance import VECTORS_DIR
 from csgs_codec.format.primitives import ByteReader, ByteWriter
+from tests.conformance import VECTORS_DIR
 
 
 def _modes(payload: bytes) -> list[int]:

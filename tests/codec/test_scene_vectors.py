@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from csgs_codec.codec.decoder import Decoder
-from csgs_codec.conformance import VECTORS_DIR
 from csgs_codec.errors import CsgsError
 from csgs_codec.scene.ply_io import ply_bytes
+from tests.conformance import VECTORS_DIR
 
 VECTORS = sorted((VECTORS_DIR / "scenes").glob("*.json"))
 

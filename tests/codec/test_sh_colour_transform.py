@@ -9,10 +9,10 @@ import pytest
 from csgs_codec.codec import sh_colour_transform as xf
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
-from csgs_codec.conformance.scenes import correlated_sh3_scene
 from csgs_codec.errors import FormatError
 from csgs_codec.format import read_layers
 from tests.codec.helpers import random_scene
+from tests.conformance.scenes import correlated_sh3_scene
 
 
 def chunk_types(data: bytes) -> list[str]:

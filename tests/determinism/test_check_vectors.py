@@ -9,7 +9,7 @@ import shutil
 
 import pytest
 
-from csgs_codec.conformance import VECTORS_DIR
+from tests.conformance import VECTORS_DIR
 from tests.determinism.check_vectors import Config, blas_variants, check, default_configs, main
 from tests.determinism.vector_cases import FAMILIES, json_digest, vector_cases
 
@@ -46,7 +46,7 @@ def test_the_torch_free_anchor_digest_equals_the_conformance_definition():
     if not path.exists():
         pytest.skip("no anchor vectors in this checkout")
     from csgs_codec.codec.anchor_decoder import AnchorDecoder
-    from csgs_codec.conformance.anchors import anchor_digest
+    from tests.conformance.anchors import anchor_digest
     from tests.determinism.vector_cases import anchor_scene_digest
 
     data = path.read_bytes()

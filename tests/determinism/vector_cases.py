@@ -69,7 +69,7 @@ def _scene_cases(folder: Path) -> list[Case]:
 def _container_cases(folder: Path) -> list[Case]:
     def compute(data_path: Path, layers) -> Callable[[], str]:
         def run() -> str:
-            from csgs_codec.conformance.container import run_read
+            from tests.conformance.container import run_read
 
             return json_digest(run_read(data_path.read_bytes(), layers))
         return run
@@ -169,7 +169,7 @@ def anchor_scene_digest(scene) -> str:
 
     SHA-256 over, for each array of :data:`ANCHOR_ARRAYS` that is present, its name, its shape
     as Python prints it and its bytes; then the semantic names joined by '|' (UTF-8); then the
-    bytes of every MLP head's arrays in order. (csgs_codec.conformance.anchors holds the same
+    bytes of every MLP head's arrays in order. (tests.conformance.anchors holds the same
     definition but imports the encoder, hence torch, which a torch-free run must not load.)
     """
     h = hashlib.sha256()

@@ -8,11 +8,11 @@ import json
 import numpy as np
 import pytest
 
-from csgs_codec.conformance import VECTORS_DIR
 from csgs_codec.entropy.intnet_bytes import intnet_from_bytes, intnet_to_bytes
 from csgs_codec.entropy.residual import decode_residuals, encode_residuals
 from csgs_codec.entropy.tables import GAUSSIAN_V1_SHA256, SINE_V1_SHA256, gaussian_family
 from csgs_codec.errors import CsgsError
+from tests.conformance import VECTORS_DIR
 
 VECTORS = VECTORS_DIR / "entropy"
 DOCS = sorted(VECTORS.glob("*.json"))

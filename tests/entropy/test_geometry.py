@@ -213,7 +213,7 @@ def test_donut_positions_round_trip_at_16_bits():
 
 
 def test_conformance_vectors_decode_as_recorded():
-    from csgs_codec.conformance.geometry import check_vector
+    from tests.conformance.geometry import check_vector
 
     folder = REPO / "spec" / "vectors" / "geometry"
     names = sorted(folder.glob("*.json"))

@@ -10,7 +10,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from csgs_codec.conformance import VECTORS_DIR
 from csgs_codec.entropy.histogram import (
     MAX_SYMBOLS,
     decode_histogram,
@@ -18,6 +17,7 @@ from csgs_codec.entropy.histogram import (
     histogram_cost,
 )
 from csgs_codec.errors import FormatError, InputError
+from tests.conformance import VECTORS_DIR
 
 DOCS = sorted((VECTORS_DIR / "histogram").glob("*.json"))
 

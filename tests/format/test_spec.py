@@ -6,9 +6,9 @@ import re
 
 import pytest
 
-from csgs_codec.conformance import VECTORS_DIR
-from csgs_codec.conformance.container import annotated_hex, worked_example_chunks
 from csgs_codec.format import CHUNK_TYPES, MAGIC, container_bytes, layout
+from tests.conformance import VECTORS_DIR
+from tests.conformance.container import annotated_hex, worked_example_chunks
 from tests.conftest import REPO
 
 SPEC = (REPO / "spec" / "FORMAT.md").read_text(encoding="utf-8")

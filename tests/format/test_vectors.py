@@ -1,6 +1,6 @@
 """Conformance vectors in spec/vectors/container/ decode exactly as their JSON says.
 
-The vectors are read, never regenerated, here: `python -m csgs_codec.conformance
+The vectors are read, never regenerated, here: `python -m tests.conformance
 --regenerate --only container` is the only thing that writes them.
 """
 
@@ -11,10 +11,10 @@ import json
 
 import pytest
 
-from csgs_codec.conformance import VECTORS_DIR
-from csgs_codec.conformance.container import run_read
 from csgs_codec.errors import FormatError
 from csgs_codec.format import read_layers
+from tests.conformance import VECTORS_DIR
+from tests.conformance.container import run_read
 
 CONTAINER_VECTORS = VECTORS_DIR / "container"
 REQUIRED = ["empty_scene", "unknown_optional_chunk", "unknown_critical_chunk", "bad_chunk_crc",

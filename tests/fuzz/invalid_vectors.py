@@ -30,10 +30,10 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.codec.encoder import Encoder
-from csgs_codec.conformance import VECTORS_DIR
 from csgs_codec.errors import CsgsError
 from csgs_codec.format import encode_varint
 from csgs_codec.scene.gaussian_scene import GaussianScene
+from tests.conformance import VECTORS_DIR
 from tests.fuzz.campaign import mutant_at
 from tests.fuzz.container_edit import build, split_chunks
 from tests.fuzz.oracle import decode, error_stage

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from csgs_codec.codec.decoder import Decoder
-from csgs_codec.conformance import VECTORS_DIR
 from csgs_codec.errors import InputError
+from tests.conformance import VECTORS_DIR
 from tests.fuzz.campaign import mutant_at, run_campaign
 from tests.fuzz.container_edit import build, repair_crcs, split_chunks
 from tests.fuzz.mutators import PAYLOAD_EDITS

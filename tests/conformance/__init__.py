@@ -1,8 +1,8 @@
 """Conformance vectors under ``spec/vectors/``: generators, one module per vector family.
 
-Each module ``csgs_codec.conformance.<family>`` defines ``generate(out_dir: pathlib.Path)``,
+Each module ``tests.conformance.<family>`` defines ``generate(out_dir: pathlib.Path)``,
 which writes that family's vectors into ``out_dir`` (= ``spec/vectors/<family>/``). Vectors
-are regenerated only through ``python -m csgs_codec.conformance --regenerate``; tests read them.
+are regenerated only through ``python -m tests.conformance --regenerate``; tests read them.
 """
 
 from __future__ import annotations

@@ -1,9 +1,9 @@
-"""``python -m csgs_codec.conformance --regenerate [--only FAMILY ...]``."""
+"""``python -m tests.conformance --regenerate [--only FAMILY ...]``."""
 
 import argparse
 import sys
 
-from csgs_codec.conformance import families, regenerate
+from tests.conformance import families, regenerate
 
 
 def main() -> int:
