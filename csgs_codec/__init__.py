@@ -45,6 +45,7 @@ __version__ = "0.1.0"
 
 _LAZY = {
     "Encoder": "csgs_codec.codec.encoder",
+    "EncoderConfig": "csgs_codec.codec.encoder_config",
     "EncodeResult": "csgs_codec.codec.encoder",
     "Decoder": "csgs_codec.codec.decoder",
     "encode_file": "csgs_codec.codec.files",
@@ -64,7 +65,7 @@ _LAZY = {
 }
 __all__ = [
     "__version__",
-    "Encoder", "EncodeResult", "Decoder", "encode_file", "decode_file",
+    "Encoder", "EncoderConfig", "EncodeResult", "Decoder", "encode_file", "decode_file",
     "GaussianScene", "read_ply", "write_ply",
     "AnchorScene", "AnchorEncoder", "AnchorDecoder", "read_scaffold", "write_scaffold",
     "select_at_click", "open_scene", "read_scene", "write_scene",

@@ -117,6 +117,7 @@ def run(args) -> int:
     from csgs_cli.scene_input import inria_output, is_anchor_input
     from csgs_codec.atomic_write import check_output, write_atomically
     from csgs_codec.codec.encoder import Encoder
+    from csgs_codec.codec.encoder_config import EncoderConfig
     from csgs_codec.interchange import warn_if_lossy
     from csgs_codec.scene_files import read_scene
 
@@ -137,13 +138,15 @@ def run(args) -> int:
         cameras = load_cameras(cameras_path)
     view_pruning = (cameras is not None if args.view_pruning is None
                     else args.view_pruning)
-    encoder = Encoder(quality=args.quality, target_psnr=args.target_psnr, lambda_=args.lambda_,
-                      fast=args.fast, semantic=args.semantic, prune_opacity=args.prune_opacity,
-                      hyperprior=args.hyperprior,
-                      view_pruning=view_pruning, cameras=cameras, tile_size=args.tile_size,
-                      rotation_steps="uniform" if args.uniform_steps else args.rotation_steps,
-                      step_allocation=args.step_allocation, refine=args.refine,
-                      workers=args.workers, ray=args.ray)
+    config = EncoderConfig(quality=args.quality, target_psnr=args.target_psnr,
+                           lambda_=args.lambda_, fast=args.fast, semantic=args.semantic,
+                           prune_opacity=args.prune_opacity, hyperprior=args.hyperprior,
+                           view_pruning=view_pruning, cameras=cameras,
+                           tile_size=args.tile_size,
+                           rotation_steps="uniform" if args.uniform_steps
+                           else args.rotation_steps,
+                           step_allocation=args.step_allocation, refine=args.refine,
+                           workers=args.workers, ray=args.ray)
     searching = args.target_psnr is not None or args.lambda_ is not None
     streamed = (not searching and not view_pruning and args.prune_opacity is None
                 and not args.sanitize and not args.refine
@@ -156,18 +159,20 @@ def run(args) -> int:
                unit="stage",
                disable=args.quiet, leave=False)
 
-    def progress(stage: str) -> None:
+    step_bars = {stage: _StepBar(what, unit, args.quiet) for stage, what, unit in (
+        ("color hyperprior", "color hyperprior fit", "step"),
+        ("view sensitivity", "view sensitivity", "view"), ("tiles", "tiles", "tile"),
+        ("refinement", "refinement", "step"), ("step allocation", "step allocation", "probe"))}
+
+    def progress(stage: str, done: int, total: int) -> None:
+        if total:
+            if stage in step_bars:
+                step_bars[stage](done, total)
+            return
         bar.set_postfix_str(stage)
         bar.update(1)
 
-    encoder.progress = progress
-    step_bars = [_StepBar("color hyperprior fit", "step", args.quiet),
-                 _StepBar("view sensitivity", "view", args.quiet),
-                 _StepBar("tiles", "tile", args.quiet),
-                 _StepBar("refinement", "step", args.quiet),
-                 _StepBar("step allocation", "probe", args.quiet)]
-    (encoder.fit_progress, encoder.view_progress, encoder.tile_progress,
-     encoder.refine_progress, encoder.allocation_progress) = step_bars
+    encoder = Encoder(config, progress=progress)
     # Timed here: an encode streamed tile by tile reports no time of its own (issue #29).
     start = perf_counter()
     try:
@@ -182,7 +187,7 @@ def run(args) -> int:
             err.file = scene_path
         raise
     finally:
-        for step_bar in step_bars:
+        for step_bar in step_bars.values():
             step_bar.close()
         bar.close()
     seconds = perf_counter() - start

@@ -27,29 +27,25 @@ from csgs_codec.codec.color_prior import prior_cells
 from csgs_codec.codec.derived_steps import rotation_classes
 from csgs_codec.codec.encode_result import EncodeResult
 from csgs_codec.codec.encoder_checks import check_count, check_encodable, decodable_container
+from csgs_codec.codec.encoder_config import EncoderConfig
 from csgs_codec.codec.float_stream import (
     plan_float_stream,
 )
 from csgs_codec.codec.sh_colour_transform import apply_inverse, choose_transforms, record_bytes
 from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
-from csgs_codec.codec.tiling import check_tile_size, effective_tile_size
+from csgs_codec.codec.tiling import effective_tile_size
 from csgs_codec.decisions.color_prior_choice import (
-    DEFAULT_PRIOR_FIT,
     PriorChoice,
-    PriorFitPolicy,
     choose_prior,
 )
 from csgs_codec.decisions.far_points import plan_far_points
 from csgs_codec.decisions.presets import (
-    DEFAULT_QUALITY,
-    DEFAULT_ROTATION_STEPS,
-    ROTATION_STEPS,
     Preset,
     preset,
     preset_steps,
     scaled_preset,
 )
-from csgs_codec.decisions.view_pruning import DEFAULT_BUDGET, decide
+from csgs_codec.decisions.view_pruning import decide
 from csgs_codec.entropy.geometry import canonical_order, encode_positions
 from csgs_codec.errors import InputError
 from csgs_codec.format import Chunk
@@ -58,7 +54,6 @@ from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.scene.instance_table import InstanceTable
 from csgs_codec.scene.position_grid import PositionGrid
 
-SEMANTIC_MODES = ("auto", "none")
 #: Scenes with fewer Gaussians are not view-pruned: the sensitivity pass is not worth it and
 #: tiny test scenes stay whole.
 MIN_PRUNED_SCENE = 1024
@@ -75,8 +70,17 @@ class CodedScene:
     order: np.ndarray
 
 
+#: The stages whose steps :attr:`Encoder.progress` is told of (the others only start).
+COUNTED_STAGES = ("step allocation", "view sensitivity", "refinement", "color hyperprior",
+                  "tiles")
+
+
 class Encoder:
     """Encodes standard 3DGS scenes to .csgs.
+
+    ``Encoder(config, progress=...)`` with an :class:`EncoderConfig`, or ``Encoder(**fields)``
+    with its fields as keywords (``Encoder(7)`` is quality 7); ``encoder.config`` is the
+    config either way. The fields:
 
     Args:
         quality: preset 1 (smallest) .. 9 (near-lossless); see csgs_codec/decisions/presets.py.
@@ -125,8 +129,6 @@ class Encoder:
             sample measured no gain for seconds of probing); True: for every
             scene; False: never. The preset's error bounds (:mod:`csgs_codec.decisions.presets`)
             hold for the steps actually used (``EncodeResult.allocation``).
-        allocation_progress: a callable ``allocation_progress(done, total)`` told of the
-            allocation's probe renders, or None.
         refine: Adam steps that move each coded value to the lattice point whose decoded
             scene renders closest to the original over the viewing distribution (``cameras``
             or the default sphere; :mod:`csgs_codec.decisions.refinement`). Same format and
@@ -145,88 +147,46 @@ class Encoder:
         ray: the address of a Ray cluster whose workers code the tiles instead
             (``"local"`` starts one on this machine; needs ``pip install ray``); the file is
             the same as with local workers.
-        tile_progress: a callable ``tile_progress(done, total)`` told of tiles coded, or None.
-        progress: a callable ``progress(step_name)`` told of each stage, or None.
-        fit_progress: a callable ``fit_progress(done, total)`` told of the color hyperprior
-            fit's training steps (it takes seconds), or None.
-        refine_progress: a callable ``refine_progress(done, total)`` told of refinement
-            steps, or None.
+        progress: not a config field: ``progress(stage, done, total)``, told when a stage
+            starts (``done == total == 0``) and of the steps of the stages that count
+            them (:data:`COUNTED_STAGES`: hyperprior fit steps, views, tiles, refinement
+            steps, allocation probes), or None.
     """
 
-    def __init__(self, quality: int | None = None, *, target_psnr: float | None = None,
-                 lambda_: float | None = None, fast: bool = False, semantic: str = "auto",
-                 prune_opacity: float | None = None, hyperprior: bool = True,
-                 prior_fit: PriorFitPolicy = DEFAULT_PRIOR_FIT,
-                 view_pruning: bool = False, cameras=None,
-                 view_budget: float = DEFAULT_BUDGET,
-                 rotation_steps: str = DEFAULT_ROTATION_STEPS,
-                 step_allocation: bool | None = None, allocation_progress=None,
-                 refine: int = 0, tile_size: int | None = None, workers: int = 1,
-                 ray: str | None = None, tile_progress=None,
-                 progress=None, fit_progress=None, view_progress=None,
-                 refine_progress=None) -> None:
-        if lambda_ is not None and (quality is not None or target_psnr is not None):
-            raise InputError("lambda excludes quality and target PSNR: give one of them",
-                             property="lambda")
-        self.preset: Preset = preset(DEFAULT_QUALITY if quality is None else quality)
-        if target_psnr is not None:
-            from csgs_codec.decisions.rate_control import check_target
-
-            check_target(target_psnr)
-        if lambda_ is not None:
-            from csgs_codec.decisions.rate_control import check_render_lambda
-
-            check_render_lambda(lambda_)
-            lambda_ = float(lambda_)
-        self.target_psnr = target_psnr
-        self.lambda_ = lambda_
-        self.fast = bool(fast)
-        if semantic not in SEMANTIC_MODES:
-            raise InputError(f"semantic must be one of {SEMANTIC_MODES}, got {semantic!r}")
-        if prune_opacity is not None and not 0.0 <= prune_opacity < 1.0:
-            raise InputError(f"prune_opacity must be in [0, 1), got {prune_opacity}")
-        self.semantic = semantic
-        self.prune_opacity = prune_opacity
-        self.hyperprior = bool(hyperprior) and not self.fast
-        if not isinstance(prior_fit, PriorFitPolicy):
-            raise InputError(f"prior_fit must be a PriorFitPolicy, got {prior_fit!r}",
-                             property="prior_fit")
-        self.prior_fit = prior_fit
-        if not 0.0 <= view_budget <= 10.0:
-            raise InputError(f"view budget must be in [0, 10], got {view_budget}",
-                             property="view_budget")
-        self.view_pruning = bool(view_pruning)
-        self.cameras = None if cameras is None else list(cameras)
-        self.view_budget = float(view_budget)
-        if rotation_steps not in ROTATION_STEPS:
-            raise InputError(f"rotation steps must be one of {ROTATION_STEPS}, got "
-                             f"{rotation_steps!r}", property="rotation_steps")
-        self.rotation_steps = rotation_steps
-        if step_allocation not in (None, True, False):
-            raise InputError(f"step_allocation must be None, True or False, got "
-                             f"{step_allocation!r}", property="step_allocation")
-        self.step_allocation = step_allocation
-        self.allocation_progress = allocation_progress
-        if isinstance(refine, bool) or not isinstance(refine, int) or not 0 <= refine <= 100_000:
-            raise InputError(f"refine must be a step count in [0, 100000], got {refine!r}",
-                             property="refine")
-        self.refine = refine
-        self.refine_progress = refine_progress
+    def __init__(self, config: EncoderConfig | int | None = None, *, progress=None,
+                 **fields) -> None:
+        if isinstance(config, EncoderConfig):
+            base = config
+        else:
+            base = EncoderConfig()
+            if config is not None:
+                fields = {"quality": config, **fields}
+        unknown = set(fields) - EncoderConfig.field_names()
+        if unknown:
+            raise InputError(f"unknown encoder setting(s) {sorted(unknown)}; the settings are "
+                             f"the fields of EncoderConfig", property=sorted(unknown)[0])
+        self.config: EncoderConfig = replace(base, **fields) if fields else base
+        c = self.config
+        self.preset: Preset = preset(c.effective_quality)
+        self.target_psnr, self.lambda_, self.fast = c.target_psnr, c.lambda_, c.fast
+        self.semantic, self.prune_opacity = c.semantic, c.prune_opacity
+        self.hyperprior = c.hyperprior and not c.fast
+        self.prior_fit = c.prior_fit
+        self.view_pruning, self.view_budget = c.view_pruning, c.view_budget
+        self.cameras = None if c.cameras is None else list(c.cameras)
+        self.rotation_steps, self.step_allocation = c.rotation_steps, c.step_allocation
+        self.refine = c.refine
+        self.tile_size, self.workers, self.ray = c.tile_size, c.workers, c.ray
+        self.progress = progress or (lambda stage, done, total: None)
         self._sensitivity = None  # (W (N,) of the scene being encoded, ViewDistribution)
-        self.progress = progress or (lambda step: None)
-        self.fit_progress = fit_progress
-        self.view_progress = view_progress
-        check_tile_size(tile_size)
-        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-            raise InputError(f"workers must be an integer >= 1, got {workers!r}",
-                             property="workers")
-        if ray is not None and (not isinstance(ray, str) or not ray.strip()):
-            raise InputError(f"ray must be a cluster address or 'local', got {ray!r}",
-                             property="ray")
-        self.tile_size = tile_size
-        self.workers = workers
-        self.ray = ray
-        self.tile_progress = tile_progress
+
+    def _stage(self, name: str) -> None:
+        """Tell :attr:`progress` that stage ``name`` starts."""
+        self.progress(name, 0, 0)
+
+    def _steps(self, stage: str):
+        """A ``(done, total)`` callback that tells :attr:`progress` of ``stage``'s steps."""
+        return lambda done, total: self.progress(stage, done, total)
 
     def encode(self, scene: GaussianScene) -> bytes:
         """The .csgs bytes of ``scene``."""
@@ -272,9 +232,9 @@ class Encoder:
                 or len(scene) > effective_tile_size(len(scene), self.tile_size)
                 or (self.step_allocation is None and not scene.sh_degree_in_use())):
             return None
-        self.progress("step allocation")
+        self._stage("step allocation")
         return allocate_steps(scene, self.preset, rotation_rule=self.rotation_steps,
-                              cameras=self.cameras, progress=self.allocation_progress)
+                              cameras=self.cameras, progress=self._steps("step allocation"))
 
     def _render_sensitivity(self, scene: GaussianScene):
         """(color sensitivity W (N,), its ViewDistribution) of ``scene``, or None when view
@@ -283,9 +243,10 @@ class Encoder:
             return None
         from csgs_codec.render.sensitivity import blend_sensitivity
 
-        self.progress("view sensitivity")
+        self._stage("view sensitivity")
         views = self._viewing_distribution(scene)
-        return blend_sensitivity(scene, views.cameras, self.view_progress).weight_sq, views
+        weights = blend_sensitivity(scene, views.cameras, self._steps("view sensitivity"))
+        return weights.weight_sq, views
 
     def _viewing_distribution(self, scene: GaussianScene):
         """The ViewDistribution ``scene`` is seen from: the encoder's cameras, or the
@@ -303,7 +264,7 @@ class Encoder:
         scored on probe renders of ``original``; the report goes to ``rate_control``."""
         from csgs_codec.decisions import rate_control as rc
 
-        self.progress("rate control")
+        self._stage("rate control")
         # A target is a promise about the probe views, so only the lambda search (a trade
         # between rate and distortion anyway) scores on fewer views in fast mode.
         fewer_views = self.fast and self.lambda_ is not None
@@ -318,18 +279,18 @@ class Encoder:
         if self.lambda_ is not None:
             steps = rc.FAST_LAMBDA_STEPS if self.fast else rc.LAMBDA_STEPS
             result, report = rc.encode_for_lambda(encode, scene, self.lambda_, probe=probe,
-                                                  progress=self.progress, steps=steps)
+                                                  progress=self._stage, steps=steps)
         else:
             search = ({"search_steps": rc.FAST_SEARCH_STEPS, "tolerance": rc.FAST_TOLERANCE}
                       if self.fast else {})
             result, report = rc.encode_to_target(encode, scene, self.target_psnr, probe=probe,
-                                                 progress=self.progress, **search)
+                                                 progress=self._stage, **search)
         kept = self.refine > 0
         if self.refine:
             # Refinement lowers the render error at about the same size; the searched
             # encode stays when the refined one renders worse on the probe views (a target
             # missed, or a lambda search's distortion raised).
-            self.progress("final encode")
+            self._stage("final encode")
             final = self._encode(scene, scaled_preset(report.multiplier))
             refined_psnr = probe.psnr(final.reconstruction)
             floor = (self.target_psnr if self.lambda_ is None
@@ -341,7 +302,7 @@ class Encoder:
                     report = replace(report, psnr=refined_psnr)
         if self.hyperprior and not kept:
             # The hyperprior changes the rate only: the search's settings coded with it.
-            self.progress("final encode")
+            self._stage("final encode")
             final = self._encode(scene, scaled_preset(report.multiplier), refine=False)
             if len(final.data) < len(result.data):
                 result = final
@@ -356,7 +317,7 @@ class Encoder:
             return self._encode_all(scene, settings, hyperprior=hyperprior, refine=refine)
         weights, views = self._sensitivity
         trial = self._encode_all(scene, settings, hyperprior=False)
-        self.progress("view pruning")
+        self._stage("view pruning")
         in_input_order = trial.reconstruction.subset(np.argsort(trial.order, kind="stable"))
         decision = decide(scene, in_input_order, weights, views.cameras, self.view_budget)
         record = ViewRecord(views.source, len(views.cameras), decision.dropped,
@@ -379,7 +340,7 @@ class Encoder:
         encoder's refinement steps. A scene of more than the tile size is split into spatial
         tiles (:mod:`csgs_codec.codec.tile_encoder`)."""
         start = time.perf_counter()
-        self.progress("geometry")
+        self._stage("geometry")
         grid = PositionGrid.fit(scene.positions, settings.position_bits)
         tile_size = effective_tile_size(len(scene), self.tile_size)
         if len(scene) > tile_size:
@@ -397,7 +358,7 @@ class Encoder:
             coded = self.code_scene(scene, settings, grid, cells, inside,
                                     hyperprior=hyperprior, record=record,
                                     refine=refine and self.refine > 0)
-            self.progress("container")
+            self._stage("container")
             data = decodable_container(coded.chunks, len(scene))
             result = EncodeResult(data=data, reconstruction=coded.reconstruction,
                                   order=coded.order,
@@ -432,7 +393,7 @@ class Encoder:
         chunks = [Chunk("SCNE", "base", header.to_bytes()), Chunk("GEOM", "base", geometry),
                   *far.chunks, *([record] if record is not None else [])]
 
-        self.progress("color")
+        self._stage("color")
         use_prior = self.hyperprior if hyperprior is None else hyperprior
         cells_in_order = (prior_cells(cells[inside_idx][perm], far_count) if use_prior
                           else None)
@@ -450,7 +411,7 @@ class Encoder:
 
         if self.semantic == "auto" and (ordered.semantic is not None or
                                         ordered.labels is not None):
-            self.progress("semantic")
+            self._stage("semantic")
             self._semantic_chunks(ordered, reconstruction, chunks, settings)
         return CodedScene(chunks, reconstruction, order)
 
@@ -483,13 +444,13 @@ class Encoder:
         place to the refined values."""
         from csgs_codec.decisions.refinement import RefineSettings, refine_streams
 
-        self.progress("refinement")
+        self._stage("refinement")
         views = self._viewing_distribution(ordered)
         target = {"log_scales": ordered.scales, "opacity_logits": ordered.opacity,
                   "quats": ordered.rotations}
         target_sh = np.concatenate([ordered.sh_dc[:, None, :], ordered.sh_rest], axis=1)
         refined = refine_streams(streams, plans, positions, target_sh, target, views.cameras,
-                                 RefineSettings(steps=self.refine), self.refine_progress)
+                                 RefineSettings(steps=self.refine), self._steps("refinement"))
         if not refined:
             return plans
         streams.float_streams.update(refined)
@@ -504,8 +465,9 @@ class Encoder:
         are the hyperprior's inputs, None to skip it; ``transforms`` one id per SH band."""
         choice = PriorChoice()
         if cells is not None:
-            self.progress("color hyperprior")
-            choice = choose_prior(plans, cells, pos_bits, self.fit_progress, self.prior_fit)
+            self._stage("color hyperprior")
+            choice = choose_prior(plans, cells, pos_bits, self._steps("color hyperprior"),
+                                  self.prior_fit)
         if choice.payload is not None:
             chunks.append(Chunk("CHYP", "color", choice.payload))
         if any(transforms):

@@ -10,9 +10,7 @@ tiles gives tile 0's Gaussians, then tile 1's, and so on, each tile in its own d
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, replace
-from functools import partial
 
 import numpy as np
 
@@ -38,13 +36,14 @@ class TileJob:
         grid: the whole scene's position grid (the worker places the tile on it: keeping
             every tile's cells in the planning process would hold 33 bytes per Gaussian of
             the scene there).
-        settings: the preset's steps; hyperprior: fit the color hyperprior;
-        semantic: the encoder's semantic mode ("auto" or "none");
+        settings: the preset's steps (the whole scene's, whatever rate search chose them).
+        config: the calling encoder's :class:`~csgs_codec.codec.encoder_config.EncoderConfig`
+            as a tile codes with it (one tile, one worker, no view pruning).
+        encoder_class: the calling encoder's class, which the worker makes from ``config``
+            (passed in, so that this module does not import the encoder that calls it; it
+            pickles by name).
         keep_reconstruction: send the tile's reconstruction back (not when streaming a
             scene larger than memory).
-        coder: makes the encoder that codes the tile, ``coder(semantic=, hyperprior=)``:
-            the calling encoder's class with its other settings (passed in, so that this
-            module does not import the encoder that calls it; it pickles by name).
     """
 
     scene: GaussianScene | None
@@ -52,10 +51,9 @@ class TileJob:
     rows: np.ndarray
     grid: PositionGrid
     settings: Preset
-    hyperprior: bool
-    semantic: str
+    config: object
+    encoder_class: type
     keep_reconstruction: bool = True
-    coder: Callable | None = None
 
 
 @dataclass
@@ -78,7 +76,7 @@ def encode_tile(job: TileJob) -> TileOutput:
 
         scene = read_ply_rows(job.source, job.rows)
         try:
-            check_encodable(scene, semantic=job.semantic != "none")
+            check_encodable(scene, semantic=job.config.semantic != "none")
         except InputError as err:
             if err.index is not None:
                 err.index = int(job.rows[err.index])
@@ -89,20 +87,22 @@ def encode_tile(job: TileJob) -> TileOutput:
     local_grid, local = tile_grid(cells[inside], job.grid)
     tile_cells = np.zeros_like(cells)
     tile_cells[inside] = local
-    encoder = job.coder(semantic=job.semantic, hyperprior=job.hyperprior)
+    encoder = job.encoder_class(job.config)
     coded = encoder.code_scene(scene, job.settings, local_grid, tile_cells, inside)
     return TileOutput(coded.chunks, tile_info(coded.reconstruction.positions), coded.order,
                       coded.reconstruction if job.keep_reconstruction else None)
 
 
-def plan_jobs(positions: np.ndarray, grid: PositionGrid, settings: Preset, tile_size: int, *,
-              hyperprior: bool, semantic: str, scene: GaussianScene | None = None,
-              source: str | None = None, keep_reconstruction: bool = True,
-              coder: Callable | None = None) -> list[TileJob]:
+def plan_jobs(encoder, positions: np.ndarray, grid: PositionGrid, settings: Preset,
+              tile_size: int, *, hyperprior: bool, scene: GaussianScene | None = None,
+              source: str | None = None, keep_reconstruction: bool = True) -> list[TileJob]:
     """One job per tile of the scene whose positions are ``positions`` (N, 3), on the
-    whole scene's ``grid``; tiles carry their Gaussians from ``scene`` or name ``source``."""
+    whole scene's ``grid``, coded with ``encoder``'s config (the hyperprior fitted when
+    ``hyperprior``); tiles carry their Gaussians from ``scene`` or name ``source``."""
+    config = replace(encoder.config, hyperprior=hyperprior, tile_size=None, workers=1,
+                     ray=None, view_pruning=False, cameras=None)
     return [TileJob(None if scene is None else scene.subset(rows), source, rows, grid,
-                    settings, hyperprior, semantic, keep_reconstruction, coder)
+                    settings, config, type(encoder), keep_reconstruction)
             for rows in split_tiles(positions, tile_size)]
 
 
@@ -113,11 +113,9 @@ def encode_tiled(encoder, scene: GaussianScene, grid: PositionGrid, settings: Pr
     ``encoder``'s settings; returns its :class:`~csgs_codec.codec.encoder.EncodeResult`.
     ``record`` (a ``vdis`` chunk) goes into tile 0, after its base chunks."""
     use_prior = encoder.hyperprior if hyperprior is None else hyperprior
-    jobs = plan_jobs(scene.positions, grid, settings, tile_size, hyperprior=use_prior,
-                     semantic=encoder.semantic, scene=scene, coder=_tile_coder(encoder))
-    encoder.progress(f"{len(jobs)} tiles")
-    outputs = run_jobs(encode_tile, jobs, workers=encoder.workers, ray=encoder.ray,
-                       progress=encoder.tile_progress)
+    jobs = plan_jobs(encoder, scene.positions, grid, settings, tile_size,
+                     hyperprior=use_prior, scene=scene)
+    outputs = _run_tiles(encoder, jobs)
     return assemble(encoder, jobs, outputs, len(scene), record)
 
 
@@ -127,7 +125,7 @@ def assemble(encoder, jobs: list[TileJob], outputs: list[TileOutput], count: int
     (tiles in order; None when the tiles did not keep theirs) and the order into the input."""
     from csgs_codec.codec.encoder_checks import decodable_container
 
-    encoder.progress("container")
+    encoder.progress("container", 0, 0)
     index = TileIndex(tuple(out.info for out in outputs))
     chunks = [Chunk("TIDX", "base", index.to_bytes())]
     for number, out in enumerate(outputs):
@@ -145,10 +143,11 @@ def assemble(encoder, jobs: list[TileJob], outputs: list[TileOutput], count: int
                         stream_bytes=stream_bytes, tiles=len(outputs))
 
 
-def _tile_coder(encoder) -> Callable:
-    """What makes a tile's encoder: ``encoder``'s class with the settings a tile shares."""
-    return partial(type(encoder), rotation_steps=encoder.rotation_steps,
-                   prior_fit=encoder.prior_fit)
+def _run_tiles(encoder, jobs: list[TileJob]) -> list[TileOutput]:
+    """Code ``jobs`` with ``encoder``'s workers (or Ray), telling its progress of the tiles."""
+    encoder.progress("tiles", 0, 0)
+    return run_jobs(encode_tile, jobs, workers=encoder.workers, ray=encoder.ray,
+                    progress=lambda done, total: encoder.progress("tiles", done, total))
 
 
 def encode_ply_tiled(encoder, path: str) -> object:
@@ -167,17 +166,14 @@ def encode_ply_tiled(encoder, path: str) -> object:
 
     ply = MappedPly(path)
     settings = encoder.preset
-    encoder.progress("geometry")
+    encoder.progress("geometry", 0, 0)
     positions = ply.positions()
     tile_size = effective_tile_size(len(positions), encoder.tile_size)
     if len(positions) <= tile_size:
         check_count(len(positions))
     grid = PositionGrid.fit(positions, settings.position_bits)
-    jobs = plan_jobs(positions, grid, settings, tile_size, hyperprior=encoder.hyperprior,
-                     semantic=encoder.semantic, source=ply.path, keep_reconstruction=False,
-                     coder=_tile_coder(encoder))
+    jobs = plan_jobs(encoder, positions, grid, settings, tile_size,
+                     hyperprior=encoder.hyperprior, source=ply.path, keep_reconstruction=False)
     del positions
-    encoder.progress(f"{len(jobs)} tiles")
-    outputs = run_jobs(encode_tile, jobs, workers=encoder.workers, ray=encoder.ray,
-                       progress=encoder.tile_progress)
+    outputs = _run_tiles(encoder, jobs)
     return assemble(encoder, jobs, outputs, ply.count)

@@ -51,3 +51,12 @@ def rotn_channel_reader(payload: bytes):
     r = ByteReader(payload)
     mode = rotation_class_table(r)
     return r, mode, r.offset - 1
+
+
+def steps_of(stage: str, sink: list, value=lambda done, total: (done, total)):
+    """An ``Encoder(progress=...)`` callback that appends ``value(done, total)`` to ``sink``
+    for each counted step of ``stage``."""
+    def progress(name: str, done: int, total: int) -> None:
+        if name == stage and total:
+            sink.append(value(done, total))
+    return progress

@@ -23,7 +23,7 @@ from csgs_codec.errors import FormatError
 from csgs_codec.format import Chunk, read_layers, write_container
 from csgs_codec.model.color_hyperprior import ColorFitSettings
 from csgs_codec.scene.ply_io import read_ply
-from tests.codec.helpers import random_scene
+from tests.codec.helpers import random_scene, steps_of
 from tests.conftest import SAMPLE
 
 SHORT_FIT = ColorFitSettings(steps=150, batch=512)
@@ -162,8 +162,7 @@ def test_fit_progress_counts_the_training_steps(donut):
     calls = []
     policy = PriorFitPolicy(ColorFitSettings(steps=120, batch=256), min_gaussians=0)
     Encoder(quality=4, prior_fit=policy,
-            fit_progress=lambda done, total: calls.append((done, total))
-            ).encode(donut.subset(np.arange(2000)))
+            progress=steps_of("color hyperprior", calls)).encode(donut.subset(np.arange(2000)))
     assert calls == [(50, 120), (100, 120), (120, 120)]
 
 
@@ -194,7 +193,7 @@ def test_a_trial_that_saves_little_stops_the_fit():
     scene = random_scene(6000, sh_degree=0, seed=5)  # attributes independent of position
     policy = PriorFitPolicy(ColorFitSettings(steps=600, batch=256), min_gaussians=0)
     result = Encoder(quality=5, prior_fit=policy,
-                     fit_progress=lambda done, total: calls.append(done)
+                     progress=steps_of("color hyperprior", calls, lambda done, total: done)
                      ).encode_with_report(scene)
     assert "CHYP" not in result.stream_bytes
     assert calls[-1] == 300
@@ -206,7 +205,7 @@ def test_the_default_encoder_runs_the_full_fit_and_keeps_the_prior(donut):
     from csgs_codec.decisions.color_prior_choice import DEFAULT_PRIOR_FIT
 
     steps = []
-    encoder = Encoder(fit_progress=lambda done, total: steps.append((done, total)))
+    encoder = Encoder(progress=steps_of("color hyperprior", steps))
     assert encoder.prior_fit is DEFAULT_PRIOR_FIT and DEFAULT_PRIOR_FIT.settings is None
     result = encoder.encode_with_report(donut)
     assert steps[-1] == (ColorFitSettings().steps, ColorFitSettings().steps)

@@ -11,6 +11,7 @@ from csgs_codec.decisions.presets import PRESETS, scaled_preset
 from csgs_codec.decisions.rate_control import RenderProbe
 from csgs_codec.errors import CsgsWarning, InputError
 from csgs_codec.scene.ply_io import read_ply
+from tests.codec.helpers import steps_of
 from tests.conftest import SAMPLE
 
 
@@ -74,7 +75,7 @@ def test_a_refined_final_encode_still_meets_the_target(small_scene, probe, monke
     monkeypatch.setattr("csgs_codec.decisions.rate_control.RenderProbe", lambda scene: probe)
     steps = []
     result = Encoder(target_psnr=34.0, refine=3, hyperprior=False,
-                     refine_progress=lambda done, total: steps.append(done)
+                     progress=steps_of("refinement", steps, lambda done, total: done)
                      ).encode_with_report(small_scene)
     assert steps == [1, 2, 3]  # the trials were not refined, the final encode was
     assert result.rate_control.psnr >= 34.0
@@ -105,11 +106,15 @@ def test_a_refined_encode_that_misses_the_target_falls_back_to_the_hyperprior_en
     policy = PriorFitPolicy(ColorFitSettings(steps=60, batch=256), min_gaussians=0,
                             keep_when_larger=True)
     fits = []
+
+    def progress(stage: str, done: int, total: int) -> None:
+        if stage == "refinement" and total and done == total:
+            refined.append("unscored")
+        elif stage == "color hyperprior" and total:
+            fits.append(list(refined))
+
     result = Encoder(target_psnr=34.0, refine=2, prior_fit=policy,
-                     refine_progress=lambda done, total: done == total and
-                     refined.append("unscored"),
-                     fit_progress=lambda done, total: fits.append(list(refined))
-                     ).encode_with_report(small_scene)
+                     progress=progress).encode_with_report(small_scene)
     assert refined == ["scored"]
     # the fit ran once, after the refined encode was scored and refused (the search's
     # trials run without the hyperprior, the refined final encode with it)

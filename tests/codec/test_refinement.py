@@ -14,6 +14,7 @@ from csgs_codec.errors import InputError
 from csgs_codec.metrics.comparison import score_views
 from csgs_codec.render.view_distribution import default_distribution
 from csgs_codec.scene.ply_io import read_ply, write_ply
+from tests.codec.helpers import steps_of
 from tests.conftest import SAMPLE
 
 STEPS = 4  # 1.35 dB held-out gain on this head (15 steps: 1.30 dB, five times the time)
@@ -86,8 +87,7 @@ def test_refinement_with_derived_steps_decodes_exactly_and_reports_its_steps(hea
     """Rotations on derived steps keep their values (their steps follow the refined scales)."""
     steps = []
     result = Encoder(quality=3, hyperprior=False, refine=3, rotation_steps="anisotropy",
-                     refine_progress=lambda done, total: steps.append((done, total))
-                     ).encode_with_report(head)
+                     progress=steps_of("refinement", steps)).encode_with_report(head)
     assert steps == [(1, 3), (2, 3), (3, 3)]
     assert Decoder().decode(result.data).equals(result.reconstruction)
 

@@ -26,6 +26,7 @@ from csgs_codec.codec import sh_colour_transform as xf
 from csgs_codec.codec.encoder import EncodeResult
 from csgs_codec.codec.float_stream import MAX_FRAC_BITS, frac_bits_for
 from csgs_codec.decisions.presets import Preset
+from csgs_codec.decisions.presets import preset_steps as stream_steps
 from csgs_codec.entropy.residual import step_index, step_size
 from csgs_codec.format import read_layers
 from csgs_codec.scene.attribute_forms import (
@@ -120,17 +121,18 @@ class CodingSteps:
 
 
 def preset_steps(preset: Preset) -> CodingSteps:
-    """The steps of a quality preset (what a fixed-step encode uses)."""
-    return CodingSteps({"dc": preset.dc_step, "rest1": preset.rest_step,
-                        "rest2": preset.rest_step, "rest3": preset.rest_step,
-                        "opacity": preset.opacity_step, "scale": preset.scale_step,
-                        "rot": preset.rotation_step, "semantic": preset.semantic_step},
+    """The steps of a quality preset (what a fixed-step encode uses; each SH band's own,
+    :attr:`Preset.rest_band_factors` included)."""
+    return CodingSteps({**stream_steps(preset), "semantic": preset.semantic_step},
                        preset.position_bits)
 
 
 def result_steps(result: EncodeResult, preset: Preset) -> CodingSteps:
     """The steps an encode used: a rate-controlled encoder's plan where its report carries one
-    (``result.plan`` with ``steps`` and ``position_bits``), else the preset's."""
+    (``result.plan`` with ``steps`` and ``position_bits``), else the preset's as the step
+    allocation moved them (``result.allocation``, default on for scenes with SH bands)."""
+    if result.allocation is not None:
+        preset = result.allocation.apply(preset)
     steps = preset_steps(preset)
     opponent = opponent_bands(result.data)
     plan = getattr(result, "plan", None)

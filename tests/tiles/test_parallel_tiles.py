@@ -13,7 +13,7 @@ from csgs_codec.codec.tile_encoder import encode_ply_tiled
 from csgs_codec.errors import InputError
 from csgs_codec.scene.ply_io import write_ply
 from csgs_codec.scene.ply_mmap import MappedPly
-from tests.codec.helpers import random_scene
+from tests.codec.helpers import random_scene, steps_of
 
 
 @pytest.fixture(scope="module")
@@ -31,7 +31,7 @@ def serial(ply):
 def test_local_workers_write_the_same_bytes(ply, serial):
     done = []
     encoder = Encoder(quality=5, hyperprior=False, tile_size=600, workers=2,
-                      tile_progress=lambda d, t: done.append((d, t)))
+                      progress=steps_of("tiles", done))
     assert encoder.encode(read_ply(ply)) == serial
     assert done[-1] == (4, 4)
 
