@@ -48,6 +48,7 @@ _LAZY = {
     "EncoderConfig": "csgs_codec.codec.encoder_config",
     "EncodeResult": "csgs_codec.codec.encoder",
     "Decoder": "csgs_codec.codec.decoder",
+    "decode": "csgs_codec.codec.decode_any",
     "encode_file": "csgs_codec.codec.files",
     "decode_file": "csgs_codec.codec.files",
     "GaussianScene": "csgs_codec.scene.gaussian_scene",
@@ -65,7 +66,7 @@ _LAZY = {
 }
 __all__ = [
     "__version__",
-    "Encoder", "EncoderConfig", "EncodeResult", "Decoder", "encode_file", "decode_file",
+    "Encoder", "EncoderConfig", "EncodeResult", "Decoder", "decode", "encode_file", "decode_file",
     "GaussianScene", "read_ply", "write_ply",
     "AnchorScene", "AnchorEncoder", "AnchorDecoder", "read_scaffold", "write_scaffold",
     "select_at_click", "open_scene", "read_scene", "write_scene",

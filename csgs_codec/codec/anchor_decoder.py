@@ -46,8 +46,6 @@ def is_anchor_file(source) -> bool:
     return any(e.type == "ANCH" for e in read_layers(source, layers="base").toc)
 
 
-
-
 def _streams(data: bytes, offset: int, chunk: str, count: int) -> list[tuple[bytes, int]]:
     r = ByteReader(data, base_offset=offset, chunk=chunk)
     n = r.varint("stream_count", maximum=64)
