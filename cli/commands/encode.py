@@ -136,18 +136,17 @@ def run(args) -> int:
         from csgs_codec.scene.cameras_io import load_cameras
 
         cameras = load_cameras(cameras_path)
-    view_pruning = (cameras is not None if args.view_pruning is None
-                    else args.view_pruning)
     config = EncoderConfig(quality=args.quality, target_psnr=args.target_psnr,
                            lambda_=args.lambda_, fast=args.fast, semantic=args.semantic,
                            prune_opacity=args.prune_opacity, hyperprior=args.hyperprior,
-                           view_pruning=view_pruning, cameras=cameras,
+                           view_pruning=args.view_pruning, cameras=cameras,
                            tile_size=args.tile_size,
                            rotation_steps="uniform" if args.uniform_steps
                            else args.rotation_steps,
                            step_allocation=args.step_allocation, refine=args.refine,
                            workers=args.workers, ray=args.ray)
     searching = args.target_psnr is not None or args.lambda_ is not None
+    view_pruning = config.prunes_views
     streamed = (not searching and not view_pruning and args.prune_opacity is None
                 and not args.sanitize and not args.refine
                 and _tiled_binary_ply(scene_path, args.tile_size))

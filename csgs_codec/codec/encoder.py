@@ -106,8 +106,10 @@ class Encoder:
             opt-in); None keeps every Gaussian.
         view_pruning: leave out the Gaussians that contribute least to renders over the
             viewing distribution, within a budget of the quantization's own error
-            (:mod:`csgs_codec.decisions.view_pruning`; scenes of 1,024+ Gaussians, needs numba;
-            lossy, opt-in: ``--view-prune``). False (default) codes every Gaussian.
+            (:mod:`csgs_codec.decisions.view_pruning`; scenes of 1,024+ Gaussians, needs
+            numba; lossy). None (default): on exactly when ``cameras`` are given (the views
+            the scene will be seen from), as ``csgs encode`` does; True: also on the default
+            sphere of views (``--view-prune``); False codes every Gaussian.
         cameras: the views the scene will be seen from (e.g. its capture cameras), or None
             for the default sphere of views around it
             (:func:`csgs_codec.render.view_distribution.default_distribution`).
@@ -172,7 +174,7 @@ class Encoder:
         self.semantic, self.prune_opacity = c.semantic, c.prune_opacity
         self.hyperprior = c.hyperprior and not c.fast
         self.prior_fit = c.prior_fit
-        self.view_pruning, self.view_budget = c.view_pruning, c.view_budget
+        self.view_pruning, self.view_budget = c.prunes_views, c.view_budget
         self.cameras = None if c.cameras is None else list(c.cameras)
         self.rotation_steps, self.step_allocation = c.rotation_steps, c.step_allocation
         self.refine = c.refine

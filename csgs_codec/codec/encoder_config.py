@@ -55,7 +55,7 @@ class EncoderConfig:
     step_allocation: bool | None = None
     semantic: SemanticMode = "auto"
     prune_opacity: float | None = None
-    view_pruning: bool = False
+    view_pruning: bool | None = None
     cameras: tuple | None = None
     view_budget: float = DEFAULT_BUDGET
     refine: int = 0
@@ -109,10 +109,18 @@ class EncoderConfig:
             raise InputError(f"ray must be a cluster address or 'local', got {self.ray!r}",
                              property="ray")
         object.__setattr__(self, "fast", bool(self.fast))
-        object.__setattr__(self, "view_pruning", bool(self.view_pruning))
+        if self.view_pruning not in (None, True, False):
+            raise InputError(f"view_pruning must be None, True or False, got "
+                             f"{self.view_pruning!r}", property="view_pruning")
         object.__setattr__(self, "view_budget", float(self.view_budget))
         if self.cameras is not None:
             object.__setattr__(self, "cameras", tuple(self.cameras))
+
+    @property
+    def prunes_views(self) -> bool:
+        """Whether the encode leaves out what the views barely see: ``view_pruning``, or
+        when it is None, whether cameras were given."""
+        return self.cameras is not None if self.view_pruning is None else self.view_pruning
 
     @property
     def effective_quality(self) -> int:

@@ -63,8 +63,10 @@ def test_tiles_are_coded_with_the_encoders_config():
     assert len(jobs) == 4  # k-d cells of at most 400
     for job in jobs:
         assert job.encoder_class is Encoder
+        # One tile, one worker; any view pruning ran on the whole scene before tiling.
         assert job.config == dataclasses.replace(encoder.config, hyperprior=False,
-                                                 tile_size=None, workers=1)
+                                                 tile_size=None, workers=1,
+                                                 view_pruning=False)
 
 
 def test_progress_reports_stages_and_the_steps_of_the_counted_ones():
@@ -79,3 +81,15 @@ def test_progress_reports_stages_and_the_steps_of_the_counted_ones():
     assert counted == {"step allocation", "color hyperprior"} <= set(COUNTED_STAGES)
     fit = [(done, total) for stage, done, total in calls if stage == "color hyperprior" and total]
     assert fit[-1] == (60, 60)
+
+
+def test_views_are_pruned_by_default_exactly_when_cameras_are_given():
+    """The API's default agrees with `csgs encode`: cameras known, pruning on."""
+    from csgs_codec.render.view_distribution import default_distribution
+
+    cameras = default_distribution(random_scene(50, seed=1), directions=2).cameras
+    assert not Encoder().view_pruning and Encoder(view_pruning=True).view_pruning
+    assert Encoder(cameras=cameras).view_pruning
+    assert not Encoder(cameras=cameras, view_pruning=False).view_pruning
+    with pytest.raises(InputError, match="view_pruning"):
+        EncoderConfig(view_pruning="yes")
