@@ -82,19 +82,21 @@ def assert_positions_within(decoded: GaussianScene, reference: GaussianScene,
             f"positions: error {error[inside].max():.6g} exceeds {grid.max_error:.6g}")
 
 
-def rotation_component_error(step: float) -> float:
+def rotation_component_error(step: float, coarsest: float = 1.0) -> float:
     """Largest error of one stored smallest-three component (quaternion units, on the
-    finest value grid, which rotations in [-1, 1] always get)."""
-    return snapped_step(step, MAX_FRAC_BITS) / 2 / np.sqrt(2.0) + 1e-6
+    finest value grid, which rotations in [-1, 1] always get); ``coarsest`` is the largest
+    factor a Gaussian's own step may have over ``step`` (classed steps, FORMAT §12.8)."""
+    return snapped_step(step, MAX_FRAC_BITS) * coarsest / 2 / np.sqrt(2.0) + 1e-6
 
 
-def assert_rotations_within(decoded: np.ndarray, reference: np.ndarray, step: float) -> None:
+def assert_rotations_within(decoded: np.ndarray, reference: np.ndarray, step: float,
+                            coarsest: float = 1.0) -> None:
     """Unit quaternions up to sign: within the bound of the module notes per component."""
     ref = normalize_quaternions(reference).astype(np.float64)
     dec = decoded.astype(np.float64)
     sign = np.where(np.sum(ref * dec, axis=1) < 0, -1.0, 1.0)
     error = np.abs(dec - sign[:, None] * ref)
-    e = rotation_component_error(step)
+    e = rotation_component_error(step, coarsest)
     dropped, _ = quaternion_to_smallest_three(reference)
     rows = np.arange(len(ref))
     stored = np.ones_like(error, dtype=bool)
@@ -118,6 +120,10 @@ class CodingSteps:
     position_bits: int
     #: SH bands (1..3) some tile codes in opponent colours (SHXF, FORMAT §12.24).
     opponent_bands: frozenset[int] = frozenset()
+    #: The largest factor a Gaussian's rotation step may have over ``steps["rot"]``: 1 for
+    #: one step, 2^(12/8) when rotations are coded with classed steps (modes 6 and 7 clip
+    #: each class to +-12 eighth octaves of the channel's step).
+    rotation_coarsest: float = 1.0
 
 
 def preset_steps(preset: Preset) -> CodingSteps:
@@ -135,10 +141,28 @@ def result_steps(result: EncodeResult, preset: Preset) -> CodingSteps:
         preset = result.allocation.apply(preset)
     steps = preset_steps(preset)
     opponent = opponent_bands(result.data)
+    coarsest = rotation_coarsest(result.data)
     plan = getattr(result, "plan", None)
     if plan is None:
-        return replace(steps, opponent_bands=opponent)
-    return CodingSteps({**steps.steps, **plan.steps}, plan.position_bits, opponent)
+        return replace(steps, opponent_bands=opponent, rotation_coarsest=coarsest)
+    return CodingSteps({**steps.steps, **plan.steps}, plan.position_bits, opponent, coarsest)
+
+
+def rotation_coarsest(data: bytes) -> float:
+    """:attr:`CodingSteps.rotation_coarsest` of the file ``data``: 2^(clip / 8) when any
+    tile's ROTN codes a channel with classed steps, else 1."""
+    from csgs_codec.chunks.color_streams import rotation_class_table
+    from csgs_codec.codec.derived_steps import CLIP, FOOTPRINT_CLIP, STEPS_PER_OCTAVE
+    from csgs_codec.codec.float_stream import CLASSED_MODES
+    from csgs_codec.format.primitives import ByteReader
+
+    container = read_layers(data, layers={"color"})
+    for entry in container.toc:
+        if entry.type == "ROTN":
+            reader = ByteReader(bytes(container.payloads[entry.index]), chunk="ROTN")
+            if rotation_class_table(reader) in CLASSED_MODES:
+                return 2.0 ** (max(CLIP, FOOTPRINT_CLIP) / STEPS_PER_OCTAVE)
+    return 1.0
 
 
 def opponent_bands(data: bytes) -> frozenset[int]:
@@ -194,7 +218,8 @@ def assert_within_bounds(decoded: GaussianScene, reference: GaussianScene,
     clamped = np.clip(reference.opacity, -OPACITY_LOGIT_LIMIT, OPACITY_LOGIT_LIMIT)
     assert_values_within("opacity", decoded.opacity, clamped, step["opacity"])
     assert_values_within("scales", decoded.scales, reference.scales, step["scale"])
-    assert_rotations_within(decoded.rotations, reference.rotations, step["rot"])
+    assert_rotations_within(decoded.rotations, reference.rotations, step["rot"],
+                            coding.rotation_coarsest)
     assert (decoded.semantic is None) == (reference.semantic is None)
     if reference.semantic is not None:
         assert decoded.semantic_names == reference.semantic_names
