@@ -27,7 +27,7 @@ from csgs_codec.codec.encoder import EncodeResult
 from csgs_codec.codec.float_stream import MAX_FRAC_BITS, frac_bits_for
 from csgs_codec.decisions.presets import Preset
 from csgs_codec.decisions.presets import preset_steps as stream_steps
-from csgs_codec.entropy.residual import step_index, step_size
+from csgs_codec.entropy.residual import STEP_COUNT, step_index, step_size
 from csgs_codec.format import read_layers
 from csgs_codec.scene.attribute_forms import (
     OPACITY_LOGIT_LIMIT,
@@ -82,21 +82,25 @@ def assert_positions_within(decoded: GaussianScene, reference: GaussianScene,
             f"positions: error {error[inside].max():.6g} exceeds {grid.max_error:.6g}")
 
 
-def rotation_component_error(step: float, coarsest: float = 1.0) -> float:
+def rotation_component_error(step: float, class_offset: int = 0) -> float:
     """Largest error of one stored smallest-three component (quaternion units, on the
-    finest value grid, which rotations in [-1, 1] always get); ``coarsest`` is the largest
-    factor a Gaussian's own step may have over ``step`` (classed steps, FORMAT §12.8)."""
-    return snapped_step(step, MAX_FRAC_BITS) * coarsest / 2 / np.sqrt(2.0) + 1e-6
+    finest value grid, which rotations in [-1, 1] always get); ``class_offset`` is how many
+    entries of the step table above ``step``'s a Gaussian's own step may lie (classed
+    steps, FORMAT §12.8: the table's integer steps are not exactly geometric, so the bound
+    takes the entry itself, not the step times 2^(offset/8))."""
+    index = step_index(np.array([step * 2.0**MAX_FRAC_BITS]))
+    coarse = float(step_size(np.minimum(index + class_offset, STEP_COUNT - 1))[0])
+    return coarse * 2.0**-MAX_FRAC_BITS / 2 / np.sqrt(2.0) + 1e-6
 
 
 def assert_rotations_within(decoded: np.ndarray, reference: np.ndarray, step: float,
-                            coarsest: float = 1.0) -> None:
+                            class_offset: int = 0) -> None:
     """Unit quaternions up to sign: within the bound of the module notes per component."""
     ref = normalize_quaternions(reference).astype(np.float64)
     dec = decoded.astype(np.float64)
     sign = np.where(np.sum(ref * dec, axis=1) < 0, -1.0, 1.0)
     error = np.abs(dec - sign[:, None] * ref)
-    e = rotation_component_error(step, coarsest)
+    e = rotation_component_error(step, class_offset)
     dropped, _ = quaternion_to_smallest_three(reference)
     rows = np.arange(len(ref))
     stored = np.ones_like(error, dtype=bool)
@@ -120,10 +124,10 @@ class CodingSteps:
     position_bits: int
     #: SH bands (1..3) some tile codes in opponent colours (SHXF, FORMAT §12.24).
     opponent_bands: frozenset[int] = frozenset()
-    #: The largest factor a Gaussian's rotation step may have over ``steps["rot"]``: 1 for
-    #: one step, 2^(12/8) when rotations are coded with classed steps (modes 6 and 7 clip
-    #: each class to +-12 eighth octaves of the channel's step).
-    rotation_coarsest: float = 1.0
+    #: How many step-table entries above ``steps["rot"]``'s a Gaussian's rotation step may
+    #: lie: 0 for one step, 12 when rotations are coded with classed steps (modes 6 and 7
+    #: clip each class to +-12 entries, eighth octaves, of the channel's step).
+    rotation_class_offset: int = 0
 
 
 def preset_steps(preset: Preset) -> CodingSteps:
@@ -141,18 +145,18 @@ def result_steps(result: EncodeResult, preset: Preset) -> CodingSteps:
         preset = result.allocation.apply(preset)
     steps = preset_steps(preset)
     opponent = opponent_bands(result.data)
-    coarsest = rotation_coarsest(result.data)
+    offset = rotation_class_offset(result.data)
     plan = getattr(result, "plan", None)
     if plan is None:
-        return replace(steps, opponent_bands=opponent, rotation_coarsest=coarsest)
-    return CodingSteps({**steps.steps, **plan.steps}, plan.position_bits, opponent, coarsest)
+        return replace(steps, opponent_bands=opponent, rotation_class_offset=offset)
+    return CodingSteps({**steps.steps, **plan.steps}, plan.position_bits, opponent, offset)
 
 
-def rotation_coarsest(data: bytes) -> float:
-    """:attr:`CodingSteps.rotation_coarsest` of the file ``data``: 2^(clip / 8) when any
-    tile's ROTN codes a channel with classed steps, else 1."""
+def rotation_class_offset(data: bytes) -> int:
+    """:attr:`CodingSteps.rotation_class_offset` of the file ``data``: the classes' clip
+    when any tile's ROTN codes a channel with classed steps, else 0."""
     from csgs_codec.chunks.color_streams import rotation_class_table
-    from csgs_codec.codec.derived_steps import CLIP, FOOTPRINT_CLIP, STEPS_PER_OCTAVE
+    from csgs_codec.codec.derived_steps import CLIP, FOOTPRINT_CLIP
     from csgs_codec.codec.float_stream import CLASSED_MODES
     from csgs_codec.format.primitives import ByteReader
 
@@ -161,8 +165,8 @@ def rotation_coarsest(data: bytes) -> float:
         if entry.type == "ROTN":
             reader = ByteReader(bytes(container.payloads[entry.index]), chunk="ROTN")
             if rotation_class_table(reader) in CLASSED_MODES:
-                return 2.0 ** (max(CLIP, FOOTPRINT_CLIP) / STEPS_PER_OCTAVE)
-    return 1.0
+                return max(CLIP, FOOTPRINT_CLIP)
+    return 0
 
 
 def opponent_bands(data: bytes) -> frozenset[int]:
@@ -219,7 +223,7 @@ def assert_within_bounds(decoded: GaussianScene, reference: GaussianScene,
     assert_values_within("opacity", decoded.opacity, clamped, step["opacity"])
     assert_values_within("scales", decoded.scales, reference.scales, step["scale"])
     assert_rotations_within(decoded.rotations, reference.rotations, step["rot"],
-                            coding.rotation_coarsest)
+                            coding.rotation_class_offset)
     assert (decoded.semantic is None) == (reference.semantic is None)
     if reference.semantic is not None:
         assert decoded.semantic_names == reference.semantic_names
