@@ -20,6 +20,10 @@ NAME = "encode"
 HELP = ("compress a 3DGS scene (PLY, compressed PLY, .splat, .ksplat, SPZ, SOG, GLB) or a "
         "Scaffold-GS anchor scene into a .csgs bitstream")
 STAGES = ("step allocation", "geometry", "color", "color hyperprior", "semantic", "container")
+#: How a counted stage's bar reads (description, unit); others show the stage's name.
+STEP_BARS = {"color hyperprior": ("color hyperprior fit", "step"), "view sensitivity":
+             ("view sensitivity", "view"), "tiles": ("tiles", "tile"),
+             "refinement": ("refinement", "step"), "step allocation": ("step allocation", "probe")}
 
 
 def add_arguments(parser) -> None:
@@ -116,7 +120,7 @@ def run(args) -> int:
     """Read, encode and write atomically; print the sizes."""
     from csgs_cli.scene_input import inria_output, is_anchor_input
     from csgs_codec.atomic_write import check_output, write_atomically
-    from csgs_codec.codec.encoder import Encoder
+    from csgs_codec.codec.encoder import COUNTED_STAGES, Encoder
     from csgs_codec.codec.encoder_config import EncoderConfig
     from csgs_codec.interchange import warn_if_lossy
     from csgs_codec.scene_files import read_scene
@@ -158,15 +162,12 @@ def run(args) -> int:
                unit="stage",
                disable=args.quiet, leave=False)
 
-    step_bars = {stage: _StepBar(what, unit, args.quiet) for stage, what, unit in (
-        ("color hyperprior", "color hyperprior fit", "step"),
-        ("view sensitivity", "view sensitivity", "view"), ("tiles", "tiles", "tile"),
-        ("refinement", "refinement", "step"), ("step allocation", "step allocation", "probe"))}
+    step_bars = {stage: _StepBar(*STEP_BARS.get(stage, (stage, "step")), args.quiet)
+                 for stage in COUNTED_STAGES}
 
     def progress(stage: str, done: int, total: int) -> None:
         if total:
-            if stage in step_bars:
-                step_bars[stage](done, total)
+            step_bars[stage](done, total)
             return
         bar.set_postfix_str(stage)
         bar.update(1)

@@ -33,6 +33,7 @@ from csgs_codec.chunks.semantic import label_payload
 from csgs_codec.chunks.semantic_names import MAX_SEMANTIC_CHANNELS, names_to_bytes
 from csgs_codec.codec.anchor_grid import anchor_grid
 from csgs_codec.codec.encoder_checks import check_semantic_names
+from csgs_codec.codec.encoder_config import SEMANTIC_MODES
 from csgs_codec.decisions.presets import (
     ANCHOR_BASE_STEPS,
     ANCHOR_QUALITIES,
@@ -70,7 +71,6 @@ DEFAULT_CARM_GROUPS = 5
 #: width 4, 1,661 with 6, 1,793 with 8 and 4,529 with 32).
 NARROW_FIT_ANCHORS = 50_000
 NARROW_WIDTHS = (6, 4)
-SEMANTIC_MODES = ("auto", "none")
 #: Largest |value| coded (value units): far above any trained scene's, and low enough that
 #: every grid value, mean and residual stays in its exact integer range, even under the
 #: factorized fallback prior.

@@ -28,9 +28,7 @@ from csgs_codec.codec.derived_steps import rotation_classes
 from csgs_codec.codec.encode_result import EncodeResult
 from csgs_codec.codec.encoder_checks import check_count, check_encodable, decodable_container
 from csgs_codec.codec.encoder_config import EncoderConfig
-from csgs_codec.codec.float_stream import (
-    plan_float_stream,
-)
+from csgs_codec.codec.float_stream import plan_float_stream
 from csgs_codec.codec.sh_colour_transform import apply_inverse, choose_transforms, record_bytes
 from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
 from csgs_codec.codec.tiling import effective_tile_size
@@ -83,8 +81,8 @@ class Encoder:
     config either way. The fields:
 
     Args:
-        quality: preset 1 (smallest) .. 9 (near-lossless); see csgs_codec/decisions/presets.py.
-            Default 5.
+        quality: preset 1 (smallest) .. 11 (near-lossless); see
+            csgs_codec/decisions/presets.py. Default 5.
         target_psnr: instead of the preset, the smallest encode whose renders reach this
             foreground PSNR (dB) on the rate control's probe views
             (:mod:`csgs_codec.decisions.rate_control`; several encodes and renders).

@@ -12,7 +12,12 @@ from typing import Literal, get_args
 
 from csgs_codec.codec.tiling import check_tile_size
 from csgs_codec.decisions.color_prior_choice import DEFAULT_PRIOR_FIT, PriorFitPolicy
-from csgs_codec.decisions.presets import DEFAULT_ROTATION_STEPS, ROTATION_STEPS, preset
+from csgs_codec.decisions.presets import (
+    DEFAULT_QUALITY,
+    DEFAULT_ROTATION_STEPS,
+    ROTATION_STEPS,
+    preset,
+)
 from csgs_codec.decisions.view_pruning import DEFAULT_BUDGET
 from csgs_codec.errors import InputError
 
@@ -125,8 +130,6 @@ class EncoderConfig:
     @property
     def effective_quality(self) -> int:
         """The preset the encode starts from (5 when no quality is given)."""
-        from csgs_codec.decisions.presets import DEFAULT_QUALITY
-
         return DEFAULT_QUALITY if self.quality is None else self.quality
 
     @classmethod

@@ -148,7 +148,10 @@ class _Probe:
         self.cameras = cameras
         self.streams: SceneStreams = split_streams(scene)
         self.steps = preset_steps(preset)
-        self.reach = [window_reach(scene, cam) for cam in cameras]
+        from csgs_codec.render.rasterizer import scene_tensors
+
+        tensors = scene_tensors(scene)
+        self.reach = [window_reach(tensors, cam) for cam in cameras]
         refs = render_references(scene, cameras, backend="auto")
         self.masks = [foreground_mask(r.alpha) for r in refs]
         self.references = [to_unit_range(r.image)[m].astype(np.float64)
@@ -227,19 +230,19 @@ class _Probe:
         return bits, (float(np.mean(errors)) * 255.0 ** 2 if errors else 0.0)
 
 
-def window_reach(scene: GaussianScene, camera) -> np.ndarray:
-    """(K,) int64 indices, ascending, of the Gaussians of ``scene`` that can show in the
-    window ``camera`` when their attributes move by a quantization step (see
+def window_reach(tensors: dict, camera) -> np.ndarray:
+    """(K,) int64 indices, ascending, of the Gaussians of a scene (``tensors``, its
+    :func:`~csgs_codec.render.rasterizer.scene_tensors`) that can show in the window
+    ``camera`` when their attributes move by a quantization step (see
     :data:`REACH_SCALE`)."""
     import math
 
     from csgs_codec.render.projection import project_gaussians
-    from csgs_codec.render.rasterizer import scene_tensors
 
     grown = replace(camera, width=camera.width + 2 * REACH_PIXELS,
                     height=camera.height + 2 * REACH_PIXELS, cx=camera.cx + REACH_PIXELS,
                     cy=camera.cy + REACH_PIXELS)
-    t = scene_tensors(scene)
+    t = tensors
     projected = project_gaussians(t["means"], t["log_scales"] + math.log(REACH_SCALE),
                                   t["quats"], t["opacity_logits"] + REACH_OPACITY, grown,
                                   near_plane=camera.near_plane)
