@@ -34,7 +34,7 @@ from csgs_codec import read_ply  # noqa: E402
 from csgs_codec.chunks.color_streams import STREAM_CHUNKS  # noqa: E402
 from csgs_codec.codec.decoder import Decoder  # noqa: E402
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
-from csgs_codec.codec.float_stream import MODE_CONSTANT, plan_float_stream  # noqa: E402
+from csgs_codec.codec.float_stream import plan_float_stream  # noqa: E402
 from csgs_codec.codec.streams import split_streams  # noqa: E402
 from csgs_codec.decisions.presets import preset  # noqa: E402
 from csgs_codec.entropy.histogram import histogram_cost  # noqa: E402
@@ -55,7 +55,7 @@ def factorized_bits(reconstruction, settings) -> float:
     for name, values in streams.items():
         plan = plan_float_stream(values, steps[name])
         for c, channel in enumerate(plan.channels):
-            if channel.mode == MODE_CONSTANT:
+            if channel.is_constant:
                 continue
             grid = to_grid(values[:, c].astype(np.float64), plan.frac_bits)
             k = quantize(grid, np.full(len(grid), channel.mean, np.int64),

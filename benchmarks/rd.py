@@ -13,11 +13,11 @@ on the default viewing distribution, a sphere of directions at three distances);
 is the ``--views`` orbit views at 20 degrees alone (what results before 2026-11-24 used).
 
 Variants (``--variants``): ``plain`` is ``Encoder(quality=q)`` at ``--qualities`` (the
-default encoder: rotation steps by footprint, FORMAT §12.8 mode 7, and each scene's step
+default encoder: rotation steps by footprint, FORMAT §12.8 scored steps, and each scene's step
 allocation, csgs_codec/decisions/step_allocation.py); ``preset`` keeps the preset's steps
 (``--no-step-allocation``, the default before 2026-11-27, so ``plain`` of earlier results);
 ``allocated`` allocates on every scene (``--step-allocation``; the default skips SH-0 scenes);
-``uniform`` is ``plain`` with one rotation step for all (``--uniform-steps``); ``stacked``
+``uniform`` is ``plain`` with one rotation step for all (``--rotation-steps uniform``); ``stacked``
 adds the opt-in distortion-side levers of issue 17
 (view pruning on the default viewing distribution, ``--refine-steps`` refinement steps) at
 ``--stacked-qualities``. For each peer point and variant, ``csgs_size_ratio[variant]`` is the

@@ -67,18 +67,12 @@ def add_arguments(parser) -> None:
                              "around the scene unless cameras are known). Default: on when "
                              "cameras are given (--cameras, or an INRIA output folder), else "
                              "off")
-    steps = parser.add_mutually_exclusive_group()
-    steps.add_argument("--rotation-steps", choices=ROTATION_STEPS,
-                       default=DEFAULT_ROTATION_STEPS,
-                       help="3DGS scenes: how each Gaussian's rotation step follows its "
-                            "decoded attributes, at no per-Gaussian cost: 'footprint' "
-                            "(default) by its area, opacity and anisotropy, coarser where a "
-                            "rotation barely shows; 'anisotropy' by its anisotropy alone; "
-                            "'uniform' one step for all")
-    steps.add_argument("--uniform-steps", action="store_true",
-                       help="3DGS scenes: one step per attribute for every Gaussian, as "
-                            "files before render-aware steps (same as --rotation-steps "
-                            "uniform; for comparison)")
+    parser.add_argument("--rotation-steps", choices=ROTATION_STEPS,
+                        default=DEFAULT_ROTATION_STEPS,
+                        help="3DGS scenes: how each Gaussian's rotation step follows its "
+                             "decoded attributes, at no per-Gaussian cost: 'footprint' "
+                             "(default) by its area, opacity and anisotropy, coarser where a "
+                             "rotation barely shows; 'uniform' one step for all")
     parser.add_argument("--step-allocation", default=None,
                         action=argparse.BooleanOptionalAction,
                         help="3DGS scenes: move each attribute's step (DC, each SH band, "
@@ -145,8 +139,7 @@ def run(args) -> int:
                            prune_opacity=args.prune_opacity, hyperprior=args.hyperprior,
                            view_pruning=args.view_pruning, cameras=cameras,
                            tile_size=args.tile_size,
-                           rotation_steps="uniform" if args.uniform_steps
-                           else args.rotation_steps,
+                           rotation_steps=args.rotation_steps,
                            step_allocation=args.step_allocation, refine=args.refine,
                            workers=args.workers, ray=args.ray)
     searching = args.target_psnr is not None or args.lambda_ is not None
@@ -219,11 +212,11 @@ def _encode_anchors(args, write_atomically) -> int:
 
     if (args.prune_opacity is not None or args.sanitize or args.target_psnr is not None
             or args.cameras is not None or args.view_pruning or args.tile_size is not None
-            or args.workers != 1 or args.ray is not None or args.uniform_steps
+            or args.workers != 1 or args.ray is not None
             or args.rotation_steps != DEFAULT_ROTATION_STEPS or args.refine):
         raise InputError("--prune-opacity, --sanitize, --target-psnr, --cameras, "
-                         "--view-prune, --tile-size, --workers, --ray, --rotation-steps, "
-                         "--uniform-steps and --refine apply to 3DGS PLY input, not to "
+                         "--view-prune, --tile-size, --workers, --ray, --rotation-steps "
+                         "and --refine apply to 3DGS PLY input, not to "
                          "anchor scenes",
                          file=args.scene)
     encoder = AnchorEncoder(quality=args.quality, lambda_=args.lambda_, fast=args.fast,

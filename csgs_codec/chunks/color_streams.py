@@ -8,11 +8,9 @@ from __future__ import annotations
 import numpy as np
 
 from csgs_codec.chunks.checks import check_finite
+from csgs_codec.codec.channel_coders import TABLE_CONSTANT, Coding
 from csgs_codec.codec.derived_steps import SCORE_FEATURES
 from csgs_codec.codec.float_stream import (
-    CLASSED_MODES,
-    MODE_CONSTANT,
-    MODE_DERIVED,
     ChannelPrior,
     StreamPlan,
     read_float_stream,
@@ -50,7 +48,7 @@ def read_color_stream(container, count: int, name: str,
     of color stream ``name`` in ``container``; ``priors`` are the hyperprior's for its
     modelled channels,
     ``log_scales`` and ``opacity`` (rotations only) return the decoded scales and opacity
-    logits modes 6 and 7 derive steps from, and ``colour_transform`` (SH bands) is the SHXF
+    logits scored steps derive from, and ``colour_transform`` (SH bands) is the SHXF
     record (transform per band, its offset) whose inverse this band gets.
 
     Raises:
@@ -78,42 +76,43 @@ def read_color_stream(container, count: int, name: str,
 
 def rotation_step_summary(data: bytes, offset: int) -> dict:
     """How a ROTN payload (at absolute byte ``offset``) sets its coded channels' steps, from
-    its first channel record: {"mode", "name" ("uniform", "anisotropy" or "footprint"),
-    "classes"} (``csgs info``; the encoder gives every channel of a stream the same kind).
+    its first coded channel record: {"coding" (the channel's ``coding`` name), "name"
+    ("uniform" or "footprint"), "classes"} (``csgs info``; the encoder gives every channel of
+    a stream the same kind).
 
     Raises:
         FormatError: the record is cut off or malformed.
     """
     r = ByteReader(data, offset, chunk="ROTN")
-    mode = rotation_class_table(r)
-    if mode not in CLASSED_MODES:
-        return {"mode": mode, "name": "uniform", "classes": 1}
-    if mode == MODE_DERIVED:
-        return {"mode": 6, "name": "anisotropy", "classes": r.fixed("u8", "class_count")}
+    coding = rotation_class_table(r)
+    if not coding.scored:
+        return {"coding": coding.name, "name": "uniform", "classes": 1}
     for _ in range(2 * SCORE_FEATURES):
         r.fixed("f32", "score_weight")
     k_u = r.fixed("u8", "bin_count_u")
     for _ in range(k_u - 1):
         r.fixed("f32", "threshold_u")
-    return {"mode": 7, "name": "footprint", "classes": k_u * r.fixed("u8", "bin_count_v")}
+    return {"coding": coding.name, "name": "footprint",
+            "classes": k_u * r.fixed("u8", "bin_count_v")}
 
 
-def rotation_class_table(r: ByteReader) -> int:
+def rotation_class_table(r: ByteReader) -> Coding:
     """Walk a ROTN payload (``r`` at its start) to its first channel that is not a constant;
-    returns that channel's mode, with ``r`` just past its step index when the mode is 6 or 7
-    (where its class table starts), else just past the mode byte (0 when every channel is a
-    constant). For inspection (``csgs info``, tests, vector damage), not for decoding."""
+    returns that channel's :class:`Coding`, with ``r`` just past its step index when its
+    steps are scored (where its score table starts), else just past the ``coding`` byte (a
+    constant coding when every channel is a constant). For inspection (``csgs info``, tests,
+    vector damage), not for decoding."""
     r.byte_string("axis_stream")
     r.varint("count")
     channels = r.fixed("u8", "channel_count")
     r.fixed("u8", "frac_bits")
-    mode = MODE_CONSTANT
-    for _ in range(channels):
-        mode = r.fixed("u8", "mode")
-        if mode != MODE_CONSTANT:
+    coding = Coding(TABLE_CONSTANT)
+    for c in range(channels):
+        coding = Coding.read(r, c)
+        if coding.table != TABLE_CONSTANT:
             break
         r.fixed("f32", "constant_value")
-    if mode in CLASSED_MODES:
+    if coding.scored:
         r.svarint("mean")
         r.fixed("u8", "step_index")
-    return mode
+    return coding

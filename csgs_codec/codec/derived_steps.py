@@ -1,20 +1,19 @@
 """Rotation steps derived from decoded attributes: no per-Gaussian side information (FORMAT
-§12.8, modes 6 and 7).
+§12.8, scored steps).
 
 A small rotation error changes a Gaussian's covariance in proportion to how unequal its axes
 are: for axis ratio r = e^d the relative image error of a rotation by theta is
-theta^2 (r - 1/r)^2 / 4 = theta^2 sinh(d)^2, zero for an isotropic Gaussian. The decoder has
-every Gaussian's log-scales before its rotation, so both sides can put Gaussian i in a class by
-its anisotropy d_i = max - min of its decoded log-scales, and code its rotation with the
-class's step: ``step_index + offsets[class_i]``. The class table (thresholds on d and step
-offsets) is chosen by the encoder and carried once per channel; the class of each Gaussian
-costs nothing.
-
-Mode 7 (*scored steps*) refines this with the Gaussian's footprint: its class is a cell of
-two scores, each a weighted sum of its sorted decoded log-scales and its opacity logit clamped
-at 0. The reference encoder scores u = log area + 2 log opacity (the two largest log-scales
-plus twice the clamped logit) and v = the anisotropy, so a faint or small Gaussian's rotation
-is coded coarser than that of a large, opaque, elongated one (:func:`footprint_steps`).
+theta^2 (r - 1/r)^2 / 4 = theta^2 sinh(d)^2, zero for an isotropic Gaussian; and the picture
+a Gaussian changes grows with its area and opacity. The decoder has every Gaussian's
+log-scales and opacity before its rotation, so both sides can put Gaussian i in a class, a
+cell of two *scores* of those decoded values, each a weighted sum of its sorted log-scales
+and its opacity logit clamped at 0, and code its rotation with the class's step:
+``step_index + offsets[class_i]``. The table (weights, thresholds and step offsets) is
+chosen by the encoder and carried once per channel; the class of each Gaussian costs
+nothing. The reference encoder scores u = log area + 2 log opacity (the two largest
+log-scales plus twice the clamped logit) and v = the anisotropy, so a faint or small
+Gaussian's rotation is coded coarser than that of a large, opaque, elongated one
+(:func:`footprint_steps`).
 
 The class derivation reads decoded float32 values and uses binary64 products (exact on
 float32 inputs), sums in a fixed order and comparisons only, each correctly rounded, so every
@@ -29,120 +28,21 @@ import numpy as np
 
 from csgs_codec.entropy.residual import STEP_COUNT
 
-#: Most classes a table may hold (mode 6), and most bins of each score (mode 7).
+#: Most bins of each score.
 MAX_CLASSES = 8
-#: Features a mode-7 score weighs: the sorted log-scales (largest first) and the opacity
-#: logit clamped at 0.
+#: Features a score weighs: the sorted log-scales (largest first) and the opacity logit
+#: clamped at 0.
 SCORE_FEATURES = 4
 #: Step indices per octave of the step table (FORMAT §16.3.1).
 STEPS_PER_OCTAVE = 8
-#: Anisotropy thresholds of the reference encoder (natural-log units: 0.25 is an axis ratio
-#: of 1.28, 3 of 20).
+#: The reference encoder's anisotropy bins (score v, natural-log units: 0.25 is an axis
+#: ratio of 1.28, 3 of 20).
 THRESHOLDS = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0)
-#: The reference encoder's offsets follow sinh(d)^-1 scaled by this (1: the high-rate
-#: optimum for equal image sensitivity; measured held-out, half of it was better on donut),
-#: clipped to +-CLIP step indices.
-STRENGTH = 0.5
-CLIP = 12
-
-
-class _StepClasses:
-    """What every per-Gaussian step table shares: ``offsets`` (K,) per class and the
-    derived ``classes`` (N,)."""
-
-    offsets: np.ndarray
-    classes: np.ndarray
-
-    @property
-    def count(self) -> int:
-        """Number of classes K."""
-        return int(len(self.offsets))
-
-    def step_indices(self, base: int) -> np.ndarray:
-        """(N,) int64 step index of every Gaussian for a channel of step index ``base``."""
-        return (base + self.offsets)[self.classes]
 
 
 @dataclass(frozen=True)
-class DerivedSteps(_StepClasses):
-    """Per-Gaussian step classes of a rotation stream and the table that defines them.
-
-    Attributes:
-        thresholds: (K - 1,) float32, increasing, >= 0: class i is the number of thresholds
-            t with t <= d_i.
-        offsets: (K,) int64 step-index offset of each class.
-        classes: (N,) int64 class of every Gaussian (derived, never coded).
-    """
-
-    thresholds: np.ndarray
-    offsets: np.ndarray
-    classes: np.ndarray
-
-    @property
-    def table_bits(self) -> int:
-        """Bits the planner counts for the class table in each channel record."""
-        return 8 * (5 * (self.count - 1) + 2 * self.count)
-
-
-def anisotropy(log_scales: np.ndarray) -> np.ndarray:
-    """d = max - min of each row of decoded log-scales (N, 3) float32, in binary64: (N,)."""
-    s = np.asarray(log_scales, dtype=np.float32).astype(np.float64)
-    if s.shape[0] == 0:
-        return np.zeros(0, np.float64)
-    return s.max(axis=1) - s.min(axis=1)
-
-
-def derive_classes(log_scales: np.ndarray, thresholds: np.ndarray) -> np.ndarray:
-    """(N,) int64 class of each Gaussian: how many ``thresholds`` (float32) are <= its d."""
-    t = np.asarray(thresholds, dtype=np.float32).astype(np.float64)
-    return np.searchsorted(t, anisotropy(log_scales), side="right").astype(np.int64)
-
-
-def check_table(thresholds: np.ndarray, offsets: np.ndarray, base: int) -> str | None:
-    """Why a class table is invalid for a channel of step index ``base``, or None."""
-    k = len(offsets)
-    if not 1 <= k <= MAX_CLASSES:
-        return f"class count {k} outside 1..{MAX_CLASSES}"
-    t = np.asarray(thresholds, dtype=np.float64)
-    if len(t) != k - 1:
-        return f"{len(t)} thresholds for {k} classes"
-    if len(t) and (not np.all(np.isfinite(t)) or t[0] < 0 or np.any(np.diff(t) <= 0)):
-        return "thresholds must be finite, >= 0 and strictly increasing"
-    steps = base + np.asarray(offsets, dtype=np.int64)
-    if len(steps) and (steps.min() < 0 or steps.max() >= STEP_COUNT):
-        return f"step index {base} plus offsets {list(map(int, offsets))} leaves [0, {STEP_COUNT})"
-    return None
-
-
-def rotation_steps(log_scales: np.ndarray, base: int, *, strength: float = STRENGTH,
-                   clip: int = CLIP) -> DerivedSteps | None:
-    """The reference encoder's table for rotations of Gaussians with decoded ``log_scales``
-    (N, 3), quantized at step index ``base``; None when every class would keep the step.
-
-    Class c gets a step multiplier m_c ~ mean_c(sinh(d)^2)^(-strength / 2), normalised so that
-    the count-weighted mean of log2 m_c is 0 (about the same rate), in 1/8 octaves, clipped
-    to +-``clip`` and to the step table.
-    """
-    thresholds = np.array(THRESHOLDS, np.float32)
-    classes = derive_classes(log_scales, thresholds)
-    k = len(thresholds) + 1
-    d = np.minimum(anisotropy(log_scales), 20.0)
-    count = np.bincount(classes, minlength=k).astype(np.float64)
-    sens = np.bincount(classes, weights=np.sinh(d) ** 2, minlength=k) / np.maximum(count, 1)
-    log_m = -0.5 * strength * np.log2(np.maximum(sens, 1e-12))
-    if count.sum():
-        log_m -= np.sum(count * log_m) / count.sum()
-    offsets = np.clip(np.rint(STEPS_PER_OCTAVE * log_m), -clip, clip).astype(np.int64)
-    offsets = np.clip(base + offsets, 0, STEP_COUNT - 1) - base
-    offsets[count == 0] = 0  # no Gaussian in the class: any offset, 0 is the plainest
-    if not np.any(offsets[count > 0]):
-        return None
-    return DerivedSteps(thresholds, offsets, classes)
-
-
-@dataclass(frozen=True)
-class ScoredSteps(_StepClasses):
-    """Per-Gaussian step classes from two scores of decoded attributes (FORMAT §12.8 mode 7).
+class ScoredSteps:
+    """Per-Gaussian step classes from two scores of decoded attributes (FORMAT §12.8).
 
     Attributes:
         weights: (2, 4) float32, finite: the weights of score u (row 0) and score v (row 1)
@@ -160,6 +60,15 @@ class ScoredSteps(_StepClasses):
     classes: np.ndarray
 
     @property
+    def count(self) -> int:
+        """Number of cells K_u * K_v."""
+        return int(len(self.offsets))
+
+    def step_indices(self, base: int) -> np.ndarray:
+        """(N,) int64 step index of every Gaussian for a channel of step index ``base``."""
+        return (base + self.offsets)[self.classes]
+
+    @property
     def table_bits(self) -> int:
         """Bits the cell table takes in each channel record (offsets at one byte each)."""
         thresholds = len(self.thresholds_u) + len(self.thresholds_v)
@@ -167,7 +76,7 @@ class ScoredSteps(_StepClasses):
 
 
 def score_features(log_scales: np.ndarray, opacity: np.ndarray) -> np.ndarray:
-    """(4, N) binary64 features of mode 7 from decoded float32 log-scales (N, 3) and opacity
+    """(4, N) binary64 score features from decoded float32 log-scales (N, 3) and opacity
     logits (N,) or (N, 1), one row each: the log-scales sorted largest first, then
     min(logit, 0)."""
     s = np.asarray(log_scales, np.float32)
@@ -198,7 +107,7 @@ def score(features: np.ndarray, weights: np.ndarray) -> np.ndarray:
 
 def derive_scored_classes(log_scales: np.ndarray, opacity: np.ndarray, weights: np.ndarray,
                           thresholds_u: np.ndarray, thresholds_v: np.ndarray) -> np.ndarray:
-    """(N,) int64 cell bin_u * K_v + bin_v of each Gaussian (mode 7)."""
+    """(N,) int64 cell bin_u * K_v + bin_v of each Gaussian."""
     features = score_features(log_scales, opacity)
     return _cells(score(features, weights[0]), score(features, weights[1]), thresholds_u,
                   thresholds_v)
@@ -214,7 +123,7 @@ def _cells(u: np.ndarray, v: np.ndarray, thresholds_u: np.ndarray,
 
 def check_scored_table(weights: np.ndarray, thresholds_u: np.ndarray,
                        thresholds_v: np.ndarray, offsets: np.ndarray, base: int) -> str | None:
-    """Why a mode-7 table is invalid for a channel of step index ``base``, or None."""
+    """Why a scored-step table is invalid for a channel of step index ``base``, or None."""
     if not np.all(np.isfinite(np.asarray(weights, np.float64))):
         return "score weights must be finite"
     for name, t in (("u", thresholds_u), ("v", thresholds_v)):
@@ -247,7 +156,7 @@ FOOTPRINT_MIN_GAUSSIANS = 4096
 def footprint_steps(log_scales: np.ndarray, opacity: np.ndarray, base: int, *,
                     strength: float = FOOTPRINT_STRENGTH, clip: int = FOOTPRINT_CLIP
                     ) -> ScoredSteps | None:
-    """The reference encoder's mode-7 table for rotations of Gaussians with decoded
+    """The reference encoder's scored-step table for rotations of Gaussians with decoded
     ``log_scales`` (N, 3) and opacity logits (N,), quantized at step index ``base``; None
     for scenes under :data:`FOOTPRINT_MIN_GAUSSIANS` or when every cell keeps the step.
 
@@ -290,13 +199,16 @@ def footprint_steps(log_scales: np.ndarray, opacity: np.ndarray, base: int, *,
     return ScoredSteps(weights, thresholds_u, thresholds_v, offsets, classes)
 
 
+#: How the rotation stream's steps may follow decoded attributes (``EncoderConfig``
+#: ``rotation_steps``, ``csgs encode --rotation-steps``).
+ROTATION_RULES = ("footprint", "uniform")
+
+
 def rotation_classes(rule: str, log_scales: np.ndarray, opacity: np.ndarray):
-    """What makes the rotation stream's step classes under ``rule`` ("footprint",
-    "anisotropy" or "uniform") from decoded ``log_scales`` (N, 3) and opacity logits (N, 1)
-    or (N,): the ``derive`` callable of
-    :func:`csgs_codec.codec.float_stream.plan_float_stream`, or None for one step."""
+    """What makes the rotation stream's step classes under ``rule`` ("footprint" or
+    "uniform") from decoded ``log_scales`` (N, 3) and opacity logits (N, 1) or (N,): the
+    ``derive`` callable of :func:`csgs_codec.codec.float_stream.plan_float_stream`, or None
+    for one step."""
     if rule == "uniform":
         return None
-    if rule == "anisotropy":
-        return lambda base: rotation_steps(log_scales, base)
     return lambda base: footprint_steps(log_scales, opacity, base)

@@ -22,7 +22,7 @@ def describe_bitstream(source, *, verify: bool = True) -> dict:
     distribution view pruning followed, when the file records one) and
     ``bits_per_gaussian`` for the file, each layer and each chunk (bytes * 8 / N),
     ``rotation_steps`` (how the first tile's rotation steps follow decoded attributes:
-    ``uniform``, ``anisotropy`` (mode 6) or ``footprint`` (mode 7) with its class count, when
+    ``uniform`` or ``footprint`` (scored steps) with its class count and channel coding, when
     its ROTN chunk is present and readable); and always ``semantic_share_percent``, the
     semantic layer's chunk frames as a percentage of the whole file (header and TOC
     included).

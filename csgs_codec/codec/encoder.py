@@ -115,10 +115,9 @@ class Encoder:
             the views (default 0.1: at most about 0.4 dB).
         rotation_steps: how each Gaussian's rotation step follows its decoded attributes, at
             no per-Gaussian cost (FORMAT §12.8): ``"footprint"`` (default) by its area,
-            opacity and anisotropy (mode 7: coarser where a rotation barely shows;
+            opacity and anisotropy (scored steps: coarser where a rotation barely shows;
             :func:`csgs_codec.codec.derived_steps.footprint_steps`; scenes of 4,096+
-            Gaussians), ``"anisotropy"`` by its anisotropy alone (mode 6), ``"uniform"`` one
-            step for every Gaussian (files before modes 6 and 7).
+            Gaussians), ``"uniform"`` one step for every Gaussian.
         step_allocation: move each attribute group's step (DC, each SH band, opacity,
             scales, rotations) and the position grid's bits from the preset's, per scene,
             where probe renders say the file gets smaller at equal quality

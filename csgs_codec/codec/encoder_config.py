@@ -22,7 +22,7 @@ from csgs_codec.decisions.view_pruning import DEFAULT_BUDGET
 from csgs_codec.errors import InputError
 
 #: How each Gaussian's rotation step follows its decoded attributes (FORMAT §12.8).
-RotationRule = Literal["footprint", "anisotropy", "uniform"]
+RotationRule = Literal["footprint", "uniform"]
 #: Whether the semantic layer is written when the scene has semantic channels or labels.
 SemanticMode = Literal["auto", "none"]
 SEMANTIC_MODES: tuple[str, ...] = get_args(SemanticMode)

@@ -1,28 +1,21 @@
 """Float streams: N x C attribute values quantized per channel and range coded (FORMAT §12.8).
 
-Each channel c is one of:
+Each channel is a constant (one float32, no bits per Gaussian) or quantization indices
+k = round((a - mu) / q) on the value grid, decoded as ``float32((mu + q * k) * 2^-F)``. A coded
+channel's record says, in its ``coding`` byte (:class:`csgs_codec.codec.channel_coders.Coding`):
 
-- constant (mode 0): one float32 for every Gaussian, no bits per Gaussian;
-- factorized (mode 1): quantization indices k = round((a - mu) / q) on the value grid, coded
-  with one frozen Gaussian table;
-- predicted (mode 2): k is predicted from the indices of the channels before it (a
-  channel-wise autoregressive model, linear with integer coefficients):
-  ``P = floor((sum_j A_j * k_j + B) / 2^12)`` in exact int64, and ``k - P`` is coded.
-- histogram (mode 4): k or k - P (with or without the prediction) coded with a frequency
-  table of its own (:mod:`csgs_codec.entropy.histogram`) instead of a frozen Gaussian table,
-  for channels whose distribution is not Gaussian.
-- hyperprior (mode 5): k or k - P (the *base residual* b) coded per Gaussian with the mean
-  and scale-table index the color layer's INR hyperprior predicts from the Gaussian's
-  position (:class:`ChannelPrior`): the symbol b - mean is coded with that scale's table.
+- where its residuals' tables come from (:mod:`csgs_codec.codec.channel_coders`): frozen
+  Gaussian tables, a frequency table of its own (histogram), or the color layer's INR
+  hyperprior, which predicts a mean and a table per Gaussian from its position;
+- whether k is predicted from the indices of the channels before it (a channel-wise
+  autoregressive model, linear with integer coefficients):
+  ``P = floor((sum_j A_j * k_j + B) / 2^12)`` in exact int64, and ``k - P`` is coded;
+- whether its steps follow *scored classes* (rotation streams only): the step of Gaussian i
+  is ``step_index + offsets[class_i]`` with the class a cell of two scores of its decoded
+  log-scales and opacity logit (:mod:`csgs_codec.codec.derived_steps`), one table per class.
 
-- derived steps (mode 6, rotation streams only): as factorized or predicted, but the step of
-  Gaussian i is ``step_index + offsets[class_i]`` with the class derived from its decoded
-  log-scales (:mod:`csgs_codec.codec.derived_steps`), and each class has its own table.
-- scored steps (mode 7, rotation streams only): as mode 6 with the class a cell of two scores
-  of the decoded log-scales and opacity logit.
-
-The value decodes as ``float32((mu + q * k) * 2^-F)``. The encoder picks, per channel, the mode
-that codes smallest (counting the coefficients), so prediction is used only where it pays.
+The encoder picks, per channel, what codes smallest (counting the coefficients), so
+prediction is used only where it pays.
 """
 
 from __future__ import annotations
@@ -31,21 +24,25 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from csgs_codec.codec.channel_coders import (
+    CODERS,
+    PLANNED_CODERS,
+    TABLE_CONSTANT,
+    TABLE_FROZEN,
+    TABLE_PRIOR,
+    ChannelContext,
+    ChannelPrior,
+    Coding,
+)
 from csgs_codec.codec.derived_steps import (
     MAX_CLASSES,
     SCORE_FEATURES,
-    DerivedSteps,
     ScoredSteps,
     check_scored_table,
-    check_table,
-    derive_classes,
     derive_scored_classes,
 )
-from csgs_codec.entropy.histogram import decode_histogram, encode_histogram, histogram_cost
 from csgs_codec.entropy.residual import (
     STEP_COUNT,
-    decode_symbols,
-    encode_symbols,
     from_grid,
     quantize,
     reconstruct,
@@ -53,20 +50,13 @@ from csgs_codec.entropy.residual import (
     step_size,
     to_grid,
 )
-from csgs_codec.entropy.table_choice import table_costs
-from csgs_codec.entropy.tables import gaussian_family
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format.primitives import ByteReader, ByteWriter
 
-MODE_CONSTANT = 0
-MODE_FACTORIZED = 1
-MODE_PREDICTED = 2
-MODE_HISTOGRAM = 4
-MODE_HYPERPRIOR = 5
-MODE_DERIVED = 6
-MODE_SCORED = 7
-#: Modes whose steps (and tables) follow per-Gaussian classes derived from decoded values.
-CLASSED_MODES = (MODE_DERIVED, MODE_SCORED)
+__all__ = ["ChannelPlan", "ChannelPrior", "Lattice", "StreamPlan", "frac_bits_for",
+           "plan_float_stream", "predict", "prior_stream", "read_float_stream",
+           "write_float_stream", "write_planned_stream"]
+
 #: Fractional bits of prediction coefficients and bias.
 COEF_FRAC_BITS = 12
 #: |A_j| must stay below this; |B| below BIAS_LIMIT.
@@ -108,25 +98,31 @@ class ChannelPlan:
     """The encoder's analysis of one channel before any hyperprior: what it codes without one.
 
     Attributes:
-        mode: the best mode without the hyperprior (constant, factorized, predicted or
-            histogram).
+        table: the best table source without the hyperprior (``TABLE_CONSTANT``,
+            ``TABLE_FROZEN`` or ``TABLE_HISTOGRAM``).
         cost: its coded size in bits (estimate, coefficients included).
         mean: the channel's grid mean (constant: unused).
         base: (N,) int64 base residual: the quantization index k, or k minus the channel
             prediction when ``coefs`` is set.
         coefs, bias: the channel prediction, or None.
-        constant: the float32 value of a constant channel.
-        tables: (K,) int64 table of each step class (derived and scored steps only).
+        constant_value: the float32 value of a constant channel.
+        fields: the table source's fields (frozen tables: (K,) int64 scale index per step
+            class).
     """
 
-    mode: int
+    table: int
     cost: float
     mean: int = 0
     base: np.ndarray | None = None
     coefs: np.ndarray | None = None
     bias: int = 0
-    constant: float = 0.0
-    tables: np.ndarray | None = None
+    constant_value: float = 0.0
+    fields: np.ndarray | None = None
+
+    @property
+    def is_constant(self) -> bool:
+        """Whether the channel is one float32 for every Gaussian."""
+        return self.table == TABLE_CONSTANT
 
 
 @dataclass(frozen=True)
@@ -147,9 +143,8 @@ class StreamPlan:
     Attributes:
         count, frac_bits, step_idx: N, the grid's fractional bits and the step index.
         channels: one :class:`ChannelPlan` per channel.
-        recon: (N, C) float32 values the decoder will reconstruct (whatever the modes).
-        derived: the step classes every coded channel follows (:class:`DerivedSteps`, mode
-            6, or :class:`ScoredSteps`, mode 7), or None.
+        recon: (N, C) float32 values the decoder will reconstruct (whatever the codings).
+        scored: the scored step classes every coded channel follows, or None.
     """
 
     count: int
@@ -157,24 +152,11 @@ class StreamPlan:
     step_idx: int
     channels: list[ChannelPlan]
     recon: np.ndarray
-    derived: DerivedSteps | ScoredSteps | None = None
+    scored: ScoredSteps | None = None
 
     def lattice(self) -> Lattice:
         """This plan's :class:`Lattice`."""
         return Lattice(self.frac_bits, tuple(int(ch.mean) for ch in self.channels))
-
-
-@dataclass(frozen=True)
-class ChannelPrior:
-    """Per-Gaussian entropy parameters of one channel from the color hyperprior.
-
-    Attributes:
-        mean: (N,) int64 rounded mean of the base residual, in steps (may be a strided view).
-        scale: (N,) int64 scale-table indices in [0, 63] (may be a strided view).
-    """
-
-    mean: np.ndarray
-    scale: np.ndarray
 
 
 def write_float_stream(out: ByteWriter, values: np.ndarray, step: float) -> np.ndarray:
@@ -190,11 +172,10 @@ def write_float_stream(out: ByteWriter, values: np.ndarray, step: float) -> np.n
 def plan_float_stream(values: np.ndarray, step: float, derive=None,
                       lattice: Lattice | None = None) -> StreamPlan:
     """Quantize ``values`` (N, C) with ``step`` (value units) and choose each channel's best
-    mode without a hyperprior.
+    coding without a hyperprior.
 
     ``derive``, when given, is called with the stream's step index and returns the
-    :class:`DerivedSteps` (mode 6) or :class:`ScoredSteps` (mode 7) every coded channel then
-    follows, or None for one step.
+    :class:`ScoredSteps` every coded channel then follows, or None for one step.
     ``lattice``, when given, fixes the grid and the channels' means instead of taking them
     from ``values`` (a channel constant in ``values`` is still coded as a constant); not
     with ``derive``.
@@ -204,39 +185,51 @@ def plan_float_stream(values: np.ndarray, step: float, derive=None,
         raise InputError("a fixed lattice needs one mean per channel and no derived steps",
                          property="lattice")
     f = frac_bits_for(values) if lattice is None else lattice.frac_bits
+    step_idx = int(step_index(np.array([step * 2.0**f]))[0])
+    scored = derive(step_idx) if derive is not None and n else None
+    if scored is not None:
+        why = check_scored_table(scored.weights, scored.thresholds_u, scored.thresholds_v,
+                                 scored.offsets, step_idx)
+        if why is not None:
+            raise InputError(why, property="derive")
+        steps = scored.step_indices(step_idx)
+        members = _class_members(scored.classes, scored.count)
+        coders = (CODERS[TABLE_FROZEN],)  # scored steps code with one frozen table per class
+        table_bits = scored.table_bits
+    else:
+        steps = np.full(n, step_idx, np.int64)
+        members, coders, table_bits = None, PLANNED_CODERS, 0
     recon = np.empty((n, channels), np.float32)
     indices = np.zeros((channels, n), np.int64)  # channels as rows, as in the reader
-    step_idx = int(step_index(np.array([step * 2.0**f]))[0])
-    derived = derive(step_idx) if derive is not None and n else None
-    if derived is not None:
-        return _plan_derived(values, f, step_idx, derived)
-    steps = np.full(n, step_idx, np.int64)
     plans = []
     for c in range(channels):
         column = values[:, c].astype(np.float32)
         if n == 0 or np.all(column == column[0]):
             value = float(column[0]) if n else 0.0
-            plans.append(ChannelPlan(MODE_CONSTANT, 0.0, constant=value))
+            plans.append(ChannelPlan(TABLE_CONSTANT, 0.0, constant_value=value))
             recon[:, c] = np.float32(value)
             continue
         grid, mean, k = _median_quantized(column, f, steps,
                                           None if lattice is None else lattice.means[c])
         indices[c] = k
-        candidates = [(float(table_costs(k).min()), MODE_FACTORIZED, k, None, 0),
-                      (histogram_cost(k), MODE_HISTOGRAM, k, None, 0)]
+        candidates = [(k, None, 0, 0)]
         fitted = _fit_prediction(indices[:c].T, k)
         if fitted is not None:
             coefs, bias = fitted
-            r = k - predict(indices[:c], coefs, bias)
             overhead = 8 * (3 * c + 6)  # coefficient bytes, at most
-            candidates += [(float(table_costs(r).min()) + overhead, MODE_PREDICTED, r, coefs,
-                            bias),
-                           (histogram_cost(r) + overhead, MODE_HISTOGRAM, r, coefs, bias)]
-        cost, mode, base, coefs, bias = min(candidates, key=lambda cand: cand[0])
-        plans.append(ChannelPlan(mode, cost, mean, base, coefs, bias))
+            candidates.append((k - predict(indices[:c], coefs, bias), coefs, bias, overhead))
+        best = None
+        for base, coefs, bias, overhead in candidates:
+            for coder in coders:
+                bits, fields = coder.cost(base, members)
+                bits += overhead + table_bits
+                if best is None or bits < best.cost:
+                    best = ChannelPlan(coder.table, bits, mean, base, coefs, bias,
+                                       fields=fields)
+        plans.append(best)
         means = np.full(n, mean, np.int64)
         recon[:, c] = from_grid(reconstruct(means, k, steps), f).astype(np.float32)
-    return StreamPlan(n, f, step_idx, plans, recon)
+    return StreamPlan(n, f, step_idx, plans, recon, scored)
 
 
 def _class_members(classes: np.ndarray, count: int) -> list[np.ndarray]:
@@ -246,137 +239,57 @@ def _class_members(classes: np.ndarray, count: int) -> list[np.ndarray]:
     return [order[bounds[c]:bounds[c + 1]] for c in range(count)]
 
 
-def _class_costs(residuals: np.ndarray, members: list[np.ndarray]
-                 ) -> tuple[float, np.ndarray]:
-    """(bits, (K,) best table per class) of ``residuals`` coded with one table per class
-    (``members``: the rows of each class, :func:`_class_members`)."""
-    count = len(members)
-    tables = np.zeros(count, np.int64)
-    bits = 0.0
-    for c in range(count):
-        member = residuals[members[c]]
-        if member.size:
-            costs = table_costs(member)
-            tables[c] = int(np.argmin(costs))
-            bits += float(costs[tables[c]])
-    return bits + 8 * count, tables
-
-
-def _plan_derived(values: np.ndarray, f: int, step_idx: int,
-                  derived: DerivedSteps | ScoredSteps) -> StreamPlan:
-    """The plan of a stream whose coded channels all follow ``derived`` (mode 6 or 7)."""
-    n, channels = values.shape
-    if isinstance(derived, ScoredSteps):
-        mode = MODE_SCORED
-        why = check_scored_table(derived.weights, derived.thresholds_u, derived.thresholds_v,
-                                 derived.offsets, step_idx)
-    else:
-        mode = MODE_DERIVED
-        why = check_table(derived.thresholds, derived.offsets, step_idx)
-    if why is not None:
-        raise InputError(why, property="derive")
-    recon = np.empty((n, channels), np.float32)
-    indices = np.zeros((channels, n), np.int64)
-    steps = derived.step_indices(step_idx)
-    table_bits = derived.table_bits
-    members = _class_members(derived.classes, derived.count)
-    plans = []
-    for c in range(channels):
-        column = values[:, c].astype(np.float32)
-        if np.all(column == column[0]):
-            plans.append(ChannelPlan(MODE_CONSTANT, 0.0, constant=float(column[0])))
-            recon[:, c] = column[0]
-            continue
-        grid, mean, k = _median_quantized(column, f, steps)
-        indices[c] = k
-        bits, tables = _class_costs(k, members)
-        best = ChannelPlan(mode, bits + table_bits, mean, k, None, 0, tables=tables)
-        fitted = _fit_prediction(indices[:c].T, k)
-        if fitted is not None:
-            coefs, bias = fitted
-            r = k - predict(indices[:c], coefs, bias)
-            bits, tables = _class_costs(r, members)
-            bits += table_bits + 8 * (3 * c + 6)
-            if bits < best.cost:
-                best = ChannelPlan(mode, bits, mean, r, coefs, bias, tables=tables)
-        plans.append(best)
-        means = np.full(n, mean, np.int64)
-        recon[:, c] = from_grid(reconstruct(means, k, steps), f).astype(np.float32)
-    return StreamPlan(n, f, step_idx, plans, recon, derived)
-
-
 def prior_stream(plan: ChannelPlan, prior: ChannelPrior) -> bytes:
-    """The residual stream of ``plan``'s channel coded with the hyperprior (mode 5)."""
-    return encode_symbols(plan.base - prior.mean, prior.scale)
+    """The residual stream of ``plan``'s channel coded with the hyperprior."""
+    return CODERS[TABLE_PRIOR].encode(plan.base, None, ChannelContext(len(plan.base),
+                                                                      prior=prior))
 
 
 def write_planned_stream(out: ByteWriter, plan: StreamPlan,
                          priors: dict[int, tuple[ChannelPrior, bytes]] | None = None) -> None:
-    """Append the stream body of ``plan``; channels in ``priors`` (channel -> (prior, its
-    :func:`prior_stream`)) are written in the hyperprior mode, the others in their plan's."""
+    """Append the stream body of ``plan`` (FORMAT §12.8); channels in ``priors`` (channel ->
+    (prior, its :func:`prior_stream`)) are written with the hyperprior's tables, the others
+    with their plan's."""
     priors = priors or {}
     out.varint(plan.count)
     out.fixed("u8", len(plan.channels))
     out.fixed("u8", plan.frac_bits)
+    scored = plan.scored
+    context = ChannelContext(plan.count, None if scored is None else scored.classes,
+                             1 if scored is None else scored.count)
     for c, ch in enumerate(plan.channels):
-        if ch.mode == MODE_CONSTANT:
-            out.fixed("u8", MODE_CONSTANT)
-            out.fixed("f32", ch.constant)
+        if ch.is_constant:
+            out.fixed("u8", Coding(TABLE_CONSTANT).byte)
+            out.fixed("f32", ch.constant_value)
             continue
-        if ch.mode in CLASSED_MODES:
-            _write_derived_channel(out, plan, ch, c)
-            continue
-        mode = MODE_HYPERPRIOR if c in priors else ch.mode
-        out.fixed("u8", mode)
+        table = TABLE_PRIOR if c in priors else ch.table
+        out.fixed("u8", Coding(table, ch.coefs is not None, scored is not None).byte)
         out.svarint(ch.mean)
-        if mode in (MODE_FACTORIZED, MODE_PREDICTED):
-            table = int(np.argmin(table_costs(ch.base)))
-            out.fixed("u8", table)
         out.fixed("u8", plan.step_idx)
-        if mode == MODE_PREDICTED:
-            out.varint(c)
-        elif mode != MODE_FACTORIZED:
-            out.varint(0 if ch.coefs is None else c)
+        if scored is not None:
+            _write_score_table(out, scored)
+        coder = CODERS[table]
+        coder.write_fields(out, ch.fields)
         if ch.coefs is not None:
             for a in ch.coefs:
                 out.svarint(int(a))
             out.svarint(int(ch.bias))
-        if mode == MODE_HYPERPRIOR:
-            out.byte_string(priors[c][1])
-        elif mode == MODE_HISTOGRAM:
-            out.byte_string(encode_histogram(ch.base))
-        else:
-            out.byte_string(encode_symbols(ch.base, np.full(plan.count, table, np.int64)))
+        stream = (priors[c][1] if table == TABLE_PRIOR
+                  else coder.encode(ch.base, ch.fields, context))
+        out.byte_string(stream)
 
 
-def _write_derived_channel(out: ByteWriter, plan: StreamPlan, ch: ChannelPlan, c: int
-                           ) -> None:
-    """Append channel ``c``'s record in the derived- or scored-steps mode (FORMAT §12.8)."""
-    derived = plan.derived
-    out.fixed("u8", ch.mode)
-    out.svarint(ch.mean)
-    out.fixed("u8", plan.step_idx)
-    if ch.mode == MODE_SCORED:
-        for w in np.asarray(derived.weights, np.float32).ravel():
-            out.fixed("f32", float(w))
-        for thresholds in (derived.thresholds_u, derived.thresholds_v):
-            out.fixed("u8", len(thresholds) + 1)
-            for t in thresholds:
-                out.fixed("f32", float(t))
-    else:
-        out.fixed("u8", derived.count)
-        for t in derived.thresholds:
+def _write_score_table(out: ByteWriter, scored: ScoredSteps) -> None:
+    """Append a scored-step table: weights, the thresholds of both scores, the step offset
+    of each cell (FORMAT §12.8)."""
+    for w in np.asarray(scored.weights, np.float32).ravel():
+        out.fixed("f32", float(w))
+    for thresholds in (scored.thresholds_u, scored.thresholds_v):
+        out.fixed("u8", len(thresholds) + 1)
+        for t in thresholds:
             out.fixed("f32", float(t))
-    for o in derived.offsets:
+    for o in scored.offsets:
         out.svarint(int(o))
-    for table in ch.tables:
-        out.fixed("u8", int(table))
-    out.varint(0 if ch.coefs is None else c)
-    if ch.coefs is not None:
-        for a in ch.coefs:
-            out.svarint(int(a))
-        out.svarint(int(ch.bias))
-    out.byte_string(encode_symbols(ch.base, ch.tables[derived.classes]))
 
 
 FIT_ROWS = 1 << 17
@@ -411,13 +324,13 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None,
     """Read a float stream body written by :func:`write_float_stream`: (count, C) float32.
 
     ``priors`` holds the hyperprior's parameters of the channels it models (channel index ->
-    :class:`ChannelPrior`); a channel in mode 5 without one is an error. ``log_scales`` and
-    ``opacity`` are callables returning the scene's decoded log-scales (N, 3) and opacity
-    logits (N, 1) float32, which channels in modes 6 and 7 derive their steps from; None
-    where those modes are not allowed (every stream but ROTN).
+    :class:`ChannelPrior`); a channel coded with the hyperprior without one is an error.
+    ``log_scales`` and ``opacity`` are callables returning the scene's decoded log-scales
+    (N, 3) and opacity logits (N, 1) float32, which channels with scored steps derive their
+    steps from; None where scored steps are not allowed (every stream but ROTN).
 
     Raises:
-        FormatError: count or channel mismatch, a bad mode, table, step or coefficient, an
+        FormatError: count or channel mismatch, a bad coding, table, step or coefficient, an
             index or value outside its range, or a bad residual stream.
     """
     n = r.varint("count", maximum=MAX_COUNT)
@@ -433,146 +346,76 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None,
     out = np.empty((c_count, n), np.float32)
     indices = np.zeros((c_count, n), np.int64)
     peak = 0  # largest |index| of the channels decoded so far
-    tables = gaussian_family().count
-    class_cache: dict[tuple, np.ndarray] = {}  # channels with one class table share classes
+    class_cache: dict[tuple, np.ndarray] = {}  # channels with one score table share classes
     for c in range(c_count):
-        mode = r.fixed("u8", "mode")
-        if mode == MODE_CONSTANT:
+        coding = Coding.read(r, c)
+        if coding.table == TABLE_CONSTANT:
             out[c] = np.float32(r.fixed("f32", "constant_value"))
             continue
-        if mode in CLASSED_MODES:
-            if log_scales is None or (mode == MODE_SCORED and opacity is None):
-                raise r.error(f"channel {c}: derived steps (mode {mode}) are only allowed "
-                              "in ROTN")
-            k, q = _read_derived_channel(r, c, n, indices, peak, mode, log_scales, opacity,
-                                         class_cache)
-            mean = k[1]
-            k = k[0]
-            top = int(np.abs(k).max()) if n else 0
-            peak = max(peak, top)
-            indices[c] = k
-            out[c] = from_grid(k * q + np.int64(mean), f)
-            continue
-        if mode not in (MODE_FACTORIZED, MODE_PREDICTED, MODE_HISTOGRAM, MODE_HYPERPRIOR):
-            raise r.error(f"channel {c} has unknown mode {mode}")
-        prior = None
-        if mode == MODE_HYPERPRIOR:
-            prior = (priors or {}).get(c)
-            if prior is None:
-                raise r.error(f"channel {c} uses the color hyperprior, which does not model "
-                              "it (no CHYP chunk, or its channel mask leaves it out)")
+        if coding.scored and (log_scales is None or opacity is None):
+            raise r.error(f"channel {c}: scored steps are only allowed in ROTN")
         mean = r.svarint("mean")
-        table = 0 if mode in (MODE_HISTOGRAM, MODE_HYPERPRIOR) else r.fixed("u8", "scale_index")
         step = r.fixed("u8", "step_index")
-        if abs(mean) > 1 << 53 or table >= tables or step >= STEP_COUNT:
-            raise r.error(f"channel {c}: mean, scale index or step index out of range")
+        if abs(mean) > 1 << 53 or step >= STEP_COUNT:
+            raise r.error(f"channel {c}: mean or step index out of range")
+        if coding.scored:
+            classes, offsets, class_count = _read_score_table(r, c, n, step, log_scales,
+                                                             opacity, class_cache)
+            q = step_size(step + offsets)[classes]
+        else:
+            classes, class_count = None, 1
+            q = np.int64(step_size(np.array([step]))[0])
+        context = ChannelContext(n, classes, class_count,
+                                 (priors or {}).get(c) if coding.table == TABLE_PRIOR else None)
+        coder = CODERS[coding.table]
+        fields = coder.read_fields(r, c, context)
         prediction = 0
-        m = 0
-        if mode in (MODE_HISTOGRAM, MODE_HYPERPRIOR):
-            m = r.varint("coefficient_count", maximum=c_count)
-            if m not in (0, c):
-                raise r.error(f"channel {c} has {m} coefficients, expected 0 or {c}")
-        if mode == MODE_PREDICTED or m:
-            m = r.varint("coefficient_count", maximum=c_count) if mode == MODE_PREDICTED else m
-            if m != c:
-                raise r.error(f"channel {c} has {m} coefficients, expected {c}")
-            coefs = np.array([r.svarint("coefficient") for _ in range(m)], np.int64)
+        if coding.predicted:
+            coefs = np.array([r.svarint("coefficient") for _ in range(c)], np.int64)
             bias = r.svarint("bias")
-            if (m and np.abs(coefs).max() >= COEF_LIMIT) or abs(bias) >= BIAS_LIMIT:
+            if (c and np.abs(coefs).max() >= COEF_LIMIT) or abs(bias) >= BIAS_LIMIT:
                 raise r.error(f"channel {c}: prediction coefficient out of range")
             if peak >= INDEX_LIMIT:
                 raise r.error(f"channel {c}: earlier indices too large to predict from")
             prediction = predict(indices[:c], coefs, bias)
         stream = r.byte_string("residual_stream")
-        if mode == MODE_HYPERPRIOR:
-            k = decode_symbols(stream, prior.scale, chunk=r.chunk,
-                               base_offset=r.offset - len(stream)) + prior.mean + prediction
-        elif mode == MODE_HISTOGRAM:
-            k = decode_histogram(stream, n, chunk=r.chunk,
-                                 base_offset=r.offset - len(stream)) + prediction
-        else:
-            k = decode_symbols(stream, np.full(n, table, np.int64), chunk=r.chunk,
-                               base_offset=r.offset - len(stream)) + prediction
-        q = int(step_size(np.array([step]))[0])
+        k = coder.decode(stream, fields, context, r.chunk, r.offset - len(stream)) + prediction
         top = int(np.abs(k).max()) if n else 0
-        if top > ((1 << 53) - abs(mean)) // q:
+        room = (1 << 53) - abs(mean)
+        if n and np.any(np.abs(k) > room // q):
             raise r.error(f"channel {c}: decoded value exceeds 2^53 on its grid")
         peak = max(peak, top)
         indices[c] = k
-        values = k * np.int64(q) + np.int64(mean)  # mu + q k, bounded by 2^53 just above
-        out[c] = from_grid(values, f)
+        out[c] = from_grid(k * q + np.int64(mean), f)  # mu + q k, bounded by 2^53 just above
     return np.ascontiguousarray(out.T)
 
 
-def _read_derived_channel(r: ByteReader, c: int, n: int, indices: np.ndarray, peak: int,
-                          mode: int, log_scales, opacity, class_cache: dict
-                          ) -> tuple[tuple[np.ndarray, int], np.ndarray]:
-    """((indices k (N,), mean), per-Gaussian steps q (N,)) of a channel in mode 6 or 7, the
-    reader just past its mode byte (FORMAT §12.8); ``class_cache`` keeps the classes of
-    each class table read so far in the stream."""
-    mean = r.svarint("mean")
-    step = r.fixed("u8", "step_index")
-    if abs(mean) > 1 << 53 or step >= STEP_COUNT:
-        raise r.error(f"channel {c}: mean or step index out of range")
-    if mode == MODE_SCORED:
-        at = r.offset
-        weights = np.array([r.fixed("f32", "score_weight") for _ in range(2 * SCORE_FEATURES)],
-                           np.float32).reshape(2, SCORE_FEATURES)
-        bins = []
-        for name in ("u", "v"):
-            b_count = r.fixed("u8", f"bin_count_{name}")
-            if not 1 <= b_count <= MAX_CLASSES:
-                raise r.error(f"channel {c}: {b_count} bins of score {name}, outside "
-                              f"1..{MAX_CLASSES}")
-            bins.append(np.array([r.fixed("f32", f"threshold_{name}")
-                                  for _ in range(b_count - 1)], np.float32))
-        k_count = (len(bins[0]) + 1) * (len(bins[1]) + 1)
-        offsets = np.array([r.svarint("step_offset") for _ in range(k_count)], np.int64)
-        why = check_scored_table(weights, bins[0], bins[1], offsets, step)
-    else:
-        k_count = r.fixed("u8", "class_count")
-        if not 1 <= k_count <= MAX_CLASSES:
-            raise r.error(f"channel {c}: class count {k_count} outside 1..{MAX_CLASSES}")
-        at = r.offset
-        thresholds = np.array([r.fixed("f32", "threshold") for _ in range(k_count - 1)],
-                              np.float32)
-        offsets = np.array([r.svarint("step_offset") for _ in range(k_count)], np.int64)
-        why = check_table(thresholds, offsets, step)
+def _read_score_table(r: ByteReader, c: int, n: int, step: int, log_scales, opacity,
+                      class_cache: dict) -> tuple[np.ndarray, np.ndarray, int]:
+    """((N,) class of every Gaussian, (K,) step offsets, K) of channel ``c``'s scored-step
+    table, the reader at its first weight (FORMAT §12.8); ``class_cache`` keeps the classes
+    of each table read so far in the stream."""
+    at = r.offset
+    weights = np.array([r.fixed("f32", "score_weight") for _ in range(2 * SCORE_FEATURES)],
+                       np.float32).reshape(2, SCORE_FEATURES)
+    bins = []
+    for name in ("u", "v"):
+        b_count = r.fixed("u8", f"bin_count_{name}")
+        if not 1 <= b_count <= MAX_CLASSES:
+            raise r.error(f"channel {c}: {b_count} bins of score {name}, outside "
+                          f"1..{MAX_CLASSES}")
+        bins.append(np.array([r.fixed("f32", f"threshold_{name}")
+                              for _ in range(b_count - 1)], np.float32))
+    k_count = (len(bins[0]) + 1) * (len(bins[1]) + 1)
+    offsets = np.array([r.svarint("step_offset") for _ in range(k_count)], np.int64)
+    why = check_scored_table(weights, bins[0], bins[1], offsets, step)
     if why is not None:
         raise FormatError(f"channel {c}: {why}", chunk=r.chunk, offset=at)
-    tables = np.array([r.fixed("u8", "scale_index") for _ in range(k_count)], np.int64)
-    if tables.max() >= gaussian_family().count:
-        raise r.error(f"channel {c}: scale index {int(tables.max())} out of range")
-    m = r.varint("coefficient_count", maximum=c)
-    prediction = 0
-    if m:
-        if m != c:
-            raise r.error(f"channel {c} has {m} coefficients, expected 0 or {c}")
-        coefs = np.array([r.svarint("coefficient") for _ in range(m)], np.int64)
-        bias = r.svarint("bias")
-        if np.abs(coefs).max() >= COEF_LIMIT or abs(bias) >= BIAS_LIMIT:
-            raise r.error(f"channel {c}: prediction coefficient out of range")
-        if peak >= INDEX_LIMIT:
-            raise r.error(f"channel {c}: earlier indices too large to predict from")
-        prediction = predict(indices[:c], coefs, bias)
-    stream = r.byte_string("residual_stream")
-    if mode == MODE_SCORED:
-        key = (mode, weights.tobytes(), bins[0].tobytes(), bins[1].tobytes())
-        if key not in class_cache:
-            class_cache[key] = derive_scored_classes(log_scales(), opacity(), weights,
-                                                     bins[0], bins[1])
-    else:
-        key = (mode, thresholds.tobytes())
-        if key not in class_cache:
-            class_cache[key] = derive_classes(log_scales(), thresholds)
-    classes = class_cache[key]
-    k = decode_symbols(stream, tables[classes], chunk=r.chunk,
-                       base_offset=r.offset - len(stream)) + prediction
-    q = step_size(step + offsets)[classes]
-    room = (1 << 53) - abs(mean)
-    if n and np.any(np.abs(k) > room // q):
-        raise r.error(f"channel {c}: decoded value exceeds 2^53 on its grid")
-    return (k, mean), q
+    key = (weights.tobytes(), bins[0].tobytes(), bins[1].tobytes())
+    if key not in class_cache:
+        class_cache[key] = derive_scored_classes(log_scales(), opacity(), weights, bins[0],
+                                                 bins[1])
+    return class_cache[key], offsets, k_count
 
 
 def _median_quantized(column: np.ndarray, frac_bits: int, steps,

@@ -18,8 +18,6 @@ from csgs_codec.codec.color_prior import (
     stream_layout,
 )
 from csgs_codec.codec.float_stream import (
-    CLASSED_MODES,
-    MODE_CONSTANT,
     ChannelPrior,
     StreamPlan,
     prior_stream,
@@ -88,8 +86,8 @@ def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int,
     """
     names = list(plans)
     layout = stream_layout(names)
-    # Channels with derived or scored steps (modes 6, 7) keep their own per-class tables.
-    coded = np.array([plans[s].channels[c].mode not in (MODE_CONSTANT, *CLASSED_MODES)
+    # Channels with scored steps keep their own per-class tables.
+    coded = np.array([not plans[s].channels[c].is_constant and plans[s].scored is None
                       for s, c in layout], bool)
     if len(cells) < policy.min_gaussians or not coded.any():
         return PriorChoice()

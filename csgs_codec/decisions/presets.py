@@ -82,9 +82,9 @@ _BITS = {1: 10, 2: 11, 3: 11, 4: 12, 5: 12, 6: 13, 7: 14, 8: 14, 9: 16, 10: 18, 
 PRESETS = {q: _row(q, _BITS[q], MULTIPLIERS[q]) for q in MULTIPLIERS}
 DEFAULT_QUALITY = 5
 #: How rotation steps follow decoded attributes (``Encoder(rotation_steps=...)``,
-#: ``csgs encode --rotation-steps``): footprint is float stream mode 7, anisotropy mode 6,
-#: uniform one step for all.
-ROTATION_STEPS = ("footprint", "anisotropy", "uniform")
+#: ``csgs encode --rotation-steps``): footprint is the float stream's scored steps, uniform
+#: one step for all.
+ROTATION_STEPS = ("footprint", "uniform")
 DEFAULT_ROTATION_STEPS = "footprint"
 
 #: Anchor scenes (spec §17) use the same multipliers on their own steps at quality 8, in

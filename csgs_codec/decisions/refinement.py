@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import torch
 
-from csgs_codec.codec.float_stream import MODE_CONSTANT, StreamPlan
+from csgs_codec.codec.float_stream import StreamPlan
 from csgs_codec.codec.streams import SceneStreams
 from csgs_codec.entropy.residual import step_size
 from csgs_codec.render.projection import quaternions_from_smallest_three
@@ -59,7 +59,7 @@ def refine_streams(streams: SceneStreams, plans: dict[str, StreamPlan],
     Args:
         streams: the coding-form values (N, C) per stream, in coding order.
         plans: the first plan of each stream (its lattice and constant channels); streams
-            whose plan follows derived steps keep their values.
+            whose plan follows scored steps keep their values.
         positions: (N, 3) float32 decoded positions.
         target_sh, target: the original scene in coding order: SH (N, K, 3) with DC first,
             and ``{"log_scales", "quats", "opacity_logits"}`` arrays; the renders to match.
@@ -71,7 +71,7 @@ def refine_streams(streams: SceneStreams, plans: dict[str, StreamPlan],
         {stream name: (N, C) float32} for every refined stream: values whose planning on the
         stream's lattice gives the refined decoded values (constant channels unchanged).
     """
-    names = [name for name, plan in plans.items() if plan.derived is None]
+    names = [name for name, plan in plans.items() if plan.scored is None]
     if settings.steps <= 0 or not names or not len(positions) or not cameras:
         return {}
     views = [_scaled(c, settings.width) for c in cameras]
@@ -91,7 +91,7 @@ class _StraightThrough:
         self.scale = 2.0 ** plan.frac_bits
         self.step = float(step_size(np.array([plan.step_idx]))[0])
         self.means = torch.tensor([float(ch.mean) for ch in plan.channels], dtype=torch.float64)
-        constant = [ch.mode == MODE_CONSTANT for ch in plan.channels]
+        constant = [ch.is_constant for ch in plan.channels]
         self.constant = torch.tensor(constant)
         self.fixed = torch.as_tensor(values.astype(np.float64))
         self.low = torch.as_tensor(values.min(axis=0).astype(np.float64))

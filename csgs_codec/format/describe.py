@@ -104,7 +104,7 @@ def format_description(facts: dict) -> str:
     steps = facts.get("rotation_steps")
     if steps:
         lines.append(f"  rotation steps   {steps['name']}"
-                     + (f" (mode {steps['mode']}, {steps['classes']} classes)"
+                     + (f" (scored steps, {steps['classes']} classes)"
                         if steps["classes"] > 1 else " (one step)"))
     opponent = facts.get("sh_opponent_bands")
     if opponent is not None:

@@ -1,8 +1,8 @@
 /**
  * Float stream bodies (spec/FORMAT.md §12.8): per channel a constant, or quantization indices
- * k coded with a frozen table (modes 1, 2), a histogram (mode 4) or the color hyperprior's
- * per-Gaussian tables (mode 5), optionally predicted from the channels before it; values
- * decode as float32((mu + q k) 2^-F).
+ * k coded with frozen tables, a histogram or the color hyperprior's per-Gaussian tables,
+ * optionally predicted from the channels before it and with steps that follow scored classes
+ * of decoded attributes (ROTN); values decode as float32((mu + q k) 2^-F).
  */
 
 import { decodeHistogram } from './histogram.mjs';
@@ -61,6 +61,61 @@ function predict(indices, peaks, coefs, bias, n) {
   return out;
 }
 
+/** Table sources (bits 0-1 of a channel record's ``coding``) and its flags (§12.8). */
+const TABLE_CONSTANT = 0;
+const TABLE_FROZEN = 1;
+const TABLE_HISTOGRAM = 2;
+const TABLE_PRIOR = 3;
+const PREDICTED_FLAG = 0x10;
+const SCORED_FLAG = 0x20;
+const RESERVED_BITS = 0xff & ~(0x03 | PREDICTED_FLAG | SCORED_FLAG);
+const TABLE_NAMES = ['constant', 'frozen', 'histogram', 'hyperprior'];
+
+/** Read and check channel c's ``coding`` byte: {table, predicted, scored}. */
+function readCoding(r, c) {
+  const at = r.offset;
+  const byte = r.u8('coding');
+  const coding = { table: byte & 0x03, predicted: (byte & PREDICTED_FLAG) !== 0, scored: (byte & SCORED_FLAG) !== 0 };
+  let why = null;
+  if (byte & RESERVED_BITS) why = `coding 0x${byte.toString(16).padStart(2, '0')} sets reserved bits`;
+  else if (coding.table === TABLE_CONSTANT && (coding.predicted || coding.scored)) why = 'a constant channel is neither predicted nor scored';
+  else if (coding.scored && coding.table !== TABLE_FROZEN) why = `scored steps with ${TABLE_NAMES[coding.table]} tables (frozen only)`;
+  if (why) throw r.error(`channel ${c}: ${why}`, at);
+  return coding;
+}
+
+/**
+ * The coder of each table source: its fields after the step (and score table), and how it
+ * decodes the residual stream (§12.8, §16.3.3, §16.5, §12.19).
+ */
+const CODERS = {
+  [TABLE_FROZEN]: {
+    readFields(r, c, context) {
+      const tables = [];
+      for (let a = 0; a < context.classCount; a++) tables.push(r.u8('scale_index'));
+      if (tables.some((t) => t >= 64)) throw r.error(`channel ${c}: scale index out of range`);
+      return tables;
+    },
+    decode(stream, tables, context, family, chunk, at) {
+      if (!context.classes) return decodeSymbols(stream, tables[0], context.n, family, chunk, at);
+      const perValue = new Uint8Array(context.n);
+      for (let i = 0; i < context.n; i++) perValue[i] = tables[context.classes[i]];
+      return decodeSymbols(stream, perValue, context.n, family, chunk, at);
+    },
+  },
+  [TABLE_HISTOGRAM]: {
+    readFields() { return null; },
+    decode(stream, fields, context, family, chunk, at) { return decodeHistogram(stream, context.n, chunk, at); },
+  },
+  [TABLE_PRIOR]: {
+    readFields(r, c, context) {
+      if (!context.prior) throw r.error(`channel ${c} uses the color hyperprior, which does not model it`);
+      return null;
+    },
+    decode(stream, fields, context, family, chunk, at) { return decodeSymbols(stream, context.prior.scale, context.n, family, chunk, at); },
+  },
+};
+
 /**
  * Read a float stream body.
  * @param {import('./bytes.mjs').ByteReader} r positioned at the body
@@ -72,8 +127,8 @@ function predict(indices, peaks, coefs, bias, n) {
  * @param {{array: Float32Array, stride: number, offset: number}|null} target where value i
  *   of channel c goes: array[i * stride + offset + c] (default: a new N x C array)
  * @param {{logScales: () => Float32Array, opacity: () => Float32Array}|null} attributes
- *   return the decoded log-scales (N x 3) and opacity logits (N) that channels in modes 6
- *   and 7 derive their steps from; null where those modes are not allowed (not ROTN)
+ *   return the decoded log-scales (N x 3) and opacity logits (N) that channels with scored
+ *   steps derive their steps from; null where scored steps are not allowed (not ROTN)
  * @returns {Float32Array} the target array
  */
 export function readFloatStream(r, count, channels, priors, family, target = null, attributes = null) {
@@ -89,58 +144,47 @@ export function readFloatStream(r, count, channels, priors, family, target = nul
   const indices = [];
   const peaks = [];
   let peak = 0;
-  const classCache = new Map(); // channels with one class table share its classes
+  const classCache = new Map(); // channels with one score table share its classes
   for (let c = 0; c < cCount; c++) {
-    const mode = r.u8('mode');
-    if (mode === 0) {
+    const coding = readCoding(r, c);
+    if (coding.table === TABLE_CONSTANT) {
       steps.push({ constant: r.f32('constant_value') });
       indices.push(new Int32Array(n));
       peaks.push(0);
       continue;
     }
-    if (mode === 6 || mode === 7) {
-      if (!attributes) throw r.error(`channel ${c}: derived steps (mode ${mode}) are only allowed in ROTN`);
-      const derived = readDerivedChannel(r, c, n, indices, peaks, peak, mode, attributes, family, classCache);
-      if (derived.top > peak) peak = derived.top;
-      steps.push({ qs: derived.qs, mean: derived.mean });
-      indices.push(derived.top < INDEX_LIMIT ? Int32Array.from(derived.k) : derived.k);
-      peaks.push(derived.top);
-      continue;
-    }
-    if (![1, 2, 4, 5].includes(mode)) throw r.error(`channel ${c} has unknown mode ${mode}`);
-    let prior = null;
-    if (mode === 5) {
-      prior = priors ? priors.get(c) : undefined;
-      if (!prior) throw r.error(`channel ${c} uses the color hyperprior, which does not model it`);
-    }
+    if (coding.scored && !attributes) throw r.error(`channel ${c}: scored steps are only allowed in ROTN`);
     const mean = r.svarintBig('mean');
-    const table = mode === 4 || mode === 5 ? 0 : r.u8('scale_index');
     const step = r.u8('step_index');
-    if ((mean < 0n ? -mean : mean) > 2n ** 53n || table >= 64 || step >= 176) {
-      throw r.error(`channel ${c}: mean, scale index or step index out of range`);
-    }
-    let prediction = null;
-    let m = 0;
-    if (mode === 4 || mode === 5) {
-      m = r.varint('coefficient_count', cCount);
-      if (m !== 0 && m !== c) throw r.error(`channel ${c} has ${m} coefficients, expected 0 or ${c}`);
-    }
-    if (mode === 2 || m) {
-      if (mode === 2) m = r.varint('coefficient_count', cCount);
-      if (m !== c) throw r.error(`channel ${c} has ${m} coefficients, expected ${c}`);
-      prediction = readPrediction(r, c, m, indices, peaks, peak, n);
-    }
+    if ((mean < 0n ? -mean : mean) > 2n ** 53n || step >= 176) throw r.error(`channel ${c}: mean or step index out of range`);
+    const scoreTable = coding.scored ? readScoreTable(r, c, n, step, attributes, classCache) : null;
+    const context = {
+      n,
+      classes: scoreTable ? scoreTable.classes : null,
+      classCount: scoreTable ? scoreTable.offsets.length : 1,
+      prior: coding.table === TABLE_PRIOR && priors ? priors.get(c) : undefined,
+    };
+    const coder = CODERS[coding.table];
+    const fields = coder.readFields(r, c, context);
+    const prediction = coding.predicted ? readPrediction(r, c, c, indices, peaks, peak, n) : null;
     const stream = r.byteString('residual_stream');
-    const at = r.offset - stream.length;
-    let decoded;
-    if (mode === 5) decoded = decodeSymbols(stream, prior.scale, n, family, r.chunk, at);
-    else if (mode === 4) decoded = decodeHistogram(stream, n, r.chunk, at);
-    else decoded = decodeSymbols(stream, table, n, family, r.chunk, at);
+    const decoded = coder.decode(stream, fields, context, family, r.chunk, r.offset - stream.length);
     const k = decoded.values;
-    const priorMean = prior ? prior.mean : null;
+    const priorMean = context.prior ? context.prior.mean : null;
+    const meanNum = Number(mean);
+    const room = TWO53 - Math.abs(meanNum);
+    const limitOf = (q) => {
+      let limit = Math.floor(room / q);
+      if (limit * q > room) limit -= 1; // floor of the exact quotient
+      return limit;
+    };
+    const stepOf = scoreTable ? scoreTable.offsets.map((o) => stepSize(step + o)) : null;
+    const qs = scoreTable ? new Float64Array(n) : null;
+    const q = stepSize(step);
     // k as int32 too (exact whenever |k| < 2^31, the only case a later prediction reads it).
     const k32 = new Int32Array(n);
     let top = 0;
+    let over = false;
     for (let i = 0; i < n; i++) {
       let v = k[i];
       if (priorMean) v += priorMean[i];
@@ -149,24 +193,25 @@ export function readFloatStream(r, count, channels, priors, family, target = nul
       k32[i] = v;
       const a = Math.abs(v);
       if (a > top) top = a;
+      if (qs) {
+        const qi = stepOf[scoreTable.classes[i]];
+        qs[i] = qi;
+        if (a > limitOf(qi)) over = true;
+      }
     }
     if (decoded.big) {
       for (const [i, s] of decoded.big) {
         const exact = s + BigInt((priorMean ? priorMean[i] : 0) + (prediction ? prediction[i] : 0));
+        const a = exact < 0n ? -exact : exact;
         k[i] = Number(exact);
-        if ((exact < 0n ? -exact : exact) > 2n ** 53n) top = Infinity;
+        if (a > 2n ** 53n) top = Infinity;
+        else if (Number(a) > top) top = Number(a);
+        if (qs && a * BigInt(qs[i]) > BigInt(room)) over = true;
       }
     }
-    const q = stepSize(step);
-    const meanNum = Number(mean);
-    const room = TWO53 - Math.abs(meanNum);
-    let limit = Math.floor(room / q);
-    if (limit * q > room) limit -= 1; // floor of the exact quotient
-    if (top > limit) {
-      throw r.error(`channel ${c}: decoded value exceeds 2^53 on its grid`);
-    }
+    if (over || (!qs && top > limitOf(q))) throw r.error(`channel ${c}: decoded value exceeds 2^53 on its grid`);
     if (top > peak) peak = top;
-    steps.push({ q, mean: meanNum });
+    steps.push(qs ? { qs, mean: meanNum } : { q, mean: meanNum });
     indices.push(top < INDEX_LIMIT ? k32 : k);
     peaks.push(top);
   }
@@ -224,20 +269,7 @@ function binOf(thresholds, x) {
   return b;
 }
 
-/** Mode-6 class of every Gaussian: its bin of the spread max - min of its decoded
- * log-scales (binary64, exact on float32 inputs). */
-function anisotropyClasses(thresholds, scales, n) {
-  const classes = new Uint8Array(n);
-  for (let i = 0; i < n; i++) {
-    const s0 = scales[3 * i];
-    const s1 = scales[3 * i + 1];
-    const s2 = scales[3 * i + 2];
-    classes[i] = binOf(thresholds, Math.max(s0, s1, s2) - Math.min(s0, s1, s2));
-  }
-  return classes;
-}
-
-/** Mode-7 cell of every Gaussian: bin_u * K_v + bin_v, each score
+/** Scored cell of every Gaussian: bin_u * K_v + bin_v, each score
  * ((w0 S0 + w1 S1) + w2 S2) + w3 min(O, 0) of its log-scales sorted largest first and its
  * opacity logit, in binary64 (the products are exact on float32 inputs). */
 function scoredClasses(weights, tu, tv, scales, opacity, n) {
@@ -260,98 +292,33 @@ function scoredClasses(weights, tu, tv, scales, opacity, n) {
 }
 
 /**
- * A channel in mode 6 or 7 (derived or scored steps, §12.8), the reader just past its mode
- * byte: the step of Gaussian i is that of step_index + offset[class_i], class_i derived from
- * its decoded log-scales (mode 6) and opacity (mode 7).
- * @returns {{k: Float64Array, qs: Float64Array, mean: number, top: number}}
+ * A channel's scored-step table (§12.8), the reader at its first weight: the class of every
+ * Gaussian, a cell of two scores of its decoded log-scales and opacity, and each class's
+ * step offset.
+ * @returns {{classes: Uint8Array, offsets: number[]}}
  */
-function readDerivedChannel(r, c, n, indices, peaks, peak, mode, attributes, family, classCache) {
-  const mean = r.svarintBig('mean');
-  const step = r.u8('step_index');
-  if ((mean < 0n ? -mean : mean) > 2n ** 53n || step >= 176) throw r.error(`channel ${c}: mean or step index out of range`);
-  let classCount;
-  let at;
-  let classesOf;
-  let validate;
-  if (mode === 7) {
-    at = r.offset;
-    const weights = [];
-    for (let a = 0; a < 8; a++) weights.push(r.f32('score_weight'));
-    const bins = [];
-    for (const name of ['u', 'v']) {
-      const count = r.u8(`bin_count_${name}`);
-      if (count < 1 || count > 8) throw r.error(`channel ${c}: ${count} bins of score ${name}, outside 1..8`);
-      const t = [];
-      for (let a = 0; a + 1 < count; a++) t.push(r.f32(`threshold_${name}`));
-      bins.push(t);
-    }
-    classCount = (bins[0].length + 1) * (bins[1].length + 1);
-    validate = () => {
-      if (!weights.every(Number.isFinite)) throw r.error(`channel ${c}: score weights must be finite`, at);
-      for (const [name, t] of [['u', bins[0]], ['v', bins[1]]]) {
-        const increasing = t.every((x, a) => Number.isFinite(x) && (a === 0 || x > t[a - 1]));
-        if (!increasing) throw r.error(`channel ${c}: thresholds of score ${name} must be finite and strictly increasing`, at);
-      }
-    };
-    const key = `7:${weights}:${bins[0]}:${bins[1]}`;
-    classesOf = () => cached(classCache, key, () => scoredClasses(weights, bins[0], bins[1], attributes.logScales(), attributes.opacity(), n));
-  } else {
-    classCount = r.u8('class_count');
-    if (classCount < 1 || classCount > 8) throw r.error(`channel ${c}: class count ${classCount} outside 1..8`);
-    at = r.offset;
-    const thresholds = [];
-    for (let a = 0; a + 1 < classCount; a++) thresholds.push(r.f32('threshold'));
-    validate = () => {
-      const increasing = thresholds.every((t, a) => Number.isFinite(t) && (a === 0 ? t >= 0 : t > thresholds[a - 1]));
-      if (!increasing) throw r.error(`channel ${c}: thresholds must be finite, >= 0 and strictly increasing`, at);
-    };
-    classesOf = () => cached(classCache, `6:${thresholds}`, () => anisotropyClasses(thresholds, attributes.logScales(), n));
+function readScoreTable(r, c, n, step, attributes, classCache) {
+  const at = r.offset;
+  const weights = [];
+  for (let a = 0; a < 8; a++) weights.push(r.f32('score_weight'));
+  const bins = [];
+  for (const name of ['u', 'v']) {
+    const count = r.u8(`bin_count_${name}`);
+    if (count < 1 || count > 8) throw r.error(`channel ${c}: ${count} bins of score ${name}, outside 1..8`);
+    const t = [];
+    for (let a = 0; a + 1 < count; a++) t.push(r.f32(`threshold_${name}`));
+    bins.push(t);
   }
+  const classCount = (bins[0].length + 1) * (bins[1].length + 1);
   const offsets = [];
   for (let a = 0; a < classCount; a++) offsets.push(Number(r.svarintBig('step_offset')));
-  validate();
+  if (!weights.every(Number.isFinite)) throw r.error(`channel ${c}: score weights must be finite`, at);
+  for (const [name, t] of [['u', bins[0]], ['v', bins[1]]]) {
+    const increasing = t.every((x, a) => Number.isFinite(x) && (a === 0 || x > t[a - 1]));
+    if (!increasing) throw r.error(`channel ${c}: thresholds of score ${name} must be finite and strictly increasing`, at);
+  }
   if (offsets.some((o) => step + o < 0 || step + o >= 176)) throw r.error(`channel ${c}: step index ${step} plus offsets [${offsets}] leaves [0, 176)`, at);
-  const tables = [];
-  for (let a = 0; a < classCount; a++) tables.push(r.u8('scale_index'));
-  if (tables.some((t) => t >= 64)) throw r.error(`channel ${c}: scale index out of range`);
-  const m = r.varint('coefficient_count', c);
-  let prediction = null;
-  if (m) {
-    if (m !== c) throw r.error(`channel ${c} has ${m} coefficients, expected 0 or ${c}`);
-    prediction = readPrediction(r, c, m, indices, peaks, peak, n);
-  }
-  const stream = r.byteString('residual_stream');
-  const classes = classesOf();
-  const perValue = new Uint8Array(n);
-  for (let i = 0; i < n; i++) perValue[i] = tables[classes[i]];
-  const decoded = decodeSymbols(stream, perValue, n, family, r.chunk, r.offset - stream.length);
-  const k = decoded.values;
-  const stepOf = offsets.map((o) => stepSize(step + o));
-  const qs = new Float64Array(n);
-  const meanNum = Number(mean);
-  const room = TWO53 - Math.abs(meanNum);
-  let top = 0;
-  let over = false;
-  for (let i = 0; i < n; i++) {
-    const v = k[i] + (prediction ? prediction[i] : 0);
-    k[i] = v;
-    const q = stepOf[classes[i]];
-    qs[i] = q;
-    const a = Math.abs(v);
-    if (a > top) top = a;
-    let limit = Math.floor(room / q);
-    if (limit * q > room) limit -= 1;
-    if (a > limit) over = true;
-  }
-  if (decoded.big) {
-    for (const [i, s] of decoded.big) {
-      const exact = s + BigInt(prediction ? prediction[i] : 0);
-      const a = exact < 0n ? -exact : exact;
-      if (a * BigInt(qs[i]) > BigInt(room)) over = true;
-      k[i] = Number(exact);
-      if (Number(a) > top) top = Number(a);
-    }
-  }
-  if (over) throw r.error(`channel ${c}: decoded value exceeds 2^53 on its grid`);
-  return { k, qs, mean: meanNum, top };
+  const key = `${weights}:${bins[0]}:${bins[1]}`;
+  const classes = cached(classCache, key, () => scoredClasses(weights, bins[0], bins[1], attributes.logScales(), attributes.opacity(), n));
+  return { classes, offsets };
 }

@@ -143,6 +143,6 @@ def test_info_says_which_sh_bands_are_in_opponent_colours(capsys):
     assert main(["info", str(vectors / "sh_colour_transform_q5.csgs")]) == 0
     assert "bands 1, 2, 3 in opponent colours" in capsys.readouterr().out
     # A file without the record, and one whose record is damaged, say nothing of it.
-    assert "sh_opponent_bands" not in run_json(capsys, str(vectors / "donut_q3_r2.csgs"))
+    assert "sh_opponent_bands" not in run_json(capsys, str(vectors / "donut_q3.csgs"))
     damaged = run_json(capsys, str(vectors / "sh_colour_transform_unknown_id.csgs"))
     assert "sh_opponent_bands" not in damaged

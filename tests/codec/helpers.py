@@ -43,14 +43,32 @@ def color_chunks(data: bytes) -> list:
 
 
 def rotn_channel_reader(payload: bytes):
-    """(reader just past the first coded channel's step index, its mode, the step index's
-    offset) of a ROTN payload whose coded channels are in mode 6 or 7."""
+    """(reader just past the first coded channel's step index, its
+    :class:`~csgs_codec.codec.channel_coders.Coding`, the step index's offset) of a ROTN
+    payload whose coded channels have scored steps."""
     from csgs_codec.chunks.color_streams import rotation_class_table
     from csgs_codec.format.primitives import ByteReader
 
     r = ByteReader(payload)
-    mode = rotation_class_table(r)
-    return r, mode, r.offset - 1
+    coding = rotation_class_table(r)
+    return r, coding, r.offset - 1
+
+
+def rotn_coding_offset(payload: bytes) -> int:
+    """Offset in a ROTN payload of its first coded channel's ``coding`` byte."""
+    from csgs_codec.format.primitives import ByteReader
+
+    r = ByteReader(payload)
+    r.byte_string("axis_stream")
+    r.varint("count")
+    channels = r.fixed("u8", "channel_count")
+    r.fixed("u8", "frac_bits")
+    for _ in range(channels):
+        at = r.offset
+        if r.fixed("u8", "coding") != 0:
+            return at
+        r.fixed("f32", "constant_value")
+    raise AssertionError("every ROTN channel is a constant")
 
 
 def steps_of(stage: str, sink: list, value=lambda done, total: (done, total)):

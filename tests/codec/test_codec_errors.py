@@ -93,7 +93,8 @@ def test_invalid_scene_is_refused_before_encoding():
 
 
 def test_out_of_range_prediction_coefficient_is_refused():
-    from csgs_codec.codec.float_stream import MODE_PREDICTED, read_float_stream
+    from csgs_codec.codec.channel_coders import PREDICTED_FLAG, TABLE_FROZEN
+    from csgs_codec.codec.float_stream import read_float_stream
     from csgs_codec.format.primitives import ByteReader, ByteWriter
 
     out = ByteWriter()
@@ -102,11 +103,10 @@ def test_out_of_range_prediction_coefficient_is_refused():
     out.fixed("u8", 10)
     out.fixed("u8", 0)
     out.fixed("f32", 1.0)
-    out.fixed("u8", MODE_PREDICTED)
+    out.fixed("u8", TABLE_FROZEN | PREDICTED_FLAG)
     out.svarint(0)
-    out.fixed("u8", 10)
-    out.fixed("u8", 3)
-    out.varint(1)
+    out.fixed("u8", 10)  # step index
+    out.fixed("u8", 3)   # scale index
     out.svarint(1 << 20)  # |A| >= 2^15
     out.svarint(0)
     with pytest.raises(FormatError, match="coefficient out of range"):

@@ -190,12 +190,8 @@ def test_duplicate_positions_keep_their_own_attributes():
 
 
 def test_correlated_channels_are_predicted_and_cost_less():
-    from csgs_codec.codec.float_stream import (
-        MODE_FACTORIZED,
-        MODE_PREDICTED,
-        read_float_stream,
-        write_float_stream,
-    )
+    from csgs_codec.codec.channel_coders import PREDICTED_FLAG, TABLE_FROZEN
+    from csgs_codec.codec.float_stream import read_float_stream, write_float_stream
     from csgs_codec.format.primitives import ByteReader, ByteWriter
 
     rng = np.random.default_rng(5)
@@ -213,5 +209,10 @@ def test_correlated_channels_are_predicted_and_cost_less():
         write_float_stream(independent, values[:, c:c + 1], 0.01)
     # channel 1 saves about log2(0.9 / 0.05) = 4.2 of ~25 bits: the stream is ~0.84x
     assert len(data) < 0.88 * len(independent.getvalue())
-    # channel 1 (correlated with 0) is predicted; the modes sit after each channel record
-    assert bytes([MODE_PREDICTED]) in data and bytes([MODE_FACTORIZED]) in data
+    # channel 1 (correlated with 0) is predicted, channel 0 is not: read each coding byte
+    r = ByteReader(data)
+    r.varint("count"), r.fixed("u8", "channels"), r.fixed("u8", "frac_bits")
+    assert r.fixed("u8", "coding") == TABLE_FROZEN
+    r.svarint("mean"), r.fixed("u8", "step"), r.fixed("u8", "scale_index")
+    r.byte_string("stream")
+    assert r.fixed("u8", "coding") & PREDICTED_FLAG

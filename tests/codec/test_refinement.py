@@ -83,11 +83,19 @@ def test_refinement_is_deterministic(head):
     assert first == second
 
 
-def test_refinement_with_derived_steps_decodes_exactly_and_reports_its_steps(head):
-    """Rotations on derived steps keep their values (their steps follow the refined scales)."""
+def test_refinement_with_scored_steps_decodes_exactly_and_reports_its_steps(head,
+                                                                             monkeypatch):
+    """Rotations on scored steps keep their values (their steps follow the refined scales)."""
+    from csgs_codec.codec import derived_steps
+
+    monkeypatch.setattr(derived_steps, "FOOTPRINT_MIN_GAUSSIANS", 1000)  # head has 3,000
     steps = []
-    result = Encoder(quality=3, hyperprior=False, refine=3, rotation_steps="anisotropy",
+    result = Encoder(quality=3, hyperprior=False, refine=3,
                      progress=steps_of("refinement", steps)).encode_with_report(head)
+    from tests.codec.helpers import color_chunks, rotn_channel_reader
+
+    rotn = next(c.payload for c in color_chunks(result.data) if c.type == "ROTN")
+    assert rotn_channel_reader(rotn)[1].scored
     assert steps == [(1, 3), (2, 3), (3, 3)]
     assert Decoder().decode(result.data).equals(result.reconstruction)
 

@@ -1,5 +1,5 @@
-"""Rotation steps scored from the decoded scales and opacity (float stream mode 7, FORMAT
-§12.8): the default encoder's rotation coding."""
+"""Rotation steps scored from the decoded scales and opacity (float stream scored steps,
+FORMAT §12.8): the default encoder's rotation coding."""
 
 from __future__ import annotations
 
@@ -12,19 +12,23 @@ from csgs_codec.codec.derived_steps import (
     FOOTPRINT_WEIGHTS,
     THRESHOLDS,
     check_scored_table,
-    derive_classes,
     derive_scored_classes,
     footprint_steps,
     score,
     score_features,
 )
 from csgs_codec.codec.encoder import Encoder
-from csgs_codec.codec.float_stream import MODE_SCORED, read_float_stream
+from csgs_codec.codec.float_stream import read_float_stream
 from csgs_codec.entropy.residual import step_size
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format import Chunk, read_layers, write_container
 from csgs_codec.format.primitives import ByteReader
-from tests.codec.helpers import color_chunks, random_scene, rotn_channel_reader
+from tests.codec.helpers import (
+    color_chunks,
+    random_scene,
+    rotn_channel_reader,
+    rotn_coding_offset,
+)
 
 SCENE = random_scene(6000, sh_degree=0, seed=11)
 RESULT = Encoder(quality=5, hyperprior=False).encode_with_report(SCENE)
@@ -43,15 +47,18 @@ def _with_rotn(payload: bytes) -> bytes:
 
 
 def _rotn_fields(payload: bytes) -> dict[str, int]:
-    """Offsets (in the ROTN payload) of channel 0's mode-7 fields, and its mode."""
-    r, mode, step_at = rotn_channel_reader(payload)
+    """Offsets (in the ROTN payload) of the first coded channel's scored-step fields, and
+    its coding ("coding_at": the coding byte's offset; "scored": whether it is set)."""
+    r, coding, step_at = rotn_channel_reader(payload)
     weights_at = r.offset
     for _ in range(8):
         r.fixed("f32", "weight")
     bins_u_at = r.offset
     k_u = r.fixed("u8", "bins_u")
     thresholds_u_at = r.offset
-    return {"mode": mode, "step_at": step_at, "weights_at": weights_at,
+    coding_at = rotn_coding_offset(payload)
+    return {"scored": coding.scored, "coding_at": coding_at, "step_at": step_at,
+            "weights_at": weights_at,
             "bins_u_at": bins_u_at, "bins_u": k_u, "thresholds_u_at": thresholds_u_at}
 
 
@@ -59,21 +66,21 @@ def _payload_offset(data: bytes) -> int:
     return read_layers(data, layers={"color"}).single_payload("ROTN")[1]
 
 
-def test_the_default_encoder_writes_mode_7_and_decodes_to_its_reconstruction():
+def test_the_default_encoder_writes_scored_steps_and_decodes_to_its_reconstruction():
     fields = _rotn_fields(_rotn(RESULT.data))
-    assert fields["mode"] == MODE_SCORED and fields["bins_u"] > 1
+    assert fields["scored"] and fields["bins_u"] > 1
     assert Decoder().decode(RESULT.data).equals(RESULT.reconstruction)
     assert Decoder(threads=1).decode(RESULT.data).equals(RESULT.reconstruction)
 
 
-def test_mode_7_with_the_color_hyperprior_decodes_exactly():
+def test_scored_steps_with_the_color_hyperprior_decode_exactly():
     from csgs_codec.decisions.color_prior_choice import PriorFitPolicy
     from csgs_codec.model.color_hyperprior import ColorFitSettings
 
     policy = PriorFitPolicy(ColorFitSettings(steps=60), min_gaussians=0, keep_when_larger=True)
     result = Encoder(quality=4, prior_fit=policy).encode_with_report(SCENE)
     assert "CHYP" in {c.type for c in _chunks(result.data)}
-    assert _rotn_fields(_rotn(result.data))["mode"] == MODE_SCORED
+    assert _rotn_fields(_rotn(result.data))["scored"]
     for threads in (1, 2):
         assert Decoder(threads=threads).decode(result.data).equals(result.reconstruction)
 
@@ -82,7 +89,8 @@ def test_small_scenes_and_uniform_steps_keep_one_rotation_step():
     small = random_scene(FOOTPRINT_MIN_GAUSSIANS - 1, sh_degree=0, seed=2)
     for data in (Encoder(quality=5, hyperprior=False).encode(small),
                  Encoder(quality=5, hyperprior=False, rotation_steps="uniform").encode(SCENE)):
-        assert _rotn_fields(_rotn(data))["mode"] not in (6, MODE_SCORED)
+        r, coding, _ = rotn_channel_reader(_rotn(data))
+        assert not coding.scored
 
 
 def test_unknown_rotation_steps_are_refused():
@@ -103,7 +111,7 @@ def test_scores_follow_the_spec_order_in_binary64():
         assert got[i] == ((w[0] * s0 + w[1] * s1) + w[2] * s2) + w[3] * o  # Python floats
 
 
-def test_anisotropy_weights_give_mode_6_classes_exactly():
+def test_anisotropy_weights_bin_the_spread_of_the_log_scales_exactly():
     rng = np.random.default_rng(9)
     log_scales = rng.normal(-4, 1.5, (2000, 3)).astype(np.float32)
     opacity = rng.normal(0, 3, 2000).astype(np.float32)
@@ -111,7 +119,10 @@ def test_anisotropy_weights_give_mode_6_classes_exactly():
     weights = np.array([(0, 0, 0, 0), (1, 0, -1, 0)], np.float32)
     cells = derive_scored_classes(log_scales, opacity, weights, np.zeros(0, np.float32),
                                   thresholds)
-    assert np.array_equal(cells, derive_classes(log_scales, thresholds))
+    s = log_scales.astype(np.float64)
+    spread = s.max(axis=1) - s.min(axis=1)
+    expected = [sum(float(t) <= d for t in thresholds) for d in spread]
+    assert cells.tolist() == expected
 
 
 def test_footprint_steps_are_finer_where_a_rotation_shows_more():
@@ -181,7 +192,7 @@ def test_unsorted_thresholds_and_bad_bin_counts_are_rejected():
         assert info.value.offset == _payload_offset(RESULT.data) + fields["bins_u_at"] + 1
 
 
-def test_mode_7_outside_rotations_is_rejected():
+def test_scored_steps_outside_rotations_are_rejected():
     payload = _rotn(RESULT.data)
     r = ByteReader(payload)
     r.byte_string("axis_stream")
@@ -217,19 +228,18 @@ def test_the_cli_writes_footprint_steps_by_default_and_uniform_on_request(tmp_pa
     from tests.conftest import SAMPLE
 
     paths = {}
-    for name, extra in (("default", []), ("uniform", ["--uniform-steps"]),
-                        ("aniso", ["--rotation-steps", "anisotropy"])):
+    for name, extra in (("default", []), ("uniform", ["--rotation-steps", "uniform"])):
         paths[name] = tmp_path / f"{name}.csgs"
         assert main(["-q", "encode", str(SAMPLE), "-o", str(paths[name]), "--quality", "3",
                      "--no-hyperprior", *extra]) == 0
-    modes = {name: _rotn_fields(_rotn(p.read_bytes()))["mode"] for name, p in paths.items()}
-    assert modes["default"] == MODE_SCORED and modes["aniso"] == 6
-    assert modes["uniform"] not in (6, MODE_SCORED)
-    out = tmp_path / "both.csgs"
-    with pytest.raises(SystemExit) as info:
-        main(["-q", "encode", str(SAMPLE), "-o", str(out), "--uniform-steps",
-              "--rotation-steps", "anisotropy"])
-    assert info.value.code == 2 and not out.exists()
+    scored = {name: rotn_channel_reader(_rotn(p.read_bytes()))[1].scored
+              for name, p in paths.items()}
+    assert scored == {"default": True, "uniform": False}
+    out = tmp_path / "gone.csgs"
+    for retired in (["--uniform-steps"], ["--rotation-steps", "anisotropy"]):
+        with pytest.raises(SystemExit) as info:
+            main(["-q", "encode", str(SAMPLE), "-o", str(out), *retired])
+        assert info.value.code == 2 and not out.exists()
 
 
 def test_info_reports_the_rotation_steps(tmp_path):
@@ -237,8 +247,9 @@ def test_info_reports_the_rotation_steps(tmp_path):
 
     path = tmp_path / "s.csgs"
     path.write_bytes(RESULT.data)
-    assert describe_bitstream(str(path))["rotation_steps"] == {
-        "mode": 7, "name": "footprint", "classes": 64}
+    steps = describe_bitstream(str(path))["rotation_steps"]
+    assert (steps["name"], steps["classes"]) == ("footprint", 64)
+    assert steps["coding"] in ("frozen+scored", "frozen+predicted+scored")
     uniform = Encoder(quality=5, hyperprior=False, rotation_steps="uniform").encode(SCENE)
     assert describe_bitstream(uniform)["rotation_steps"]["name"] == "uniform"
     cut = RESULT.data[:len(RESULT.data) - 1000]  # the ROTN chunk is cut off

@@ -188,7 +188,10 @@ def test_an_unreadable_view_record_is_reported_not_refused(capsys):
     assert main(["info", str(path)]) == 0
     out = capsys.readouterr().out
     assert "record unreadable, ignored" in out and "unknown view-distribution version 9" in out
-    assert len(Decoder().decode(path)) == 3662
+    import json
+
+    record = json.loads(path.with_suffix(".json").read_text())
+    assert len(Decoder().decode(path)) == record["reads"][0]["gaussians"] < 45624 // 12 + 1
 
 
 def _inria_folder(root, scene, cameras):

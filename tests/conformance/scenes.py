@@ -4,9 +4,9 @@ Valid vectors carry the SHA-256 of the canonical PLY (csgs_codec.scene.ply_io.pl
 each read, plus the decoded arrays for the small ones; invalid vectors carry the error class
 and the chunk it names.
 
-Vectors are never rewritten once landed: when the encoder's output changes, the generator
-writes new vectors under a new revision suffix and the old files stay as frozen history
-(:data:`FROZEN`), still decoded by the tests.
+While format 1.0 is a draft, vectors are rewritten only where a revision of the format says so
+(spec/CHANGES.md): revision 21, the cleanup before the freeze, rewrote them all once, and
+dropped the suffixes and frozen copies of earlier drafts.
 """
 
 from __future__ import annotations
@@ -30,11 +30,6 @@ REPO = Path(__file__).resolve().parents[2]
 DONUT = REPO / "samples" / "donut.ply"
 THREE_POINTS = REPO.parent / "shared" / "data" / "fixtures" / "three_points_sh3.ply"
 READS = ("color", "color,semantic")
-#: Vectors written by earlier encoder revisions; kept as files, no longer generated.
-FROZEN = ("donut_q3", "donut_q7", "three_points_sh3_q9", "semantic_small",
-          "missing_opacity_chunk", "truncated_dc_payload", "truncated_label_payload")
-#: Suffix of the vectors the current encoder writes (r2: histogram-coded channels).
-REVISION = "_r2"
 #: The vectors written before render-aware rotation steps were the default keep one step
 #: (regenerating them gives the same bytes); the scored-steps vectors show the default.
 UNIFORM = {"rotation_steps": "uniform"}
@@ -106,38 +101,47 @@ def _invalid(data: bytes, drop: str | None = None, cut: str | None = None,
 
 
 def generate(out_dir: Path) -> None:
-    """Write the current revision's scene vectors into ``out_dir`` (frozen ones untouched)."""
-    r = REVISION
+    """Write the scene vectors into ``out_dir``."""
     donut = read_ply(DONUT)
     for quality in (3, 7):
         # Written without the color hyperprior, as when they landed; the prior has its own
         # vectors (_color_prior_vectors).
         data = Encoder(quality=quality, hyperprior=False, **UNIFORM).encode(donut)
-        _write(out_dir, f"donut_q{quality}{r}", data,
+        _write(out_dir, f"donut_q{quality}", data,
                f"samples/donut.ply (45,624 Gaussians, SH 0) at quality {quality}",
                _reads(data))
     three = read_ply(THREE_POINTS)
     data = Encoder(quality=9, **UNIFORM).encode(three)
-    _write(out_dir, f"three_points_sh3_q9{r}", data,
+    _write(out_dir, "three_points_sh3_q9", data,
            "fixtures/three_points_sh3.ply (3 Gaussians, SH 3) at quality 9",
            _reads(data), arrays=Decoder().decode(data))
     small = small_semantic_scene()
     data = Encoder(quality=6, **UNIFORM).encode(small)
-    _write(out_dir, f"semantic_small{r}", data,
+    _write(out_dir, "semantic_small", data,
            "40 Gaussians, SH 1, 3 semantic channels and labels, quality 6",
            _reads(data),
            arrays=Decoder().decode(data, layers="color,semantic"))
     bad = _invalid(data, cut="OPAC")
-    _write(out_dir, f"truncated_opacity_payload{r}", bad,
-           "semantic_small_r2 with the OPAC payload cut in half (frame and CRC rewritten)",
+    _write(out_dir, "truncated_opacity_payload", bad,
+           "semantic_small with the OPAC payload cut in half (frame and CRC rewritten)",
            _reads(bad))
+    bad = _invalid(data, drop="OPAC")
+    _write(out_dir, "missing_opacity_chunk", bad,
+           "semantic_small without its OPAC chunk (a critical color chunk)", _reads(bad))
+    bad = _invalid(data, cut="SHDC")
+    _write(out_dir, "truncated_dc_payload", bad,
+           "semantic_small with the SHDC payload cut in half (frame and CRC rewritten)",
+           _reads(bad))
+    bad = _invalid(data, cut="SEML")
+    _write(out_dir, "truncated_label_payload", bad,
+           "semantic_small with the SEML payload cut in half (frame and CRC rewritten): the "
+           "color layer still decodes", _reads(bad))
     _semantic_name_vectors(out_dir)
     _semantic_codebook_vectors(out_dir)
     _color_prior_vectors(out_dir, donut)
     _far_point_vectors(out_dir, donut)
     _view_pruned_vectors(out_dir, donut)
     _tiled_vectors(out_dir, donut)
-    _derived_steps_vectors(out_dir, donut)
     _scored_steps_vectors(out_dir, donut)
     sh_colour_transform_vectors(out_dir)
 
@@ -410,33 +414,16 @@ def _tiled_vectors(out_dir: Path, donut: GaussianScene) -> None:
            "tiled_q5 with tile 1's box in TIDX shrunk to its lower corner", _reads(bad))
 
 
-def _derived_steps_vectors(out_dir: Path, donut: GaussianScene) -> None:
-    """An encode whose rotation channels use derived steps (mode 6, classes from the decoded
-    anisotropy), and the same file with its first threshold set to +inf, which decoders
-    reject at that threshold's offset."""
-    head = donut.subset(np.arange(0, len(donut), 12))
-    data = Encoder(quality=5, hyperprior=False, rotation_steps="anisotropy").encode(head)
-    _write(out_dir, "derived_steps_q5", data,
-           "every 12th Gaussian of samples/donut.ply (3,802) at quality 5 with rotation steps "
-           "derived from the decoded anisotropy (ROTN channels in mode 6)", _reads(data),
-           arrays=Decoder().decode(data))
-    top_byte = _after_rotn_step_index(data) + 1 + 3  # past class_count; f32 LE: +inf
-    bad = _invalid(_invalid(data, patch=("ROTN", top_byte, 0x7F)),
-                   patch=("ROTN", top_byte - 1, 0x80))
-    _write(out_dir, "derived_steps_infinite_threshold", bad,
-           "derived_steps_q5 with channel 0's first ROTN threshold set to +inf (frame and CRC "
-           "rewritten): invalid, reported at that threshold", _reads(bad))
-
-
 def _scored_steps_vectors(out_dir: Path, donut: GaussianScene) -> None:
-    """An encode whose rotation channels use scored steps (mode 7, cells of two scores of
-    the decoded log-scales and opacity: the default), and the same file with its first
-    score weight set to NaN, which decoders reject at the first weight's offset."""
+    """An encode whose rotation channels use scored steps (cells of two scores of the
+    decoded log-scales and opacity: the default); the same file with its first score weight
+    set to NaN, which decoders reject at the first weight's offset; and with a reserved bit
+    of its first coded ROTN channel's ``coding`` byte set, rejected at that byte."""
     head = donut.subset(np.arange(0, len(donut), 10))
     data = Encoder(quality=5, hyperprior=False, rotation_steps="footprint").encode(head)
     _write(out_dir, "scored_steps_q5", data,
            "every 10th Gaussian of samples/donut.ply (4,563) at quality 5 with rotation steps "
-           "from the decoded area, opacity and anisotropy (ROTN channels in mode 7)",
+           "from the decoded area, opacity and anisotropy (ROTN channels with scored steps)",
            _reads(data), arrays=Decoder().decode(data))
     top_byte = _after_rotn_step_index(data) + 3  # f32 little-endian: 0x7fc is a quiet NaN
     bad = _invalid(_invalid(data, patch=("ROTN", top_byte, 0x7F)),
@@ -444,11 +431,32 @@ def _scored_steps_vectors(out_dir: Path, donut: GaussianScene) -> None:
     _write(out_dir, "scored_steps_nan_weight", bad,
            "scored_steps_q5 with channel 0's first ROTN score weight set to NaN (frame and "
            "CRC rewritten): invalid, reported at that weight", _reads(bad))
+    at = _rotn_coding_byte(data)
+    coding = read_layers(data, layers={"color"}).single_payload("ROTN")[0][at]
+    bad = _invalid(data, patch=("ROTN", at, coding | 0x04))
+    _write(out_dir, "coding_reserved_bit", bad,
+           "scored_steps_q5 with bit 2 (reserved) of its first coded ROTN channel's coding "
+           "byte set (frame and CRC rewritten): invalid, reported at that byte", _reads(bad))
 
 
 def _after_rotn_step_index(data: bytes) -> int:
-    """Offset in the ROTN payload of ``data`` where its first coded channel's class table
-    starts (a channel in mode 6 or 7)."""
+    """Offset in the ROTN payload of ``data`` where its first coded channel's score table
+    starts (a channel with scored steps)."""
     r = ByteReader(read_layers(data, layers={"color"}).single_payload("ROTN")[0])
     rotation_class_table(r)
     return r.offset
+
+
+def _rotn_coding_byte(data: bytes) -> int:
+    """Offset in the ROTN payload of ``data`` of its first coded channel's ``coding`` byte."""
+    start = ByteReader(read_layers(data, layers={"color"}).single_payload("ROTN")[0])
+    start.byte_string("axis_stream")
+    start.varint("count")
+    channels = start.fixed("u8", "channel_count")
+    start.fixed("u8", "frac_bits")
+    for _ in range(channels):
+        at = start.offset
+        if start.fixed("u8", "coding") != 0:
+            return at
+        start.fixed("f32", "constant_value")
+    raise ValueError("every ROTN channel is a constant")

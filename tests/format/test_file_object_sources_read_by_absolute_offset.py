@@ -14,7 +14,7 @@ from csgs_codec.codec.decoder import Decoder
 from csgs_codec.format.source import open_source
 
 REPO = Path(__file__).resolve().parents[2]
-VECTOR = REPO / "spec" / "vectors" / "scenes" / "three_points_sh3_q9_r2.csgs"
+VECTOR = REPO / "spec" / "vectors" / "scenes" / "three_points_sh3_q9.csgs"
 THREADS = 4
 
 

@@ -12,7 +12,7 @@ from csgs_codec.errors import InputError
 from csgs_codec.format.source import open_source
 
 REPO = Path(__file__).resolve().parents[2]
-VECTOR = REPO / "spec" / "vectors" / "scenes" / "three_points_sh3_q9_r2.csgs"
+VECTOR = REPO / "spec" / "vectors" / "scenes" / "three_points_sh3_q9.csgs"
 
 
 def test_a_text_mode_file_is_an_input_error_saying_binary_mode():

@@ -160,8 +160,8 @@ def test_scene_vectors_report_their_view_record():
     results = run_js(paths, threads=1)
     assert all(js["ok"] for js in results)
     assert results[0]["views"] == describe_bitstream(paths[0])["views"] == {
-        "source": "default-sphere", "count": 72, "left_out": 140,
-        "description": "72 views on a sphere at 3 distances"}
+        "source": "default-sphere", "count": 48, "left_out": 134,
+        "description": "48 views on a sphere at 3 distances"}
     # An unknown version is skipped, not a reason to reject the scene; no vdis, no views.
     assert results[1]["views"] is None and results[2]["views"] is None
     assert results[1]["arrays"] == results[0]["arrays"]

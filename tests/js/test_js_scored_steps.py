@@ -1,7 +1,7 @@
-"""The JavaScript receiver decodes rotation channels with scored steps (mode 7, FORMAT §12.8,
-the default encoder's) to the Python decoder's arrays, on one and two threads, with and
-without the color hyperprior, and rejects a bad cell table where Python does. Skipped
-without ``node``."""
+"""The JavaScript receiver decodes rotation channels with scored steps (FORMAT §12.8, the
+default encoder's) to the Python decoder's arrays, on one and two threads, with and without
+the color hyperprior, and rejects a bad cell table or ``coding`` byte where Python does.
+Skipped without ``node``."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ def test_scored_steps_decode_in_javascript(tmp_path, threads):
     path = tmp_path / "scored.csgs"
     # Step allocation is not the subject (tests/codec/test_step_allocation.py): off, 8 s less.
     path.write_bytes(Encoder(quality=5, hyperprior=False, step_allocation=False).encode(scene))
-    assert _rotn_fields(_rotn(path.read_bytes()))["mode"] == 7
+    assert _rotn_fields(_rotn(path.read_bytes()))["scored"]
     [js] = run_js([path], threads=threads)
     assert js["ok"], js
     assert js["arrays"] == scene_hashes(Decoder().decode(path.read_bytes()))
@@ -38,13 +38,14 @@ def test_scored_steps_with_the_hyperprior_decode_in_javascript(tmp_path):
     path = tmp_path / "scored_prior.csgs"
     path.write_bytes(Encoder(quality=4, prior_fit=policy).encode(
         random_scene(5000, sh_degree=0, seed=12)))
-    assert _rotn_fields(_rotn(path.read_bytes()))["mode"] == 7
+    assert _rotn_fields(_rotn(path.read_bytes()))["scored"]
     [js] = run_js([path], threads=2)
     assert js["ok"], js
     assert js["arrays"] == scene_hashes(Decoder().decode(path.read_bytes()))
 
 
-@pytest.mark.parametrize("damage", ["nan_weight", "unsorted_thresholds", "bin_count_9"])
+@pytest.mark.parametrize("damage", ["nan_weight", "unsorted_thresholds", "bin_count_9",
+                                    "reserved_coding_bit", "scored_histogram"])
 def test_bad_cell_tables_are_rejected_where_python_rejects_them(tmp_path, damage):
     payload = bytearray(_rotn(RESULT.data))
     fields = _rotn_fields(bytes(payload))
@@ -54,8 +55,12 @@ def test_bad_cell_tables_are_rejected_where_python_rejects_them(tmp_path, damage
     elif damage == "unsorted_thresholds":
         at = fields["thresholds_u_at"]
         payload[at:at + 8] = payload[at + 4:at + 8] + payload[at:at + 4]
-    else:
+    elif damage == "bin_count_9":
         payload[fields["bins_u_at"]] = 9
+    elif damage == "reserved_coding_bit":
+        payload[fields["coding_at"]] |= 0x04
+    else:  # scored steps with a histogram table source
+        payload[fields["coding_at"]] = (payload[fields["coding_at"]] & ~0x03) | 0x02
     path = tmp_path / "bad.csgs"
     path.write_bytes(_with_rotn(bytes(payload)))
     with pytest.raises(FormatError) as info:

@@ -156,16 +156,15 @@ def rotation_class_offset(data: bytes) -> int:
     """:attr:`CodingSteps.rotation_class_offset` of the file ``data``: the classes' clip
     when any tile's ROTN codes a channel with classed steps, else 0."""
     from csgs_codec.chunks.color_streams import rotation_class_table
-    from csgs_codec.codec.derived_steps import CLIP, FOOTPRINT_CLIP
-    from csgs_codec.codec.float_stream import CLASSED_MODES
+    from csgs_codec.codec.derived_steps import FOOTPRINT_CLIP
     from csgs_codec.format.primitives import ByteReader
 
     container = read_layers(data, layers={"color"})
     for entry in container.toc:
         if entry.type == "ROTN":
             reader = ByteReader(bytes(container.payloads[entry.index]), chunk="ROTN")
-            if rotation_class_table(reader) in CLASSED_MODES:
-                return max(CLIP, FOOTPRINT_CLIP)
+            if rotation_class_table(reader).scored:
+                return FOOTPRINT_CLIP
     return 0
 
 
