@@ -1,5 +1,8 @@
-"""Byte layouts of the anchor-scene chunks that are not entropy streams: the ``ANCH`` header
-and the ``AMLP`` Scaffold-GS MLP weights (spec/FORMAT.md §17). Numpy only."""
+"""Byte layouts of the anchor-scene chunks that are not entropy-coded attributes: the
+``ANCH`` header and the ``AMLP`` Scaffold-GS MLP weights (spec/FORMAT.md §17.3, §17.7).
+Numpy only. The other anchor chunks: :mod:`~csgs_codec.chunks.anchor_networks` (AHYP, ACRM),
+:mod:`~csgs_codec.chunks.anchor_streams` (AMSK, AFEA, AOFF, ASCL) and
+:mod:`~csgs_codec.chunks.anchor_semantic` (SHYP, ASEM)."""
 
 from __future__ import annotations
 
@@ -182,6 +185,20 @@ def _weights(r: ByteReader, version: int, count: int, name: str) -> np.ndarray:
         raise r.error(f"{name}: {count} weights exceed the {coded_value_limit(r.remaining)} "
                       f"allowed with {r.remaining} payload bytes left")
     return read_float_stream(r, count, 1)[:, 0]
+
+
+def read_mlps(container, header: AnchorHeader) -> ScaffoldMLPWeights | None:
+    """The Scaffold-GS MLPs of ``container``'s AMLP, checked against ``header``'s F and K;
+    None when the header declares none (``has_mlps`` unset).
+
+    Raises:
+        FormatError: naming AMLP and the byte offset (missing, malformed, or heads that do
+            not fit the anchors).
+    """
+    if not header.has_mlps:
+        return None
+    data, offset = container.single_payload("AMLP")
+    return mlps_from_bytes(data, header.feat_dim, header.n_offsets, offset)
 
 
 def mlps_from_bytes(data: bytes, feat_dim: int, n_offsets: int,

@@ -101,5 +101,18 @@ def read_semantic_layer(container, count: int, scene: GaussianScene) -> None:
         r = ByteReader(data, base_offset=offset, chunk="SEMC")
         scene.semantic_names, scene.semantic, scene.instances = read_codebook(
             r, count, MAX_SEMANTIC_CHANNELS)
-    if "SEML" in present:
-        scene.labels = read_label_payload(*container.single_payload("SEML"), count)
+    labels = read_labels(container, count)
+    if labels is not None:
+        scene.labels = labels
+
+
+def read_labels(container, count: int) -> np.ndarray | None:
+    """(count,) int32 labels of ``container``'s SEML (a tile's, or an anchor scene's with
+    ``count`` anchors); None when it holds none.
+
+    Raises:
+        FormatError: naming SEML and the byte offset.
+    """
+    if not any(e.type == "SEML" for e in container.toc):
+        return None
+    return read_label_payload(*container.single_payload("SEML"), count)

@@ -7,6 +7,9 @@ Color layer: ``AFEA`` features (one residual stream per CARM group), ``AOFF`` ke
 ``SEML`` labels. Everything after the cells is in the decoded (canonical) order, and the
 encoder reconstructs with the integer networks the decoder runs, so
 ``AnchorDecoder().decode(data, "color,semantic")`` equals ``reconstruction`` bit for bit.
+The payloads are laid out by :mod:`csgs_codec.chunks` (``anchor_payloads``,
+``anchor_networks``, ``anchor_streams``, ``anchor_semantic``, ``semantic``); this module fits
+the networks, picks the candidate and orders the chunks.
 
 Error bounds: anchor positions are exact cells (within float32 rounding of origin + cell *
 voxel) when the anchors lie on a voxel grid, else within half a cell of a 2^16-cell grid;
@@ -28,9 +31,17 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from csgs_codec.chunks.anchor_networks import carm_payload, color_channels, hyperprior_payload
 from csgs_codec.chunks.anchor_payloads import AnchorHeader, mlps_to_bytes
+from csgs_codec.chunks.anchor_semantic import anchor_semantic_payload, semantic_stream
+from csgs_codec.chunks.anchor_streams import (
+    anchor_feature_payload,
+    anchor_offset_payload,
+    anchor_scaling_payload,
+    offset_mask_payload,
+)
 from csgs_codec.chunks.semantic import label_payload
-from csgs_codec.chunks.semantic_names import MAX_SEMANTIC_CHANNELS, names_to_bytes
+from csgs_codec.chunks.semantic_names import MAX_SEMANTIC_CHANNELS
 from csgs_codec.codec.anchor_grid import anchor_grid
 from csgs_codec.codec.encoder_checks import check_semantic_names
 from csgs_codec.codec.encoder_config import SEMANTIC_MODES
@@ -40,21 +51,10 @@ from csgs_codec.decisions.presets import (
     DEFAULT_QUALITY,
     MULTIPLIERS,
 )
-from csgs_codec.entropy.anchor_attributes import (
-    FRAC_BITS,
-    encode_block,
-    encode_features,
-    hyper_params,
-    masked_params,
-    step_values,
-)
+from csgs_codec.entropy.anchor_attributes import hyper_params, step_values
 from csgs_codec.entropy.geometry import canonical_order, encode_positions
-from csgs_codec.entropy.intnet_bytes import intnet_to_bytes
-from csgs_codec.entropy.offset_masks import encode_masks
-from csgs_codec.entropy.residual import from_grid, to_grid
 from csgs_codec.errors import InputError
 from csgs_codec.format import Chunk, write_container
-from csgs_codec.format.primitives import ByteWriter
 from csgs_codec.model.anchor_hyperprior import (
     FAST_FIT,
     AttributeTarget,
@@ -216,7 +216,7 @@ class AnchorEncoder:
         fit_seconds = time.perf_counter() - fit_start
         chunks.append(Chunk("AHYP", "base", best.hyper))
         chunks.append(Chunk("ACRM", "base", best.carm))
-        chunks.append(Chunk("AMSK", "base", encode_masks(mask)))
+        chunks.append(Chunk("AMSK", "base", offset_mask_payload(mask)))
         mlps = None
         if s.mlps is not None:
             payload, mlps = mlps_to_bytes(s.mlps, self.step("f") / ANCHOR_BASE_STEPS["f"])
@@ -241,23 +241,20 @@ class AnchorEncoder:
             m, width = s.semantic.shape
             target = AttributeTarget(s.semantic.astype(np.float64), np.ones((m, width)),
                                      self.step("semantic"))
-            grid_values = to_grid(s.semantic.reshape(-1), FRAC_BITS).reshape(m, width)
             best = None
             for settings in self._candidate_fits(m):
                 hyper, _ = fit_prior(cells, pos_bits, [target], settings=settings,
                                      name="semantic hyperprior")
-                network = intnet_to_bytes(hyper)
+                network = hyperprior_payload(hyper)
                 (params,) = hyper_params(hyper, cells, [width])
-                stream, rec = encode_block(grid_values, params)
+                stream, decoded = semantic_stream(s.semantic, params)
                 if best is None or len(network) + len(stream) < best[0]:
-                    best = (len(network) + len(stream), network, params, stream, rec)
-            _, network, params, stream, rec = best
-            out = ByteWriter()
-            names_to_bytes(out, s.semantic_names)
-            out.byte_string(stream)
+                    best = (len(network) + len(stream), network, params, stream, decoded)
+            _, network, params, stream, decoded = best
             chunks.append(Chunk("SHYP", "semantic", network))
-            chunks.append(Chunk("ASEM", "semantic", out.getvalue()))
-            recon.semantic, recon.semantic_names = _floats(rec), s.semantic_names
+            chunks.append(Chunk("ASEM", "semantic",
+                                anchor_semantic_payload(s.semantic_names, stream)))
+            recon.semantic, recon.semantic_names = decoded, s.semantic_names
             steps["semantic"] = step_values(params.step)
         if s.labels is not None:
             chunks.append(Chunk("SEML", "semantic", label_payload(s.labels)))
@@ -324,33 +321,12 @@ class _ColorCoding:
 
 def _code_color(s: AnchorScene, cells: np.ndarray, hyper, carm) -> _ColorCoding:
     """Code features, kept offsets and scaling of ``s`` with the given networks."""
-    m, f, k = len(s), s.feat_dim, s.n_offsets
-    mask = s.offset_mask
-    out = ByteWriter()
-    out.varint(len(carm))
-    for net in carm:
-        out.byte_string(net.to_bytes())
-    carm_bytes = out.getvalue()
-    p_f, p_off, p_scl = hyper_params(hyper, cells, [f, 3 * k, 6])
-    streams, rec_f = encode_features(to_grid(s.features, FRAC_BITS).reshape(m, f), p_f, carm)
-    out = ByteWriter()
-    out.varint(len(streams))
-    for stream in streams:
-        out.byte_string(stream)
-    layer = {"AFEA": out.getvalue()}
-    kept = to_grid(s.offsets[mask].reshape(-1), FRAC_BITS).reshape(-1, 3)
-    layer["AOFF"], rec_kept = encode_block(kept, masked_params(p_off, mask))
-    layer["ASCL"], rec_scl = encode_block(to_grid(s.scaling.reshape(-1), FRAC_BITS)
-                                          .reshape(m, 6), p_scl)
-    offsets = np.zeros((m, k, 3), dtype=np.float32)
-    offsets[mask] = _floats(rec_kept)
+    p_f, p_off, p_scl = hyper_params(hyper, cells, color_channels(s.feat_dim, s.n_offsets))
+    layer = {}
+    layer["AFEA"], features = anchor_feature_payload(s.features, p_f, carm)
+    layer["AOFF"], offsets = anchor_offset_payload(s.offsets, s.offset_mask, p_off)
+    layer["ASCL"], scaling = anchor_scaling_payload(s.scaling, p_scl)
     steps = {"f": step_values(p_f.step), "offsets": step_values(p_off.step),
              "scaling": step_values(p_scl.step)}
-    return _ColorCoding(intnet_to_bytes(hyper), carm_bytes, layer, _floats(rec_f), offsets,
-                         _floats(rec_scl), steps)
-
-
-def _floats(grid_values: np.ndarray) -> np.ndarray:
-    """Grid integers -> float32 values (what the decoder outputs)."""
-    return from_grid(grid_values.reshape(-1), FRAC_BITS).astype(np.float32).reshape(
-        grid_values.shape)
+    return _ColorCoding(hyperprior_payload(hyper), carm_payload(carm), layer, features,
+                        offsets, scaling, steps)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from csgs_codec.chunks.anchor_payloads import AnchorHeader
+from csgs_codec.chunks.stream_list import read_stream_list, stream_list_payload
 from csgs_codec.codec.anchor_decoder import AnchorDecoder
 from csgs_codec.codec.anchor_encoder import AnchorEncoder
 from csgs_codec.errors import FormatError, InputError
@@ -80,3 +81,20 @@ def test_non_finite_features_are_an_input_error():
     bad.features[3, 4] = np.nan
     with pytest.raises(InputError):
         AnchorEncoder().encode(bad)
+
+
+def test_a_carm_network_that_does_not_fit_its_group_names_acrm():
+    networks = [data for data, _ in read_stream_list(payload("ACRM"), 0, "ACRM", 4)]
+    swapped = stream_list_payload([networks[1], networks[0]] + networks[2:])
+    with pytest.raises(FormatError, match="does not fit") as err:
+        AnchorDecoder().decode(rebuilt({"ACRM": swapped}))
+    assert err.value.chunk == "ACRM" and err.value.offset is not None
+
+
+def test_a_hyperprior_of_another_layout_names_its_chunk_and_offset():
+    with pytest.raises(FormatError, match="outputs") as err:
+        AnchorDecoder().decode(rebuilt({"AHYP": payload("SHYP")}))
+    assert err.value.chunk == "AHYP" and err.value.offset is not None
+    with pytest.raises(FormatError, match="outputs") as err:
+        AnchorDecoder().decode(rebuilt({"SHYP": payload("AHYP")}), layers="color,semantic")
+    assert err.value.chunk == "SHYP" and err.value.offset is not None
