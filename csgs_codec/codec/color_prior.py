@@ -1,54 +1,22 @@
-"""The color layer's INR hyperprior (FORMAT §12.19): the CHYP payload and the per-channel
-priors its network gives the float streams. Numpy only; the fit is in
-:mod:`csgs_codec.model.color_hyperprior`.
+"""The color layer's INR hyperprior (FORMAT §12.19) at work: the per-channel priors its
+network gives the float streams. Numpy only; the CHYP payload is
+:mod:`csgs_codec.chunks.color_prior`'s, the fit :mod:`csgs_codec.model.color_hyperprior`'s.
 
-The color float streams, in order (dc, rest1.., opacity, scale, rot), have T channels in
-all; a channel mask says which of them the network models. With M modelled channels the
-network has 2M outputs per Gaussian: M mean indices (units of 1/64 step) then M scale-table
-indices. The network reads the Gaussian's integer grid cell (the geometry's cell; far
-outliers, which have none, read cell (0, 0, 0)). Modelled channel j of a stream gets the prior
+The network reads each Gaussian's integer grid cell (the geometry's cell; far outliers, which
+have none, read cell (0, 0, 0)). Modelled channel j of a stream gets the prior
 ``mean = (out[:, j] + 32) >> 6`` (the mean rounded half up to whole steps) and
 ``scale = out[:, M + j]``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
-from csgs_codec.chunks.color_streams import STREAM_CHANNELS
+from csgs_codec.chunks.color_prior import MEAN_BITS, ColorPrior, stream_layout
 from csgs_codec.codec.float_stream import ChannelPrior
 from csgs_codec.entropy.intnet import IntMLP
-from csgs_codec.entropy.intnet_bytes import intnet_from_bytes, intnet_to_bytes
-from csgs_codec.entropy.tables import SCALE_COUNT
-from csgs_codec.errors import FormatError
-from csgs_codec.format.primitives import ByteReader, ByteWriter
-
-CHYP_VERSION = 1
-#: Mean outputs are in units of 2^-MEAN_BITS steps, within +-MEAN_LIMIT.
-MEAN_BITS = 6
-MEAN_LIMIT = 1 << 40
-#: Scale outputs index the frozen Gaussian family.
-SCALE_MAX = SCALE_COUNT - 1
-
-
-@dataclass(frozen=True)
-class ColorPrior:
-    """A fitted color hyperprior.
-
-    Attributes:
-        mask: (T,) bool, which channels of the color streams (in stream order) it models.
-        net: the integer network, 2 * mask.sum() outputs.
-    """
-
-    mask: np.ndarray
-    net: IntMLP
-
-
-def stream_layout(names: list[str]) -> list[tuple[str, int]]:
-    """(stream, channel) of every channel of the color streams ``names``, in order."""
-    return [(name, c) for name in names for c in range(STREAM_CHANNELS[name])]
 
 
 def modelled_streams(prior: ColorPrior, names: list[str]) -> set[str]:
@@ -92,54 +60,4 @@ def keep_outputs(prior: ColorPrior, keep: np.ndarray) -> ColorPrior:
                  prior.net.out_hi[rows])
     mask = prior.mask.copy()
     mask[np.flatnonzero(mask)[~keep]] = False
-    return ColorPrior(mask, net)
-
-
-def prior_to_bytes(prior: ColorPrior) -> bytes:
-    """The CHYP payload: u8 version, varint T, the mask (ceil(T / 8) bytes, channel i in bit
-    i mod 8 of byte i // 8), then the network payload (FORMAT §16.4)."""
-    out = ByteWriter()
-    out.fixed("u8", CHYP_VERSION)
-    out.varint(len(prior.mask))
-    out.raw(np.packbits(prior.mask.astype(np.uint8), bitorder="little").tobytes())
-    out.raw(intnet_to_bytes(prior.net))
-    return out.getvalue()
-
-
-def prior_from_bytes(data: bytes, *, base_offset: int, names: list[str],
-                     pos_bits: int) -> ColorPrior:
-    """Parse a CHYP payload for the color streams ``names`` and a grid of ``pos_bits``.
-
-    Raises:
-        FormatError: unknown version, a channel count or mask that does not fit the streams,
-            a bad network, or one whose width or grid does not match.
-    """
-    r = ByteReader(data, base_offset=base_offset, chunk="CHYP")
-    version = r.fixed("u8", "version")
-    if version != CHYP_VERSION:
-        raise r.error(f"color hyperprior version {version} is not {CHYP_VERSION}",
-                      at=base_offset)
-    total = len(stream_layout(names))
-    count = r.varint("channel_count", maximum=1 << 16)
-    if count != total:
-        raise r.error(f"the mask covers {count} channels, the color streams have {total}")
-    packed = np.frombuffer(r.raw((total + 7) // 8, "channel_mask"), np.uint8)
-    bits = np.unpackbits(packed, bitorder="little").astype(bool)
-    if bits[total:].any():
-        raise r.error("channel mask has bits set beyond the channel count")
-    mask = bits[:total]
-    net = intnet_from_bytes(data[r.position:], chunk="CHYP", base_offset=r.offset)
-    if net.out_width != 2 * int(mask.sum()):
-        raise FormatError(f"network has {net.out_width} outputs, the mask models "
-                          f"{int(mask.sum())} channels (needs twice that)", chunk="CHYP",
-                          offset=r.offset)
-    m = int(mask.sum())
-    if (np.abs(net.out_lo[:m]).max(initial=0) > MEAN_LIMIT
-            or np.abs(net.out_hi[:m]).max(initial=0) > MEAN_LIMIT
-            or net.out_lo[m:].min(initial=0) < 0 or net.out_hi[m:].max(initial=0) > SCALE_MAX):
-        raise FormatError(f"network output clamps allow means beyond 2^40 steps/64 or scale "
-                          f"indices outside 0..{SCALE_MAX}", chunk="CHYP", offset=r.offset)
-    if net.pos_bits != pos_bits:
-        raise FormatError(f"network pos_bits {net.pos_bits} differs from the grid's "
-                          f"{pos_bits}", chunk="CHYP", offset=r.offset)
     return ColorPrior(mask, net)

@@ -13,20 +13,15 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from csgs_codec.chunks.checks import check_finite
+from csgs_codec.chunks.color_prior import ColorPrior, read_color_prior
 from csgs_codec.chunks.color_streams import CHUNK_STREAMS, STREAM_CHUNKS, read_color_stream
 from csgs_codec.chunks.far_points import read_far_positions
 from csgs_codec.chunks.scene_header import SceneHeader
 from csgs_codec.chunks.semantic import read_semantic_layer
+from csgs_codec.chunks.sh_colour_transform import read_colour_transform
 from csgs_codec.chunks.tile_index import TileIndex, TileInfo
-from csgs_codec.codec.color_prior import (
-    ColorPrior,
-    channel_priors,
-    modelled_streams,
-    prior_cells,
-    prior_from_bytes,
-)
+from csgs_codec.codec.color_prior import channel_priors, modelled_streams, prior_cells
 from csgs_codec.codec.container_access import parse_layers
-from csgs_codec.codec.sh_colour_transform import read_record
 from csgs_codec.codec.streams import SceneStreams, join_streams
 from csgs_codec.entropy.geometry import decode_positions
 from csgs_codec.errors import FormatError, InputError
@@ -295,7 +290,7 @@ class Decoder:
         """The scene of one tile's chunks (``container`` holds only that tile's entries)."""
         header = SceneHeader.from_bytes(*container.single_payload("SCNE"))
         self._check_count(header, container.source_size)
-        prior = (self._color_prior(container, header)
+        prior = (read_color_prior(container, _stream_names(header), header.grid_bits)
                  if any(e.type == "CHYP" for e in container.toc) else None)
         pool = ThreadPoolExecutor(threads) if threads > 1 else None
         try:
@@ -303,10 +298,7 @@ class Decoder:
             # with hyperprior channels need the decoded cells: decode side by side
             # (numpy releases the GIL). Results are taken in a fixed order, so the
             # output and the first error raised do not depend on scheduling.
-            colour_transform = None
-            if any(e.type == "SHXF" for e in container.toc):
-                data, offset = container.single_payload("SHXF")
-                colour_transform = (read_record(data, offset, header.sh_degree_coded), offset)
+            colour_transform = read_colour_transform(container, header.sh_degree_coded)
             positions_job = _submit(pool, self._positions, container, header)
             streams = self._color_streams(container, header, pool, prior, positions_job,
                                           colour_transform)
@@ -354,16 +346,6 @@ class Decoder:
         return positions, cells
 
     # ------------------------------------------------------------------ color layer
-    def _color_prior(self, container, header: SceneHeader) -> ColorPrior:
-        """The color hyperprior of the CHYP chunk (parsed, not yet evaluated)."""
-        data, offset = container.single_payload("CHYP")
-        pos_bits = max(header.grid_bits, 1)
-        if pos_bits > 32:
-            raise FormatError(f"the color hyperprior needs a grid of at most 32 bits, the "
-                              f"header has {pos_bits}", chunk="CHYP", offset=offset)
-        return prior_from_bytes(data, base_offset=offset, names=_stream_names(header),
-                                pos_bits=pos_bits)
-
     def _color_streams(self, container, header: SceneHeader, pool: ThreadPoolExecutor | None,
                         prior: ColorPrior | None, positions_job: Future,
                         colour_transform: tuple[tuple[int, ...], int] | None = None

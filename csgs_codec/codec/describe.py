@@ -5,8 +5,8 @@ from __future__ import annotations
 from csgs_codec.chunks.color_streams import rotation_step_summary
 from csgs_codec.chunks.far_points import relative_far_count
 from csgs_codec.chunks.scene_header import SceneHeader
+from csgs_codec.chunks.sh_colour_transform import OPPONENT, parse_colour_transform
 from csgs_codec.chunks.view_record import ViewRecord
-from csgs_codec.codec.sh_colour_transform import OPPONENT, read_record
 from csgs_codec.errors import CsgsError, FormatError
 from csgs_codec.format import describe, read_layers
 from csgs_codec.format.reader import read_frame
@@ -100,7 +100,7 @@ def _opponent_bands(source, container) -> list[int] | None:
         scene = next(e for e in container.toc if e.type == "SCNE" and e.tile == entry.tile)
         degree = SceneHeader.from_bytes(bytes(container.payloads[scene.index]),
                                         scene.offset + 8).sh_degree_coded
-        transforms = read_record(data, entry.offset + 8, degree)
+        transforms = parse_colour_transform(data, entry.offset + 8, degree)
     except (CsgsError, OSError, StopIteration):
         return None
     return [band for band, t in enumerate(transforms, start=1) if t == OPPONENT]

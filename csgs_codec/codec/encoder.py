@@ -22,6 +22,7 @@ from csgs_codec.chunks.semantic_codebook import (
     instance_embeddings,
     write_codebook,
 )
+from csgs_codec.chunks.sh_colour_transform import colour_transform_payload
 from csgs_codec.chunks.view_record import ViewRecord
 from csgs_codec.codec.color_prior import prior_cells
 from csgs_codec.codec.derived_steps import rotation_classes
@@ -29,7 +30,7 @@ from csgs_codec.codec.encode_result import EncodeResult
 from csgs_codec.codec.encoder_checks import check_count, check_encodable, decodable_container
 from csgs_codec.codec.encoder_config import EncoderConfig
 from csgs_codec.codec.float_stream import plan_float_stream
-from csgs_codec.codec.sh_colour_transform import apply_inverse, choose_transforms, record_bytes
+from csgs_codec.codec.sh_colour_transform import apply_inverse, choose_transforms
 from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
 from csgs_codec.codec.tiling import effective_tile_size
 from csgs_codec.decisions.color_prior_choice import (
@@ -470,7 +471,7 @@ class Encoder:
         if choice.payload is not None:
             chunks.append(Chunk("CHYP", "color", choice.payload))
         if any(transforms):
-            chunks.append(Chunk("SHXF", "color", record_bytes(transforms)))
+            chunks.append(Chunk("SHXF", "color", colour_transform_payload(transforms)))
         for name, plan in plans.items():
             chunks.append(Chunk(STREAM_CHUNKS[name], "color", color_stream_payload(
                 name, plan, choice.channels.get(name), streams.rot_axis)))

@@ -1,5 +1,6 @@
-"""The SH bands' colour transform (FORMAT §12.24, chunk ``SHXF``): writer, reader and the
-exact inverse every decoder applies.
+"""The SH bands' colour transform (FORMAT §12.24): the encoder's choice and the exact inverse
+every decoder applies (the ``SHXF`` record that marks the bands is
+:mod:`csgs_codec.chunks.sh_colour_transform`'s).
 
 A band's three colour values of one coefficient (r, g, b) are strongly correlated, and
 coding them apart lets small, correlated values all quantize to zero. The opponent
@@ -22,15 +23,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from csgs_codec.chunks.sh_colour_transform import IDENTITY, OPPONENT
 from csgs_codec.codec.float_stream import plan_float_stream
 from csgs_codec.errors import FormatError
-from csgs_codec.format.primitives import ByteReader, ByteWriter
 
-#: Transform ids of the record.
-IDENTITY = 0
-OPPONENT = 1
-#: The record's version.
-SHXF_VERSION = 1
 #: The inverse's binary64 constants (FORMAT §12.24): about 1/sqrt 3, 1/sqrt 2, 1/sqrt 6 and
 #: twice the last (exact).
 INVERSE_A = float.fromhex("0x1.279a74590331dp-1")
@@ -76,44 +72,6 @@ def inverse(values: np.ndarray) -> np.ndarray:
         c2 *= 2.0
         rows[:, 1::3] = a0 - c2
     return out
-
-
-def record_bytes(transforms: tuple[int, ...]) -> bytes:
-    """The ``SHXF`` payload for one transform id per coded band (bands 1.. in order)."""
-    out = ByteWriter()
-    out.fixed("u8", SHXF_VERSION)
-    out.fixed("u8", len(transforms))
-    for transform in transforms:
-        out.fixed("u8", transform)
-    return out.getvalue()
-
-
-def read_record(data: bytes, offset: int, sh_degree_coded: int) -> tuple[int, ...]:
-    """The transform id of each coded band from an ``SHXF`` payload at file ``offset``.
-
-    Raises:
-        FormatError: a version other than 1, a band count other than ``sh_degree_coded``
-            (or none coded), an unknown id or trailing bytes, at the offending byte.
-    """
-    r = ByteReader(data, base_offset=offset, chunk="SHXF")
-    at = r.offset
-    version = r.fixed("u8", "version")
-    if version != SHXF_VERSION:
-        raise r.error(f"unsupported SH colour transform version {version}", at=at)
-    at = r.offset
-    count = r.fixed("u8", "band_count")
-    if count != sh_degree_coded or count == 0:
-        raise r.error(f"the record lists {count} bands, the scene codes "
-                      f"{sh_degree_coded}", at=at)
-    transforms = []
-    for _ in range(count):
-        at = r.offset
-        transform = r.fixed("u8", "transform")
-        if transform not in (IDENTITY, OPPONENT):
-            raise r.error(f"unknown SH colour transform {transform}", at=at)
-        transforms.append(transform)
-    r.expect_end("the SH colour transform record")
-    return tuple(transforms)
 
 
 def band_colours(values: np.ndarray, band: int, transforms: tuple[int, ...],

@@ -8,15 +8,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from csgs_codec.codec.color_prior import (
+from csgs_codec.chunks.color_prior import (
     MEAN_BITS,
     MEAN_LIMIT,
     ColorPrior,
-    channel_priors,
-    keep_outputs,
-    prior_to_bytes,
+    color_prior_payload,
     stream_layout,
 )
+from csgs_codec.codec.color_prior import channel_priors, keep_outputs
 from csgs_codec.codec.float_stream import (
     ChannelPrior,
     StreamPlan,
@@ -136,5 +135,5 @@ def _evaluate(prior: ColorPrior, plans: dict[str, StreamPlan], cells: np.ndarray
             streams.setdefault(s, {})[c] = (priors[s][c], stream)
     if not any(keep):
         return -np.inf, PriorChoice()
-    payload = prior_to_bytes(keep_outputs(prior, np.array(keep)))
+    payload = color_prior_payload(keep_outputs(prior, np.array(keep)))
     return saved - 8 * len(payload), PriorChoice(payload, streams)

@@ -72,7 +72,7 @@ class ColorPriorFit:
         residuals: (N, T) int64 base residuals of the T modelled channels (in steps).
         settings: training settings.
         mean_bits, mean_limit: the format's mean outputs are in units of 2^-mean_bits steps
-            and clamped to +-mean_limit (csgs_codec/codec/color_prior.py).
+            and clamped to +-mean_limit (csgs_codec/chunks/color_prior.py).
 
     The exported network has 2T outputs: T mean indices, then T scale-table indices in
     [0, 63].

@@ -9,13 +9,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from csgs_codec.chunks.color_prior import ColorPrior, color_prior_payload, prior_from_bytes
 from csgs_codec.chunks.scene_header import SceneHeader
-from csgs_codec.codec.color_prior import (
-    ColorPrior,
-    keep_outputs,
-    prior_from_bytes,
-    prior_to_bytes,
-)
+from csgs_codec.codec.color_prior import keep_outputs
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
 from csgs_codec.decisions.color_prior_choice import PriorFitPolicy
@@ -139,7 +135,7 @@ def test_scale_outputs_outside_the_table_family_are_refused(small_pair):
     hi[-1] = 64
     bad = ColorPrior(prior.mask, replace(prior.net, out_hi=hi))
     with pytest.raises(FormatError, match="scale"):
-        prior_from_bytes(prior_to_bytes(bad), base_offset=0, names=NAMES, pos_bits=bits)
+        prior_from_bytes(color_prior_payload(bad), base_offset=0, names=NAMES, pos_bits=bits)
     with pytest.raises(FormatError, match="pos_bits"):
         prior_from_bytes(payload, base_offset=0, names=NAMES, pos_bits=bits + 1)
 
@@ -167,7 +163,7 @@ def test_fit_progress_counts_the_training_steps(donut):
 
 
 def test_a_fit_run_in_parts_equals_one_run(donut):
-    from csgs_codec.codec.color_prior import MEAN_BITS, MEAN_LIMIT
+    from csgs_codec.chunks.color_prior import MEAN_BITS, MEAN_LIMIT
     from csgs_codec.entropy.intnet_bytes import intnet_to_bytes
     from csgs_codec.model.color_hyperprior import ColorPriorFit
 

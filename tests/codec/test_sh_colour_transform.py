@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from csgs_codec.chunks import sh_colour_transform as shxf
 from csgs_codec.codec import sh_colour_transform as xf
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
@@ -37,15 +38,15 @@ def test_the_inverse_is_the_spec_expression_and_undoes_the_forward_transform():
 
 
 def test_the_record_round_trips_and_bad_records_name_the_byte():
-    payload = xf.record_bytes((1, 0, 1))
+    payload = shxf.colour_transform_payload((1, 0, 1))
     assert payload == bytes([1, 3, 1, 0, 1])
-    assert xf.read_record(payload, 100, 3) == (1, 0, 1)
+    assert shxf.parse_colour_transform(payload, 100, 3) == (1, 0, 1)
     cases = [(bytes([2, 3, 1, 0, 1]), 100, "version"), (bytes([1, 2, 1, 0]), 101, "lists 2"),
              (bytes([1, 3, 1, 3, 1]), 103, "unknown"),
              (bytes([1, 3, 1, 0, 1, 0]), 105, "SH colour transform record")]
     for bad, offset, words in cases:
         with pytest.raises(FormatError, match=words) as err:
-            xf.read_record(bad, 100, 3)
+            shxf.parse_colour_transform(bad, 100, 3)
         assert err.value.chunk == "SHXF" and err.value.offset == offset
 
 

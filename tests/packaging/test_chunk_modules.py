@@ -18,7 +18,8 @@ FAMILIES = {"SHDC": "color_streams", "SHBA": "color_streams", "SHBB": "color_str
             "ANCH": "anchor_payloads", "AMLP": "anchor_payloads",
             "AHYP": "anchor_networks", "ACRM": "anchor_networks",
             "AMSK": "anchor_streams", "AFEA": "anchor_streams", "AOFF": "anchor_streams",
-            "ASCL": "anchor_streams", "SHYP": "anchor_semantic", "ASEM": "anchor_semantic"}
+            "ASCL": "anchor_streams", "SHYP": "anchor_semantic", "ASEM": "anchor_semantic",
+            "CHYP": "color_prior", "SHXF": "sh_colour_transform"}
 #: Families whose payload is a class with ``to_bytes``/``from_bytes`` (or that the anchor
 #: codec assembles from streams) rather than module functions: the codec may take their
 #: payload out of the container and hand it to the class.

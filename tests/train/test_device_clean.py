@@ -44,7 +44,7 @@ import numpy as np
 import pytest
 import torch
 
-from csgs_codec.codec.color_prior import MEAN_BITS, MEAN_LIMIT
+from csgs_codec.chunks.color_prior import MEAN_BITS, MEAN_LIMIT
 from csgs_codec.model.anchor_hyperprior import FitSettings
 from csgs_codec.model.color_hyperprior import ColorFitSettings, ColorPriorFit
 from csgs_codec.render.composite_torch import composite
