@@ -24,7 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks.bench_common import FULL_PRECISION, SCENES, document, emit  # noqa: E402
 from csgs_codec.errors import DataLossWarning  # noqa: E402
 from csgs_codec.interchange.writers import scene_bytes  # noqa: E402
-from csgs_codec.scene_files import read_scene  # noqa: E402
+from csgs_codec.scene_files import read_scene_with_report  # noqa: E402
 
 SAMPLE = Path(__file__).resolve().parents[1] / "samples" / "donut.ply"
 #: suffix -> largest position error the format allows for a scene within +-2048 units
@@ -43,7 +43,7 @@ def best_of(repeat: int, run) -> tuple[float, object]:
 
 def measure(path: Path, repeat: int) -> list[dict]:
     """One row per output format for the scene at ``path``."""
-    scene, _ = read_scene(path)
+    scene, _ = read_scene_with_report(path)
     rows = []
     with tempfile.TemporaryDirectory() as folder:
         for suffix, tolerance in POSITION_TOLERANCE.items():
@@ -52,7 +52,7 @@ def measure(path: Path, repeat: int) -> list[dict]:
                 write_s, data = best_of(repeat, lambda s=suffix: scene_bytes(scene, s))
             out = Path(folder) / f"scene{suffix}"
             out.write_bytes(data)
-            read_s, (back, source) = best_of(repeat, lambda o=out: read_scene(o))
+            read_s, (back, source) = best_of(repeat, lambda o=out: read_scene_with_report(o))
             assert len(back) == len(scene)
             if suffix in (".ply", ".glb", ".splat"):  # same order as written
                 error = float(np.abs(back.positions - scene.positions).max())

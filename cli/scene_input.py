@@ -76,7 +76,7 @@ def load_scene(path: str | Path, *, command: str, layers: str = "color,semantic"
         UnsupportedError: a file type that is not a scene input of this command.
     """
     from csgs_codec.interchange import detect_format
-    from csgs_codec.scene_files import open_scene
+    from csgs_codec.scene_files import read_scene
 
     path = Path(path)
     try:
@@ -94,4 +94,4 @@ def load_scene(path: str | Path, *, command: str, layers: str = "color,semantic"
                                        "anchor scene (csgs decode writes it as a Scaffold-GS "
                                        "checkpoint)", file=path)
             return AnchorDecoder().decode(path, layers=layers)
-    return open_scene(path, layers=layers)
+    return read_scene(path, layers=layers)

@@ -2,8 +2,8 @@
 
 Public API (imported on first use, so ``import csgs_codec`` stays light)::
 
-    from csgs_codec import Encoder, Decoder, open_scene, write_scene
-    data = Encoder(quality=5).encode(open_scene("scene.spz"))    # -> bytes (any scene format)
+    from csgs_codec import Encoder, Decoder, read_scene, write_scene
+    data = Encoder(quality=5).encode(read_scene("scene.spz"))    # -> bytes (any scene format)
     scene = Decoder().decode(data, layers="color")               # -> GaussianScene
     write_scene(scene, "scene.glb")                              # format by extension
 
@@ -38,7 +38,7 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for IDEs and type che
     from csgs_codec.scene.gaussian_scene import GaussianScene
     from csgs_codec.scene.ply_io import read_ply, write_ply
     from csgs_codec.scene.scaffold_io import read_scaffold, write_scaffold
-    from csgs_codec.scene_files import open_scene, read_scene
+    from csgs_codec.scene_files import read_scene, read_scene_with_report
     from csgs_codec.semantic.selection import select_at_click
 
 __version__ = "0.1.0"
@@ -60,8 +60,8 @@ _LAZY = {
     "read_scaffold": "csgs_codec.scene.scaffold_io",
     "write_scaffold": "csgs_codec.scene.scaffold_io",
     "select_at_click": "csgs_codec.semantic.selection",
-    "open_scene": "csgs_codec.scene_files",
     "read_scene": "csgs_codec.scene_files",
+    "read_scene_with_report": "csgs_codec.scene_files",
     "write_scene": "csgs_codec.interchange",
 }
 __all__ = [
@@ -69,7 +69,7 @@ __all__ = [
     "Encoder", "EncoderConfig", "EncodeResult", "Decoder", "decode", "encode_file", "decode_file",
     "GaussianScene", "read_ply", "write_ply",
     "AnchorScene", "AnchorEncoder", "AnchorDecoder", "read_scaffold", "write_scaffold",
-    "select_at_click", "open_scene", "read_scene", "write_scene",
+    "select_at_click", "read_scene", "read_scene_with_report", "write_scene",
     "CsgsError", "InputError", "FormatError", "UnsupportedError", "ModelError",
     "CsgsWarning", "DataLossWarning", "CompoundedLossWarning",
 ]

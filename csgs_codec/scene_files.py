@@ -11,8 +11,8 @@ from csgs_codec.interchange import SceneSource, detect_format, read_interchange
 from csgs_codec.scene.gaussian_scene import GaussianScene
 
 
-def read_scene(path: str | os.PathLike, *, sanitize: bool = False,
-               layers: str = "color,semantic") -> tuple[GaussianScene, SceneSource]:
+def read_scene_with_report(path: str | os.PathLike, *, sanitize: bool = False,
+                           layers: str = "color") -> tuple[GaussianScene, SceneSource]:
     """Read the scene in ``path`` whatever its format, recognised by content (see
     :func:`csgs_codec.interchange.detect_format`): 3DGS PLY, PlayCanvas compressed PLY,
     ``.splat``, ``.ksplat``, SPZ, SOG (``.sog``, a folder or its ``meta.json``), GLB with
@@ -21,7 +21,8 @@ def read_scene(path: str | os.PathLike, *, sanitize: bool = False,
     Args:
         path: the file or SOG folder.
         sanitize: PLY only: drop Gaussians with NaN/Inf values instead of failing.
-        layers: ``.csgs`` only: the layers to decode ("color" or "color,semantic").
+        layers: ``.csgs`` only: the layers to decode, "color" (default, as
+            :meth:`csgs_codec.Decoder.decode`) or "color,semantic".
 
     Returns:
         (scene in INRIA PLY conventions, what the file was).
@@ -46,7 +47,8 @@ def read_scene(path: str | os.PathLike, *, sanitize: bool = False,
     return scene, SceneSource("csgs", "csgs bitstream", lossy=True)
 
 
-def open_scene(path: str | os.PathLike, *, sanitize: bool = False,
-               layers: str = "color,semantic") -> GaussianScene:
-    """The Gaussian scene in ``path``, any format csgs reads; see :func:`read_scene`."""
-    return read_scene(path, sanitize=sanitize, layers=layers)[0]
+def read_scene(path: str | os.PathLike, *, sanitize: bool = False,
+               layers: str = "color") -> GaussianScene:
+    """The Gaussian scene in ``path``, any format csgs reads; with what the file was:
+    :func:`read_scene_with_report`."""
+    return read_scene_with_report(path, sanitize=sanitize, layers=layers)[0]

@@ -86,7 +86,7 @@ def default_encoding(tmp_path_factory):
                     from csgs_codec import Encoder
                     from csgs_codec.scene_files import read_scene
 
-                    scene, _ = read_scene(source)
+                    scene = read_scene(source)
                     result = Encoder().encode_with_report(scene)
                     path.parent.mkdir(exist_ok=True)
                     path.write_bytes(result.data)

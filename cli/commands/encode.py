@@ -117,7 +117,7 @@ def run(args) -> int:
     from csgs_codec.codec.encoder import COUNTED_STAGES, Encoder
     from csgs_codec.codec.encoder_config import EncoderConfig
     from csgs_codec.interchange import warn_if_lossy
-    from csgs_codec.scene_files import read_scene
+    from csgs_codec.scene_files import read_scene_with_report
 
     _check_exclusive(args)
     inria = inria_output(args.scene)
@@ -149,7 +149,8 @@ def run(args) -> int:
                 and _tiled_binary_ply(scene_path, args.tile_size))
     scene = None
     if not streamed:
-        scene, source = read_scene(scene_path, sanitize=args.sanitize)
+        scene, source = read_scene_with_report(scene_path, sanitize=args.sanitize,
+                                               layers="color,semantic")
         warn_if_lossy(source, scene_path)
     bar = tqdm(total=None if searching or view_pruning else len(STAGES), desc="encode",
                unit="stage",

@@ -52,9 +52,9 @@ def describe_file(path: str, *, sanitize: bool = False) -> dict:
     (short name), ``format_name`` (with its version), ``format_version``, ``lossy``,
     ``details`` (format-specific), the scene summary, and for PLY input ``ply_format``."""
     from csgs_codec.scene.summary import summarize_scene
-    from csgs_codec.scene_files import read_scene
+    from csgs_codec.scene_files import read_scene_with_report
 
-    scene, source = read_scene(path, sanitize=sanitize)
+    scene, source = read_scene_with_report(path, sanitize=sanitize, layers="color,semantic")
     details = dict(source.details)
     facts = {"file": path, "kind": source.format, "format": source.format,
              "format_name": source.title(), "format_version": source.version,

@@ -7,7 +7,7 @@ quaternions, the file's own axes) together with a :class:`SceneSource` saying wh
 was. Public API:
 
 - :func:`read_interchange`: any of these files, recognised by its content
-  (:func:`csgs_codec.open_scene` reads ``.csgs`` too).
+  (:func:`csgs_codec.read_scene` reads ``.csgs`` too).
 - :func:`write_scene`: a scene to ``.ply``, ``.splat``, ``.spz`` or ``.glb`` by extension.
 - :func:`detect_format`: which format a file holds, from its first bytes.
 

@@ -84,7 +84,7 @@ def detect_format(path: str | os.PathLike) -> str:
 def read_interchange(path: str | os.PathLike, *, sanitize: bool = False
                      ) -> tuple[GaussianScene, SceneSource]:
     """Read the scene in ``path`` in any format :func:`detect_format` names but ``.csgs``
-    (that one is the codec's: :func:`csgs_codec.scene_files.read_scene` reads both).
+    (that one is the codec's: :func:`csgs_codec.scene_files.read_scene_with_report` reads both).
 
     Args:
         path: a scene file, a SOG folder or its ``meta.json``.
@@ -103,7 +103,7 @@ def read_interchange(path: str | os.PathLike, *, sanitize: bool = False
     kind = detect_format(path)
     source = str(path)
     if kind == "csgs":
-        raise UnsupportedError("a .csgs bitstream: csgs_codec.open_scene (or Decoder) decodes "
+        raise UnsupportedError("a .csgs bitstream: csgs_codec.read_scene (or Decoder) decodes "
                                "it", file=path)
     if kind == "sog":
         from csgs_codec.interchange.sog import read_sog

@@ -11,7 +11,7 @@ import pytest
 
 from csgs_cli.main import main
 from csgs_codec.codec.decoder import Decoder
-from csgs_codec.scene_files import read_scene
+from csgs_codec.scene_files import read_scene_with_report
 from tests.interchange.helpers import DATA, matched
 
 INPUTS = {  # fixture -> (format name in info, version, SH degree, lossy)
@@ -46,7 +46,7 @@ def test_encode_takes_the_format_and_warns_when_it_is_lossy(name, tmp_path, caps
     assert main(["encode", str(DATA / name), "-o", str(out), "--quality", "9", "-q"]) == 0
     err = capsys.readouterr().err
     assert ("is a lossy format" in err) == INPUTS[name][3]
-    original, _ = read_scene(DATA / name)
+    original, _ = read_scene_with_report(DATA / name)
     decoded = Decoder().decode(out)
     assert len(decoded) == len(original)
     near = matched(original, decoded)
@@ -69,7 +69,7 @@ def test_decode_writes_the_format_its_extension_names(bitstream, suffix, fmt, tm
     assert main(["decode", str(bitstream), "-o", str(out)]) == 0
     err = capsys.readouterr().err
     assert ("does not carry SH bands" in err) == (suffix == ".splat")
-    scene, source = read_scene(out)
+    scene, source = read_scene_with_report(out)
     assert source.format == fmt and len(scene) == 200
     reference = Decoder().decode(bitstream)
     np.testing.assert_allclose(scene.positions, reference.positions, atol=2 ** -12)

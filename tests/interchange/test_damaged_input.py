@@ -15,7 +15,7 @@ import zipfile
 import pytest
 
 from csgs_codec.errors import CsgsError, InputError
-from csgs_codec.scene_files import read_scene
+from csgs_codec.scene_files import read_scene_with_report
 from tests.interchange.helpers import DATA
 
 FILES = ["brush_sh3.compressed.ply", "brush_sh3.sog", "brush_sh3.v2.spz", "brush_sh3.v3.spz",
@@ -24,12 +24,12 @@ FILES = ["brush_sh3.compressed.ply", "brush_sh3.sog", "brush_sh3.v2.spz", "brush
 
 
 def read_bounded(path):
-    """read_scene(path); returns the CsgsError raised (None if it read), asserting the peak
-    of traced allocations stays within 64 bytes per file byte plus 4 MiB."""
+    """read_scene_with_report(path); returns the CsgsError raised (None if it read), asserting
+    the peak of traced allocations stays within 64 bytes per file byte plus 4 MiB."""
     size = path.stat().st_size if path.is_file() else 1 << 16
     tracemalloc.start()
     try:
-        read_scene(path)
+        read_scene_with_report(path)
         return None
     except CsgsError as err:
         return err

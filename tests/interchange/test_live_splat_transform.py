@@ -12,7 +12,7 @@ from csgs_codec.errors import DataLossWarning
 from csgs_codec.interchange import write_scene
 from csgs_codec.interchange.gltf import glb_bytes
 from csgs_codec.scene.ply_io import read_ply, write_ply
-from csgs_codec.scene_files import read_scene
+from csgs_codec.scene_files import read_scene_with_report
 from tests.conftest import SAMPLE
 from tests.interchange.helpers import (
     DATA,
@@ -51,13 +51,13 @@ def _decoded_by_splat_transform(path, tmp_path):
 @pytest.mark.parametrize("name", ["donut", "brush"])
 @pytest.mark.parametrize("suffix", [".spz", ".splat"])
 def test_splat_transform_reads_csgs_writers_output(name, suffix, donut, tmp_path):
-    scene = donut[1] if name == "donut" else read_scene(DATA / "brush_sh3.ply")[0]
+    scene = donut[1] if name == "donut" else read_scene_with_report(DATA / "brush_sh3.ply")[0]
     path = tmp_path / f"{name}{suffix}"
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DataLossWarning)
         write_scene(scene, path)
     theirs = _decoded_by_splat_transform(path, tmp_path)
-    ours = read_scene(path)[0]
+    ours = read_scene_with_report(path)[0]
     # The two readers agree on the bytes csgs wrote ...
     for key in ("positions", "sh_dc", "sh_rest", "scales"):
         np.testing.assert_allclose(getattr(ours, key), theirs[key], rtol=1e-6, atol=1e-7)
@@ -99,7 +99,7 @@ def test_csgs_reads_splat_transforms_output_as_splat_transform_does(suffix, donu
     target.parent.mkdir(exist_ok=True)
     splat_transform(path, target)
     theirs = _decoded_by_splat_transform(target, tmp_path)
-    ours, source = read_scene(target)
+    ours, source = read_scene_with_report(target)
     assert source.lossy and len(ours) == len(theirs["positions"])
     for key in ("positions", "sh_dc", "sh_rest", "scales"):
         np.testing.assert_allclose(getattr(ours, key), theirs[key], rtol=1e-6, atol=1e-7)

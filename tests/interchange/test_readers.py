@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from csgs_codec.scene_files import read_scene
+from csgs_codec.scene_files import read_scene_with_report
 from tests.interchange.helpers import (
     DATA,
     alphas,
@@ -42,7 +42,7 @@ FIXTURES = {
 
 @pytest.mark.parametrize("name", sorted(FIXTURES))
 def test_reader_agrees_with_splat_transform(name):
-    scene, source = read_scene(DATA / name)
+    scene, source = read_scene_with_report(DATA / name)
     fmt, version, degree, count = FIXTURES[name]
     assert (source.format, source.version, source.lossy) == (fmt, version, True)
     assert (len(scene), scene.sh_degree_stored) == (count, degree)
@@ -99,8 +99,8 @@ RANGES = {"spz": ((0.5 - SPZ_REACH, 0.5 + SPZ_REACH), (-10.0, 5.9375)),
 @pytest.mark.parametrize("name", sorted(PRECISION))
 def test_reader_values_match_the_source_scene_within_the_formats_precision(name):
     source_name, pos_share, color_tol, alpha_tol, scale_tol, rot_tol, sh_tol = PRECISION[name]
-    scene, info = read_scene(DATA / name)
-    original = matched(read_scene(DATA / source_name)[0], scene)
+    scene, info = read_scene_with_report(DATA / name)
+    original = matched(read_scene_with_report(DATA / source_name)[0], scene)
     extent = float(np.ptp(original.positions, axis=0).max())
     assert np.abs(scene.positions - original.positions).max() <= pos_share * extent
     color_range, scale_range = RANGES[info.format]
@@ -139,7 +139,7 @@ def test_brush_ply_with_alphabetical_properties_and_no_normals_reads_by_name():
     assert names[:5] == ["f_dc_0", "f_dc_1", "f_dc_2", "f_rest_0", "f_rest_1"]
     assert names[5] == "f_rest_10" and names[-3:] == ["x", "y", "z"] and "nx" not in names
     rows = np.frombuffer(data, np.dtype([(n, "<f4") for n in names]), offset=end)
-    scene, source = read_scene(path)
+    scene, source = read_scene_with_report(path)
     assert source.format == "ply" and not source.lossy and scene.sh_degree_stored == 3
     np.testing.assert_array_equal(scene.positions[:, 2], rows["z"])
     np.testing.assert_array_equal(scene.scales[:, 1], rows["scale_1"])
@@ -151,8 +151,8 @@ def test_brush_ply_with_alphabetical_properties_and_no_normals_reads_by_name():
 
 
 def test_glb_from_splat_transform_reads_back_the_scene_it_was_made_from():
-    scene, source = read_scene(DATA / "brush_sh3.glb")
-    original = read_scene(DATA / SH3)[0]
+    scene, source = read_scene_with_report(DATA / "brush_sh3.glb")
+    original = read_scene_with_report(DATA / SH3)[0]
     assert (source.format, source.lossy) == ("glb", False)
     np.testing.assert_array_equal(scene.positions, original.positions)
     np.testing.assert_array_equal(scene.sh_dc, original.sh_dc)

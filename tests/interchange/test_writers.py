@@ -15,7 +15,7 @@ from csgs_codec.interchange import write_scene
 from csgs_codec.interchange.gltf import glb_bytes, parse_glb
 from csgs_codec.interchange.splat import RECORD, parse_splat, splat_bytes
 from csgs_codec.interchange.spz import parse_spz, spz_bytes
-from csgs_codec.scene_files import read_scene
+from csgs_codec.scene_files import read_scene_with_report
 from tests.interchange.helpers import DATA, alphas, colors, rotation_error
 
 SH_C0 = 0.28209479177387814
@@ -24,7 +24,7 @@ SH_C0 = 0.28209479177387814
 @pytest.fixture(scope="module")
 def brush():
     """200 real Gaussians with SH degree 3 (Brush output, CC0)."""
-    return read_scene(DATA / "brush_sh3.ply")[0]
+    return read_scene_with_report(DATA / "brush_sh3.ply")[0]
 
 
 def test_splat_round_trip_keeps_values_within_one_8_bit_step(brush):
@@ -173,7 +173,7 @@ def test_write_scene_picks_the_format_by_extension(brush, tmp_path):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DataLossWarning)
             write_scene(brush, path)
-        scene, source = read_scene(path)
+        scene, source = read_scene_with_report(path)
         assert source.format == fmt and len(scene) == 200
     with pytest.raises(UnsupportedError, match=r"cannot write '\.obj'.*\.ply, \.splat"):
         write_scene(brush, tmp_path / "out.obj")
@@ -190,7 +190,7 @@ def test_writers_say_what_the_format_drops(brush, tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         write_scene(labelled, tmp_path / "a.ply")  # PLY carries everything
-    back, _ = read_scene(tmp_path / "a.ply")
+    back, _ = read_scene_with_report(tmp_path / "a.ply")
     np.testing.assert_array_equal(back.labels, labelled.labels)
     np.testing.assert_array_equal(back.sh_rest, labelled.sh_rest)
-    assert read_scene(tmp_path / "a.spz")[0].labels is None
+    assert read_scene_with_report(tmp_path / "a.spz")[0].labels is None

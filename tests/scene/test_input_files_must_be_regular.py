@@ -21,7 +21,7 @@ from csgs_codec.scene.cameras_io import load_cameras
 from csgs_codec.scene.colmap_io import load_colmap_cameras
 from csgs_codec.scene.ply_io import read_ply
 from csgs_codec.scene.ply_mmap import MappedPly
-from csgs_codec.scene_files import open_scene
+from csgs_codec.scene_files import read_scene
 from csgs_codec.untrusted import read_regular
 
 REPO = Path(__file__).resolve().parents[2]
@@ -45,7 +45,7 @@ def _fifo(tmp_path: Path, name: str) -> Path:
 
 
 READERS = {
-    "open_scene": open_scene,
+    "read_scene": read_scene,
     "read_interchange": read_interchange,
     "detect_format": detect_format,
     "read_ply": read_ply,
@@ -116,7 +116,7 @@ def test_colmap_files_that_are_devices_are_refused(tmp_path):
 def test_a_symlink_to_a_regular_file_reads_as_that_file(tmp_path):
     link = tmp_path / "linked.splat"
     link.symlink_to(FORMATS / "donut_sh0.splat")
-    assert len(open_scene(link)) == len(open_scene(FORMATS / "donut_sh0.splat")) == 300
+    assert len(read_scene(link)) == len(read_scene(FORMATS / "donut_sh0.splat")) == 300
     cameras = tmp_path / "cameras.json"
     cameras.symlink_to(CAMERAS / "inria_cameras.json")
     assert len(load_cameras(cameras)) == len(load_cameras(CAMERAS / "inria_cameras.json"))
