@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 
@@ -49,6 +50,7 @@ from csgs_codec.entropy.geometry import canonical_order, encode_positions
 from csgs_codec.errors import InputError
 from csgs_codec.format import Chunk
 from csgs_codec.format.primitives import ByteWriter
+from csgs_codec.progress import announce, ignore_progress
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.scene.instance_table import InstanceTable
 from csgs_codec.scene.position_grid import PositionGrid
@@ -89,7 +91,7 @@ class Encoder:
             (:mod:`csgs_codec.decisions.rate_control`; several encodes and renders).
         lambda_: instead of a quality or target, the encode minimising J = D + lambda * R on
             the probe views: D the foreground MSE in squared 8-bit levels, R the file's bits
-            per Gaussian (:func:`~csgs_codec.decisions.rate_control.encode_for_lambda`).
+            per Gaussian (:func:`~csgs_codec.decisions.rate_control.lambda_search`).
         fast: no color hyperprior fit, and shorter searches: target PSNR with fewer trial
             encodes and a looser tolerance (the target is still met; the file may be
             larger), lambda with fewer encodes on half the probe views.
@@ -177,7 +179,7 @@ class Encoder:
         self.rotation_steps, self.step_allocation = c.rotation_steps, c.step_allocation
         self.refine = c.refine
         self.tile_size, self.workers, self.ray = c.tile_size, c.workers, c.ray
-        self.progress = progress or (lambda stage, done, total: None)
+        self.progress = progress or ignore_progress
         self._sensitivity = None  # (W (N,) of the scene being encoded, ViewDistribution)
 
     def _stage(self, name: str) -> None:
@@ -186,7 +188,7 @@ class Encoder:
 
     def _steps(self, stage: str):
         """A ``(done, total)`` callback that tells :attr:`progress` of ``stage``'s steps."""
-        return lambda done, total: self.progress(stage, done, total)
+        return partial(self.progress, stage)
 
     def encode(self, scene: GaussianScene) -> bytes:
         """The .csgs bytes of ``scene``."""
@@ -271,20 +273,26 @@ class Encoder:
         probe = (rc.RenderProbe(original, views=rc.FAST_PROBE_VIEWS) if fewer_views
                  else rc.RenderProbe(original))
 
-        def encode(settings: Preset) -> EncodeResult:
-            # The hyperprior changes the rate only, so the search (which scores renders)
-            # runs without its fit; the kept settings are encoded once more with it below.
-            return self._encode(scene, settings, hyperprior=False, refine=False)
-
+        told = partial(announce, self.progress)  # each trial's message, as a stage
         if self.lambda_ is not None:
             steps = rc.FAST_LAMBDA_STEPS if self.fast else rc.LAMBDA_STEPS
-            result, report = rc.encode_for_lambda(encode, scene, self.lambda_, probe=probe,
-                                                  progress=self._stage, steps=steps)
+            search = rc.lambda_search(scene, self.lambda_, probe=probe, progress=told,
+                                      steps=steps)
         else:
-            search = ({"search_steps": rc.FAST_SEARCH_STEPS, "tolerance": rc.FAST_TOLERANCE}
+            limits = ({"search_steps": rc.FAST_SEARCH_STEPS, "tolerance": rc.FAST_TOLERANCE}
                       if self.fast else {})
-            result, report = rc.encode_to_target(encode, scene, self.target_psnr, probe=probe,
-                                                 progress=self._stage, **search)
+            search = rc.target_search(scene, self.target_psnr, probe=probe, progress=told,
+                                      **limits)
+        # The hyperprior changes the rate only, so the search (which scores renders) runs
+        # without its fit; the kept settings are encoded once more with it below.
+        settings = next(search)
+        while True:
+            try:
+                settings = search.send(self._encode(scene, settings, hyperprior=False,
+                                                    refine=False))
+            except StopIteration as done:
+                result, report = done.value
+                break
         kept = self.refine > 0
         if self.refine:
             # Refinement lowers the render error at about the same size; the searched

@@ -11,6 +11,7 @@ tiles gives tile 0's Gaussians, then tile 1's, and so on, each tile in its own d
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 
@@ -147,7 +148,7 @@ def _run_tiles(encoder, jobs: list[TileJob]) -> list[TileOutput]:
     """Code ``jobs`` with ``encoder``'s workers (or Ray), telling its progress of the tiles."""
     encoder.progress("tiles", 0, 0)
     return run_jobs(encode_tile, jobs, workers=encoder.workers, ray=encoder.ray,
-                    progress=lambda done, total: encoder.progress("tiles", done, total))
+                    progress=partial(encoder.progress, "tiles"))
 
 
 def encode_ply_tiled(encoder, path: str) -> object:

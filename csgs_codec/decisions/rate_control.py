@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -172,19 +171,21 @@ def check_render_lambda(lam: float) -> None:
                          property="lambda")
 
 
-def encode_to_target(encode: Callable, scene: GaussianScene, target_psnr: float, *,
-                     probe: RenderProbe | None = None, progress=None,
-                     search_steps: int = SEARCH_STEPS, tolerance: float = TOLERANCE):
-    """The coarsest encode of ``scene`` whose probe PSNR is at least ``target_psnr``.
+def target_search(scene: GaussianScene, target_psnr: float, *,
+                  probe: RenderProbe | None = None, progress=None,
+                  search_steps: int = SEARCH_STEPS, tolerance: float = TOLERANCE):
+    """The search for the coarsest encode of ``scene`` whose probe PSNR is at least
+    ``target_psnr``, as a generator the encoder drives: it yields the :class:`Preset` to
+    encode next and is sent that encode's EncodeResult, so the search never calls back into
+    the encoder (``Encoder._search`` drives it).
 
     Args:
-        encode: ``encode(preset) -> EncodeResult`` for a :class:`Preset`.
         probe: the views to score on (made from ``scene`` when None).
         progress: ``progress(message)`` told of each trial, or None.
         search_steps, tolerance: at most this many encodes inside the bracket; stop once
             one meets the target by less than ``tolerance`` dB.
 
-    Returns:
+    Returns (as the generator's value):
         (EncodeResult, RateControlReport). When even the finest multiplier misses the
         target, that encode is returned with a CsgsWarning saying what it reached.
     """
@@ -192,21 +193,21 @@ def encode_to_target(encode: Callable, scene: GaussianScene, target_psnr: float,
     probe = probe or RenderProbe(scene)
     trials = []
 
-    def trial(log2_multiplier: float):
-        multiplier = 2.0 ** log2_multiplier
-        result = encode(scaled_preset(multiplier))
+    def score(log2_multiplier: float, result) -> float:
         psnr = probe.psnr(result.reconstruction)
-        trials.append((multiplier, len(result.data), psnr))
+        trials.append((2.0 ** log2_multiplier, len(result.data), psnr))
         if progress:
-            progress(f"rate control: x{multiplier:.3g} steps -> {psnr:.2f} dB")
-        return result, psnr
+            progress(f"rate control: x{2.0 ** log2_multiplier:.3g} steps -> {psnr:.2f} dB")
+        return psnr
 
     lo, hi = LOG2_LO, LOG2_HI
-    result, psnr_hi = trial(hi)
+    result = yield scaled_preset(2.0 ** hi)
+    psnr_hi = score(hi, result)
     if psnr_hi >= target_psnr:
         best = (result, psnr_hi, hi)
     else:
-        result, psnr_lo = trial(lo)
+        result = yield scaled_preset(2.0 ** lo)
+        psnr_lo = score(lo, result)
         best = (result, psnr_lo, lo)
         if psnr_lo < target_psnr:
             warnings.warn(f"target {target_psnr:.2f} dB not reached: the finest steps give "
@@ -219,7 +220,8 @@ def encode_to_target(encode: Callable, scene: GaussianScene, target_psnr: float,
                 break
             mid = lo + (hi - lo) * f_lo / (f_lo - f_hi)
             mid = min(max(mid, lo + 0.02 * (hi - lo)), hi - 0.02 * (hi - lo))
-            result, psnr = trial(mid)
+            result = yield scaled_preset(2.0 ** mid)
+            psnr = score(mid, result)
             if psnr >= target_psnr:
                 best, lo, f_lo = (result, psnr, mid), mid, psnr - target_psnr
                 f_hi = f_hi / 2 if side == 1 else f_hi
@@ -233,23 +235,22 @@ def encode_to_target(encode: Callable, scene: GaussianScene, target_psnr: float,
     return result, report
 
 
-def encode_for_lambda(encode: Callable, scene: GaussianScene, lam: float, *,
-                      probe: RenderProbe | None = None, progress=None,
-                      steps: int = LAMBDA_STEPS):
-    """The encode of ``scene`` minimising J = D + ``lam`` * R over the step multiplier.
+def lambda_search(scene: GaussianScene, lam: float, *, probe: RenderProbe | None = None,
+                  progress=None, steps: int = LAMBDA_STEPS):
+    """The search for the encode of ``scene`` minimising J = D + ``lam`` * R over the step
+    multiplier, as a generator the encoder drives (see :func:`target_search`).
 
     Golden-section search over log2(multiplier) in [LOG2_LO, LOG2_HI] (J is close to convex
     there: D grows about 4x per octave, R falls about linearly); the trial with the least J
     is kept. Deterministic for a given scene and machine.
 
     Args:
-        encode: ``encode(preset) -> EncodeResult`` for a :class:`Preset`.
         lam: squared 8-bit levels per bit per Gaussian (see the module docstring).
         probe: the views to score on (made from ``scene`` when None).
         progress: ``progress(message)`` told of each trial, or None.
         steps: encodes in all (>= 2).
 
-    Returns:
+    Returns (as the generator's value):
         (EncodeResult, LambdaReport).
     """
     check_render_lambda(lam)
@@ -257,10 +258,9 @@ def encode_for_lambda(encode: Callable, scene: GaussianScene, lam: float, *,
     count = max(1, len(scene))
     trials, best = [], None
 
-    def cost(log2_multiplier: float) -> float:
+    def cost(log2_multiplier: float, result) -> float:
         nonlocal best
         multiplier = 2.0 ** log2_multiplier
-        result = encode(scaled_preset(multiplier))
         distortion = probe.mse(result.reconstruction)
         rate = 8.0 * len(result.data) / count
         total = distortion + lam * rate
@@ -273,15 +273,16 @@ def encode_for_lambda(encode: Callable, scene: GaussianScene, lam: float, *,
 
     lo, hi = LOG2_LO, LOG2_HI
     left, right = hi - _INV_PHI * (hi - lo), lo + _INV_PHI * (hi - lo)
-    f_left, f_right = cost(left), cost(right)
+    f_left = cost(left, (yield scaled_preset(2.0 ** left)))
+    f_right = cost(right, (yield scaled_preset(2.0 ** right)))
     for _ in range(max(0, steps - 2)):
         if f_left <= f_right:
             hi, right, f_right = right, left, f_left
             left = hi - _INV_PHI * (hi - lo)
-            f_left = cost(left)
+            f_left = cost(left, (yield scaled_preset(2.0 ** left)))
         else:
             lo, left, f_left = left, right, f_right
             right = lo + _INV_PHI * (hi - lo)
-            f_right = cost(right)
+            f_right = cost(right, (yield scaled_preset(2.0 ** right)))
     total, result, multiplier, distortion, rate = best
     return result, LambdaReport(float(lam), multiplier, distortion, rate, total, tuple(trials))
