@@ -182,7 +182,7 @@ def plan_float_stream(values: np.ndarray, step: float, derive=None,
     """
     n, channels = values.shape
     if lattice is not None and (derive is not None or len(lattice.means) != channels):
-        raise InputError("a fixed lattice needs one mean per channel and no derived steps",
+        raise InputError("a fixed lattice needs one mean per channel and no scored steps",
                          property="lattice")
     f = frac_bits_for(values) if lattice is None else lattice.frac_bits
     step_idx = int(step_index(np.array([step * 2.0**f]))[0])
@@ -209,8 +209,8 @@ def plan_float_stream(values: np.ndarray, step: float, derive=None,
             plans.append(ChannelPlan(TABLE_CONSTANT, 0.0, constant_value=value))
             recon[:, c] = np.float32(value)
             continue
-        grid, mean, k = _median_quantized(column, f, steps,
-                                          None if lattice is None else lattice.means[c])
+        _, mean, k = _median_quantized(column, f, steps,
+                                       None if lattice is None else lattice.means[c])
         indices[c] = k
         candidates = [(k, None, 0, 0)]
         fitted = _fit_prediction(indices[:c].T, k)
