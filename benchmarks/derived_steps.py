@@ -93,10 +93,10 @@ from csgs_codec.entropy.residual import (  # noqa: E402
     to_grid,
 )
 from csgs_codec.entropy.table_choice import table_costs  # noqa: E402
+from csgs_codec.interchange.ply_io import read_ply  # noqa: E402
 from csgs_codec.metrics.comparison import to_unit_range  # noqa: E402
 from csgs_codec.metrics.image import foreground_mask  # noqa: E402
 from csgs_codec.render.rasterizer import render  # noqa: E402
-from csgs_codec.scene.ply_io import read_ply  # noqa: E402
 
 STEP_NAMES = {"dc": "dc_step", "opacity": "opacity_step", "scale": "scale_step",
               "rot": "rotation_step"}

@@ -36,7 +36,7 @@ from csgs_codec.entropy.geometry import (  # noqa: E402
     decode_positions,
     encode_positions,
 )
-from csgs_codec.scene.ply_io import read_ply  # noqa: E402
+from csgs_codec.interchange.ply_io import read_ply  # noqa: E402
 
 SCENES = REPO.parent / "shared" / "data" / "scenes"
 BITS = 16

@@ -39,8 +39,8 @@ from benchmarks.peers import (  # noqa: E402
     roundtrip_report,
 )
 from csgs_codec.errors import CsgsError  # noqa: E402
+from csgs_codec.interchange.ply_io import read_ply  # noqa: E402
 from csgs_codec.scene.gaussian_scene import GaussianScene  # noqa: E402
-from csgs_codec.scene.ply_io import read_ply  # noqa: E402
 
 SCENES = REPO.parent / "shared" / "data" / "scenes"
 DEFAULT_SCENES = ["donut.ply", "guitar.ply"]

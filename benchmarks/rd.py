@@ -54,9 +54,9 @@ from bench_common import FULL_PRECISION, SCENES, document, emit, held_out_views 
 
 from csgs_codec.codec.decoder import Decoder  # noqa: E402
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
+from csgs_codec.interchange.ply_io import read_ply  # noqa: E402
 from csgs_codec.metrics.comparison import render_references, score_view  # noqa: E402
 from csgs_codec.scene.orbit import orbit_cameras  # noqa: E402
-from csgs_codec.scene.ply_io import read_ply  # noqa: E402
 
 
 def scores(refs, scene, cameras, backend) -> dict:

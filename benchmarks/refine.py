@@ -29,7 +29,7 @@ from derived_steps import HeldOut, size_at_psnr  # noqa: E402
 
 from csgs_codec.codec.decoder import Decoder  # noqa: E402
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
-from csgs_codec.scene.ply_io import read_ply  # noqa: E402
+from csgs_codec.interchange.ply_io import read_ply  # noqa: E402
 
 
 def measure(scene, held: HeldOut, quality: int, steps: int, stacked: bool = False) -> dict:

@@ -24,12 +24,12 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from csgs_codec.interchange.ply_io import read_ply
 from csgs_codec.render.numba_loader import numba_available
 from csgs_codec.render.rasterize_torch import prepare_gaussians, rasterize_gaussians
 from csgs_codec.render.rasterizer import render, scene_tensors
 from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.gaussian_scene import GaussianScene
-from csgs_codec.scene.ply_io import read_ply
 
 SCENES = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "scenes"
 #: Scene file, up axis of its capture (checked by looking at renders), precision kind.

@@ -34,7 +34,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks._scaling import upsampled_to  # noqa: E402
 from benchmarks.bench_common import REPO, document, emit  # noqa: E402
 from csgs_codec import read_ply  # noqa: E402
-from csgs_codec.scene.ply_io import write_ply  # noqa: E402
+from csgs_codec.interchange.ply_io import write_ply  # noqa: E402
 
 SOURCE = REPO.parent / "shared" / "data" / "real_sh3" / "leica_sofort_top8192.ply"
 #: (label, worker arguments) of the tiled encodes.

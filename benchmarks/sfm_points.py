@@ -38,10 +38,10 @@ def main() -> int:
     args = parser.parse_args()
     import numpy as np
 
+    from csgs_codec.interchange.ply_io import read_ply
     from csgs_codec.metrics.attribute_errors import nearest_neighbours
     from csgs_codec.render.rasterizer import render
     from csgs_codec.scene.orbit import orbit_cameras
-    from csgs_codec.scene.ply_io import read_ply
     from csgs_codec.train.sfm_points import triangulate_views
     from csgs_codec.train.views import TrainingView
 

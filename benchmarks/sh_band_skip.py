@@ -30,8 +30,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_common import document, emit  # noqa: E402
 
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
+from csgs_codec.interchange.ply_io import read_ply  # noqa: E402
 from csgs_codec.scene.gaussian_scene import SH_REST_COUNTS  # noqa: E402
-from csgs_codec.scene.ply_io import read_ply  # noqa: E402
 
 
 def entropy_bits(values: np.ndarray) -> float:

@@ -35,8 +35,8 @@ from csgs_codec.codec.encoder import Encoder  # noqa: E402
 from csgs_codec.codec.float_stream import write_float_stream  # noqa: E402
 from csgs_codec.decisions.presets import PRESETS  # noqa: E402
 from csgs_codec.format.primitives import ByteWriter  # noqa: E402
+from csgs_codec.interchange.ply_io import read_ply  # noqa: E402
 from csgs_codec.scene.gaussian_scene import SH_REST_COUNTS  # noqa: E402
-from csgs_codec.scene.ply_io import read_ply  # noqa: E402
 
 OPPONENT = np.array([[1, 1, 1], [1, 0, -1], [1, -2, 1]], np.float64)
 OPPONENT /= np.linalg.norm(OPPONENT, axis=1, keepdims=True)

@@ -27,7 +27,7 @@ from derived_steps import HeldOut, size_at_psnr  # noqa: E402
 
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
 from csgs_codec.decisions.presets import PRESETS  # noqa: E402
-from csgs_codec.scene.ply_io import read_ply  # noqa: E402
+from csgs_codec.interchange.ply_io import read_ply  # noqa: E402
 
 
 def encode_row(scene, held: HeldOut, quality: int, scale: float) -> dict:

@@ -26,8 +26,8 @@ from bench_common import FULL_PRECISION, SCENES, document, emit, held_out_views 
 
 from csgs_codec.codec.decoder import Decoder  # noqa: E402
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
+from csgs_codec.interchange.ply_io import read_ply  # noqa: E402
 from csgs_codec.metrics.comparison import render_references, score_view  # noqa: E402
-from csgs_codec.scene.ply_io import read_ply  # noqa: E402
 
 
 def mean_fg_psnr(refs, scene, cameras) -> float:

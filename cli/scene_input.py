@@ -58,7 +58,7 @@ def inria_output(path: str | Path) -> tuple[Path, Path] | None:
 def load_anchor_scene(path: str | Path):
     """Read the anchor scene in ``path``: a checkpoint folder with its MLPs, or a bare anchor
     PLY (then with its MLP files if they sit beside it)."""
-    from csgs_codec.scene.scaffold_io import read_scaffold
+    from csgs_codec.interchange.scaffold_io import read_scaffold
 
     return read_scaffold(path, require_mlps=False)
 

@@ -34,10 +34,10 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for IDEs and type che
     from csgs_codec.codec.encoder import Encoder, EncodeResult
     from csgs_codec.codec.files import decode_file, encode_file
     from csgs_codec.interchange import write_scene
+    from csgs_codec.interchange.ply_io import read_ply, write_ply
+    from csgs_codec.interchange.scaffold_io import read_scaffold, write_scaffold
     from csgs_codec.scene.anchor_scene import AnchorScene
     from csgs_codec.scene.gaussian_scene import GaussianScene
-    from csgs_codec.scene.ply_io import read_ply, write_ply
-    from csgs_codec.scene.scaffold_io import read_scaffold, write_scaffold
     from csgs_codec.scene_files import read_scene, read_scene_with_report
     from csgs_codec.semantic.selection import select_at_click
 
@@ -52,13 +52,13 @@ _LAZY = {
     "encode_file": "csgs_codec.codec.files",
     "decode_file": "csgs_codec.codec.files",
     "GaussianScene": "csgs_codec.scene.gaussian_scene",
-    "read_ply": "csgs_codec.scene.ply_io",
-    "write_ply": "csgs_codec.scene.ply_io",
+    "read_ply": "csgs_codec.interchange.ply_io",
+    "write_ply": "csgs_codec.interchange.ply_io",
     "AnchorScene": "csgs_codec.scene.anchor_scene",
     "AnchorEncoder": "csgs_codec.codec.anchor_encoder",
     "AnchorDecoder": "csgs_codec.codec.anchor_decoder",
-    "read_scaffold": "csgs_codec.scene.scaffold_io",
-    "write_scaffold": "csgs_codec.scene.scaffold_io",
+    "read_scaffold": "csgs_codec.interchange.scaffold_io",
+    "write_scaffold": "csgs_codec.interchange.scaffold_io",
     "select_at_click": "csgs_codec.semantic.selection",
     "read_scene": "csgs_codec.scene_files",
     "read_scene_with_report": "csgs_codec.scene_files",

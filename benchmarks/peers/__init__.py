@@ -3,7 +3,7 @@
 Each peer is a :class:`PeerCodec`: ``name``, ``available()`` / ``why_unavailable()``,
 ``encode(ply_path, out_dir) -> EncodeResult(bytes, seconds, path)`` and
 ``decode(encoded_path, out_ply) -> DecodeResult(seconds, path, fixups)``, whose PLY
-``csgs_codec.scene.ply_io.read_ply`` reads. :func:`all_peers` lists every wrapper, installed
+``csgs_codec.interchange.ply_io.read_ply`` reads. :func:`all_peers` lists every wrapper, installed
 or not: PlayCanvas splat-transform's SOG and compressed PLY, Niantic SPZ (written by
 splat-transform with Niantic's library), and Draco (DracoPy) with a plain attribute mapping.
 :func:`roundtrip_report` compares a decoded scene with its original.

@@ -40,7 +40,7 @@ class DecodeResult:
     Attributes:
         seconds: wall time of the peer's decode, in seconds (tool start-up included; the
             fix-ups below are not timed).
-        path: the decoded PLY, readable by ``csgs_codec.scene.ply_io.read_ply``.
+        path: the decoded PLY, readable by ``csgs_codec.interchange.ply_io.read_ply``.
         fixups: what the wrapper changed in the tool's PLY so the reader takes it, as
             ``{what: count}`` (e.g. ``{"opacity_inf_clamped": 930}``); empty when nothing.
     """

@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.errors import InputError
+from csgs_codec.interchange.ply_io import read_ply, write_ply
 from csgs_codec.scene.gaussian_scene import SH_DEGREE_OF_REST, GaussianScene
-from csgs_codec.scene.ply_io import read_ply, write_ply
 
 from .base import DecodeResult, EncodeResult, PeerCodec, PeerToolError
 

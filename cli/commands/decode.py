@@ -169,8 +169,8 @@ def _decode_anchors(args) -> int:
     from pathlib import Path
 
     from csgs_codec.codec.anchor_decoder import AnchorDecoder
-    from csgs_codec.scene.anchor_ply import write_anchor_ply
-    from csgs_codec.scene.scaffold_io import write_scaffold
+    from csgs_codec.interchange.anchor_ply import write_anchor_ply
+    from csgs_codec.interchange.scaffold_io import write_scaffold
 
     start = time.perf_counter()
     scene = AnchorDecoder().decode(args.bitstream, layers=args.layers)

@@ -245,7 +245,7 @@ def _tiled_binary_ply(path: str, tile_size: int | None) -> bool:
     size): it is then encoded tile by tile from its memory-mapped body, never loaded whole
     (the same bytes as a whole read)."""
     from csgs_codec.codec.tiling import effective_tile_size
-    from csgs_codec.scene.ply_mmap import MappedPly
+    from csgs_codec.interchange.ply_mmap import MappedPly
 
     try:
         mapped = MappedPly(path)

@@ -29,7 +29,7 @@ def run(args) -> int:
     from csgs_cli.scene_input import load_scene
     from csgs_codec.atomic_write import check_output
     from csgs_codec.errors import InputError
-    from csgs_codec.scene.ply_io import write_ply
+    from csgs_codec.interchange.ply_io import write_ply
     from csgs_codec.semantic.query import query_instances
     from csgs_codec.untrusted import read_regular
 

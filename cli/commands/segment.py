@@ -64,7 +64,7 @@ def run(args) -> int:
     from csgs_cli.dataset_input import check_output_folder, downscale_for
     from csgs_cli.scene_input import load_scene
     from csgs_codec.atomic_write import check_output, write_atomically
-    from csgs_codec.scene.ply_io import ply_bytes
+    from csgs_codec.interchange.ply_io import ply_bytes
     from csgs_codec.train.datasets import load_dataset
     from csgs_codec.train.segment import SegmentSettings, segment_scene
 

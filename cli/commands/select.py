@@ -65,7 +65,7 @@ def run(args) -> int:
     """Select at the click and write the selected Gaussians; prints how many."""
     from csgs_cli.scene_input import load_scene
     from csgs_codec.atomic_write import check_output
-    from csgs_codec.scene.ply_io import write_ply
+    from csgs_codec.interchange.ply_io import write_ply
     from csgs_codec.semantic.selection import click_selection, selected_gaussians
 
     x, y = parse_click(args.click)

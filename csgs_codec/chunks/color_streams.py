@@ -96,6 +96,22 @@ def rotation_step_summary(data: bytes, offset: int) -> dict:
             "classes": k_u * r.fixed("u8", "bin_count_v")}
 
 
+def rotation_coding_offset(payload: bytes) -> int:
+    """Offset in a ROTN ``payload`` of its first coded channel's ``coding`` byte, or -1 when
+    every channel is a constant. For inspection (tests, vector damage), not for decoding."""
+    r = ByteReader(payload, chunk="ROTN")
+    r.byte_string("axis_stream")
+    r.varint("count")
+    channels = r.fixed("u8", "channel_count")
+    r.fixed("u8", "frac_bits")
+    for c in range(channels):
+        at = r.offset
+        if Coding.read(r, c).table != TABLE_CONSTANT:
+            return at
+        r.fixed("f32", "constant_value")
+    return -1
+
+
 def rotation_class_table(r: ByteReader) -> Coding:
     """Walk a ROTN payload (``r`` at its start) to its first channel that is not a constant;
     returns that channel's :class:`Coding`, with ``r`` just past its step index when its

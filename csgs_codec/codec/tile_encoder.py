@@ -73,7 +73,7 @@ def encode_tile(job: TileJob) -> TileOutput:
     scene = job.scene
     if scene is None:
         from csgs_codec.codec.encoder_checks import check_encodable
-        from csgs_codec.scene.ply_mmap import read_ply_rows
+        from csgs_codec.interchange.ply_mmap import read_ply_rows
 
         scene = read_ply_rows(job.source, job.rows)
         try:
@@ -162,7 +162,7 @@ def encode_ply_tiled(encoder, path: str) -> object:
         InputError: the file cannot be mapped or holds something the format cannot carry.
     """
     from csgs_codec.codec.encoder_checks import check_count
-    from csgs_codec.scene.ply_mmap import MappedPly
+    from csgs_codec.interchange.ply_mmap import MappedPly
     from csgs_codec.scene.position_grid import PositionGrid
 
     ply = MappedPly(path)

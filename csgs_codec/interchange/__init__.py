@@ -1,10 +1,11 @@
-"""Splat files of other tools, in and out: readers and writers of the interchange formats.
+"""Scene files in and out: every format csgs reads or writes other than its own ``.csgs``.
 
 Not to be confused with :mod:`csgs_codec.format`, the ``.csgs`` container. One module per
-format; each reader returns a :class:`~csgs_codec.scene.gaussian_scene.GaussianScene` in the
-INRIA PLY conventions (raw log-scales, opacity logits, SH DC coefficients, (w, x, y, z)
-quaternions, the file's own axes) together with a :class:`SceneSource` saying what the file
-was. Public API:
+format (the INRIA 3DGS PLY in ``ply_*``, Scaffold-GS checkpoints in ``scaffold_io``,
+``anchor_ply`` and ``scaffold_mlp_files``); each splat reader returns a
+:class:`~csgs_codec.scene.gaussian_scene.GaussianScene` in the INRIA PLY conventions (raw
+log-scales, opacity logits, SH DC coefficients, (w, x, y, z) quaternions, the file's own
+axes) together with a :class:`SceneSource` saying what the file was. Public API:
 
 - :func:`read_interchange`: any of these files, recognised by its content
   (:func:`csgs_codec.read_scene` reads ``.csgs`` too).

@@ -25,9 +25,9 @@ from csgs_codec.interchange.binary import (
     from_smallest_three,
     sh_rest_from_channel_major,
 )
+from csgs_codec.interchange.ply_header import MAX_HEADER_BYTES, PlyHeader, parse_header
 from csgs_codec.interchange.source import SceneSource
 from csgs_codec.scene.gaussian_scene import SH_DEGREE_OF_REST, GaussianScene
-from csgs_codec.scene.ply_header import MAX_HEADER_BYTES, PlyHeader, parse_header
 
 CHUNK = 256
 BOUNDS = ("min_x", "min_y", "min_z", "max_x", "max_y", "max_z", "min_scale_x",

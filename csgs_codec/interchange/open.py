@@ -120,8 +120,8 @@ def read_interchange(path: str | os.PathLike, *, sanitize: bool = False
 
 def _read_ply(path: Path, sanitize: bool) -> tuple[GaussianScene, SceneSource]:
     from csgs_codec.interchange.compressed_ply import is_compressed_ply, parse_compressed_ply
-    from csgs_codec.scene.ply_header import MAX_HEADER_BYTES, parse_header
-    from csgs_codec.scene.ply_reader import parse_ply_bytes
+    from csgs_codec.interchange.ply_header import MAX_HEADER_BYTES, parse_header
+    from csgs_codec.interchange.ply_reader import parse_ply_bytes
 
     data = read_regular(path)
     header = parse_header(data[:MAX_HEADER_BYTES], str(path))

@@ -13,7 +13,7 @@ from csgs_codec.scene.gaussian_scene import GaussianScene
 
 
 def _ply(scene: GaussianScene) -> bytes:
-    from csgs_codec.scene.ply_writer import ply_bytes
+    from csgs_codec.interchange.ply_writer import ply_bytes
 
     return ply_bytes(scene)
 

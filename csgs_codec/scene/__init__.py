@@ -1,4 +1,5 @@
-"""Scene data classes, PLY input/output and validation."""
+"""Scene data classes (Gaussian and anchor scenes, cameras), their coding forms and
+validation; files in and out are :mod:`csgs_codec.interchange`'s."""
 
 from csgs_codec.scene.gaussian_scene import SH_DEGREE_OF_REST, SH_REST_COUNTS, GaussianScene
 

@@ -41,7 +41,7 @@ def read_ply_points(path: str | Path) -> np.ndarray:
     Raises:
         InputError: unreadable file, no vertex element, or x/y/z missing or not finite.
     """
-    from csgs_codec.scene.ply_reader import read_vertex_columns
+    from csgs_codec.interchange.ply_reader import read_vertex_columns
 
     path = Path(path)
     data = read_regular(path, what="a point file")

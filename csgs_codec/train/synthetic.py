@@ -58,7 +58,7 @@ class SyntheticDataset:
         """Write the views as :func:`write_transforms_dataset` does, plus the ground-truth
         scene (with its ``label`` property) as ``scene.ply``; returns transforms.json's path.
         """
-        from csgs_codec.scene.ply_writer import write_ply
+        from csgs_codec.interchange.ply_writer import write_ply
 
         target = write_transforms_dataset(self.views, folder)
         write_ply(self.scene, Path(folder) / GROUND_TRUTH_FILE)

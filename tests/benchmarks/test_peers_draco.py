@@ -8,7 +8,7 @@ import pytest
 from benchmarks.peers import DracoCodec, PeerToolError, roundtrip_report
 from benchmarks.peers.draco import decode_scene
 from csgs_codec.errors import InputError
-from csgs_codec.scene.ply_io import read_ply, write_ply
+from csgs_codec.interchange.ply_io import read_ply, write_ply
 from tests.conftest import shared_path
 
 pytest.importorskip("DracoPy")

@@ -8,7 +8,7 @@ from plyfile import PlyData, PlyElement
 
 from benchmarks.peers.ply_fixup import OPACITY_LOGIT_LIMIT, clamp_infinite_opacity
 from csgs_codec.errors import InputError
-from csgs_codec.scene.ply_io import read_ply
+from csgs_codec.interchange.ply_io import read_ply
 
 
 def _write_ply(path, opacity):

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from benchmarks.peers import match_to_original, roundtrip_report
+from csgs_codec.interchange.ply_io import read_ply
 from csgs_codec.scene.gaussian_scene import GaussianScene
-from csgs_codec.scene.ply_io import read_ply
 from tests.conftest import shared_path
 
 

@@ -18,7 +18,7 @@ from benchmarks.peers import (
     roundtrip_report,
 )
 from csgs_codec.errors import InputError, UnsupportedError
-from csgs_codec.scene.ply_io import read_ply, write_ply
+from csgs_codec.interchange.ply_io import read_ply, write_ply
 from tests.conftest import shared_path
 
 FORMATS = sorted(SPLAT_TRANSFORM_FORMATS)

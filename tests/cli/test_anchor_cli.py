@@ -7,8 +7,8 @@ import numpy as np
 from csgs_cli.main import main
 from csgs_cli.scene_input import is_anchor_input
 from csgs_codec.codec.anchor_decoder import AnchorDecoder
-from csgs_codec.scene.anchor_ply import read_anchor_ply
-from csgs_codec.scene.scaffold_io import read_scaffold, write_scaffold
+from csgs_codec.interchange.anchor_ply import read_anchor_ply
+from csgs_codec.interchange.scaffold_io import read_scaffold, write_scaffold
 from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene
 from tests.conftest import SAMPLE
 

@@ -15,7 +15,7 @@ import pytest
 from csgs_cli.main import main
 from csgs_codec import Decoder, Encoder
 from csgs_codec.errors import InputError
-from csgs_codec.scene.ply_io import read_ply, write_ply
+from csgs_codec.interchange.ply_io import read_ply, write_ply
 from tests.codec.helpers import random_scene
 from tests.scene.ply_samples import make_ply, property_names, random_values
 

@@ -7,7 +7,7 @@ import json
 import numpy as np
 
 from csgs_cli.main import main
-from csgs_codec.scene.ply_io import read_ply, write_ply
+from csgs_codec.interchange.ply_io import read_ply, write_ply
 from tests.codec.helpers import random_scene
 from tests.conftest import SAMPLE, fixture
 

@@ -10,8 +10,8 @@ from csgs_codec.codec.anchor_decoder import AnchorDecoder
 from csgs_codec.codec.anchor_encoder import AnchorEncoder
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
-from csgs_codec.scene.ply_io import read_ply, write_ply
-from csgs_codec.scene.scaffold_io import write_scaffold
+from csgs_codec.interchange.ply_io import read_ply, write_ply
+from csgs_codec.interchange.scaffold_io import write_scaffold
 from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene
 from tests.codec.helpers import random_scene
 

@@ -10,7 +10,7 @@ import pytest
 
 from csgs_cli.commands import encode as encode_command
 from csgs_cli.main import main
-from csgs_codec.scene.ply_io import write_ply
+from csgs_codec.interchange.ply_io import write_ply
 from tests.codec.helpers import random_scene
 
 

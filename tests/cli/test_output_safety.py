@@ -19,7 +19,7 @@ from csgs_cli.main import main
 from csgs_codec.atomic_write import write_atomically
 from csgs_codec.errors import InputError
 from csgs_codec.format.layout import MAGIC
-from csgs_codec.scene.ply_io import write_ply
+from csgs_codec.interchange.ply_io import write_ply
 from tests.codec.helpers import random_scene
 
 

@@ -54,23 +54,6 @@ def rotn_channel_reader(payload: bytes):
     return r, coding, r.offset - 1
 
 
-def rotn_coding_offset(payload: bytes) -> int:
-    """Offset in a ROTN payload of its first coded channel's ``coding`` byte."""
-    from csgs_codec.format.primitives import ByteReader
-
-    r = ByteReader(payload)
-    r.byte_string("axis_stream")
-    r.varint("count")
-    channels = r.fixed("u8", "channel_count")
-    r.fixed("u8", "frac_bits")
-    for _ in range(channels):
-        at = r.offset
-        if r.fixed("u8", "coding") != 0:
-            return at
-        r.fixed("f32", "constant_value")
-    raise AssertionError("every ROTN channel is a constant")
-
-
 def steps_of(stage: str, sink: list, value=lambda done, total: (done, total)):
     """An ``Encoder(progress=...)`` callback that appends ``value(done, total)`` to ``sink``
     for each counted step of ``stage``."""

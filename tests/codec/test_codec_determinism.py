@@ -8,13 +8,13 @@ import subprocess
 import sys
 
 from csgs_codec.codec.encoder import Encoder
-from csgs_codec.scene.ply_io import read_ply
+from csgs_codec.interchange.ply_io import read_ply
 from tests.conftest import REPO, SAMPLE
 
 PROBE = """
 import hashlib, sys
 from csgs_codec.codec.decoder import Decoder
-from csgs_codec.scene.ply_io import ply_bytes
+from csgs_codec.interchange.ply_io import ply_bytes
 scene = Decoder().decode(sys.argv[1], layers="color,semantic")
 print(hashlib.sha256(ply_bytes(scene)).hexdigest())
 print("torch" in sys.modules)
@@ -33,7 +33,7 @@ def decode_in_subprocess(path, threads: int) -> tuple[str, bool]:
 
 
 def test_decode_is_identical_with_one_and_two_threads_and_imports_no_torch(tmp_path):
-    from csgs_codec.scene.ply_io import ply_bytes
+    from csgs_codec.interchange.ply_io import ply_bytes
 
     result = Encoder(quality=6).encode_with_report(read_ply(SAMPLE))
     path = tmp_path / "donut.csgs"

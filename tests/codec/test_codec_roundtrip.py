@@ -10,8 +10,8 @@ from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
 from csgs_codec.decisions.presets import preset
 from csgs_codec.format import read_layers
+from csgs_codec.interchange.ply_io import read_ply
 from csgs_codec.scene.attribute_forms import normalize_quaternions
-from csgs_codec.scene.ply_io import read_ply
 from csgs_codec.scene.position_grid import PositionGrid
 from tests.codec.helpers import SHORT_PRIOR_FIT, random_scene
 from tests.conftest import SAMPLE, SCENES, fixture, fixture_files

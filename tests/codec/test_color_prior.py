@@ -17,8 +17,8 @@ from csgs_codec.codec.encoder import Encoder
 from csgs_codec.decisions.color_prior_choice import PriorFitPolicy
 from csgs_codec.errors import FormatError
 from csgs_codec.format import Chunk, read_layers, write_container
+from csgs_codec.interchange.ply_io import read_ply
 from csgs_codec.model.color_hyperprior import ColorFitSettings
-from csgs_codec.scene.ply_io import read_ply
 from tests.codec.helpers import random_scene, steps_of
 from tests.conftest import SAMPLE
 

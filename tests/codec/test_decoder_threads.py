@@ -7,7 +7,7 @@ import pytest
 
 from csgs_codec import Decoder, Encoder
 from csgs_codec.errors import FormatError, InputError
-from csgs_codec.scene.ply_io import read_ply
+from csgs_codec.interchange.ply_io import read_ply
 from tests.codec.helpers import SHORT_PRIOR_FIT
 from tests.conftest import SAMPLE
 

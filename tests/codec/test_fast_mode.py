@@ -10,8 +10,8 @@ from csgs_codec.codec.anchor_encoder import AnchorEncoder
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
 from csgs_codec.decisions.rate_control import FAST_SEARCH_STEPS, RenderProbe
+from csgs_codec.interchange.ply_io import read_ply
 from csgs_codec.model.anchor_hyperprior import FAST_FIT, FitSettings
-from csgs_codec.scene.ply_io import read_ply
 from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene
 from tests.anchors.helpers import small_scene
 from tests.conftest import SAMPLE

@@ -18,8 +18,8 @@ from csgs_codec.decisions.rate_control import (
     RenderProbe,
 )
 from csgs_codec.errors import InputError
+from csgs_codec.interchange.ply_io import read_ply
 from csgs_codec.model.anchor_hyperprior import step_for_lambda
-from csgs_codec.scene.ply_io import read_ply
 from tests.anchors.helpers import FAST_FIT, small_scene
 from tests.conftest import SAMPLE
 

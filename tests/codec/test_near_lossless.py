@@ -10,9 +10,9 @@ from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
 from csgs_codec.decisions.presets import ANCHOR_QUALITIES, PRESETS, QUALITIES
 from csgs_codec.errors import InputError
+from csgs_codec.interchange.ply_io import read_ply
 from csgs_codec.metrics.image import psnr
 from csgs_codec.render.rasterizer import render
-from csgs_codec.scene.ply_io import read_ply
 from tests.conftest import REPO
 from tests.render.test_raster_common import orbit_view
 

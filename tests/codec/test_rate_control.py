@@ -10,7 +10,7 @@ from csgs_codec.codec.encoder import Encoder
 from csgs_codec.decisions.presets import PRESETS, scaled_preset
 from csgs_codec.decisions.rate_control import RenderProbe
 from csgs_codec.errors import CsgsWarning, InputError
-from csgs_codec.scene.ply_io import read_ply
+from csgs_codec.interchange.ply_io import read_ply
 from tests.codec.helpers import steps_of
 from tests.conftest import SAMPLE
 

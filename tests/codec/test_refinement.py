@@ -11,9 +11,9 @@ from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
 from csgs_codec.codec.float_stream import plan_float_stream
 from csgs_codec.errors import InputError
+from csgs_codec.interchange.ply_io import read_ply, write_ply
 from csgs_codec.metrics.comparison import score_views
 from csgs_codec.render.view_distribution import default_distribution
-from csgs_codec.scene.ply_io import read_ply, write_ply
 from tests.codec.helpers import steps_of
 from tests.conftest import SAMPLE
 

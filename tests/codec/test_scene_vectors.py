@@ -10,7 +10,7 @@ import pytest
 
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.errors import CsgsError
-from csgs_codec.scene.ply_io import ply_bytes
+from csgs_codec.interchange.ply_io import ply_bytes
 from tests.conformance import VECTORS_DIR
 
 VECTORS = sorted((VECTORS_DIR / "scenes").glob("*.json"))

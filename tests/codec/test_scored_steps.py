@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from csgs_codec.chunks.color_streams import rotation_coding_offset
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.derived_steps import (
     FOOTPRINT_MIN_GAUSSIANS,
@@ -23,12 +24,7 @@ from csgs_codec.entropy.residual import step_size
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format import Chunk, read_layers, write_container
 from csgs_codec.format.primitives import ByteReader
-from tests.codec.helpers import (
-    color_chunks,
-    random_scene,
-    rotn_channel_reader,
-    rotn_coding_offset,
-)
+from tests.codec.helpers import color_chunks, random_scene, rotn_channel_reader
 
 SCENE = random_scene(6000, sh_degree=0, seed=11)
 RESULT = Encoder(quality=5, hyperprior=False).encode_with_report(SCENE)
@@ -56,7 +52,7 @@ def _rotn_fields(payload: bytes) -> dict[str, int]:
     bins_u_at = r.offset
     k_u = r.fixed("u8", "bins_u")
     thresholds_u_at = r.offset
-    coding_at = rotn_coding_offset(payload)
+    coding_at = rotation_coding_offset(payload)
     return {"scored": coding.scored, "coding_at": coding_at, "step_at": step_at,
             "weights_at": weights_at,
             "bins_u_at": bins_u_at, "bins_u": k_u, "thresholds_u_at": thresholds_u_at}

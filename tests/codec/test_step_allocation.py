@@ -132,8 +132,8 @@ def test_a_saving_below_what_the_probe_resolves_keeps_the_preset(monkeypatch):
 def test_a_window_renders_the_same_from_the_gaussians_that_reach_it():
     """The probe renders each window from :func:`window_reach`'s Gaussians only: at the
     coarsest steps the descent can try, the windows equal renders of the whole scene."""
+    from csgs_codec.interchange.ply_io import read_ply
     from csgs_codec.render.rasterizer import render
-    from csgs_codec.scene.ply_io import read_ply
     from tests.conftest import SAMPLE
 
     scene = read_ply(SAMPLE)

@@ -11,9 +11,9 @@ from csgs_cli.main import main
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import MIN_PRUNED_SCENE, Encoder
 from csgs_codec.decisions.view_pruning import decide, drop_costs, probe_cameras, render_images
+from csgs_codec.interchange.ply_io import read_ply, write_ply
 from csgs_codec.render.sensitivity import blend_sensitivity
 from csgs_codec.render.view_distribution import default_distribution
-from csgs_codec.scene.ply_io import read_ply, write_ply
 from tests.conftest import SAMPLE
 
 pytest.importorskip("numba")

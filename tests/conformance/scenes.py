@@ -1,6 +1,6 @@
 """Scene conformance vectors: .csgs files with their expected decodes (spec/FORMAT.md §14).
 
-Valid vectors carry the SHA-256 of the canonical PLY (csgs_codec.scene.ply_io.ply_bytes) of
+Valid vectors carry the SHA-256 of the canonical PLY (csgs_codec.interchange.ply_io.ply_bytes) of
 each read, plus the decoded arrays for the small ones; invalid vectors carry the error class
 and the chunk it names.
 
@@ -17,14 +17,14 @@ from pathlib import Path
 
 import numpy as np
 
-from csgs_codec.chunks.color_streams import rotation_class_table
+from csgs_codec.chunks.color_streams import rotation_class_table, rotation_coding_offset
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
 from csgs_codec.errors import CsgsError
 from csgs_codec.format import Chunk, read_layers, write_container
 from csgs_codec.format.primitives import ByteReader
+from csgs_codec.interchange.ply_io import ply_bytes, read_ply
 from csgs_codec.scene.gaussian_scene import GaussianScene
-from csgs_codec.scene.ply_io import ply_bytes, read_ply
 
 REPO = Path(__file__).resolve().parents[2]
 DONUT = REPO / "samples" / "donut.ply"
@@ -121,21 +121,15 @@ def generate(out_dir: Path) -> None:
            "40 Gaussians, SH 1, 3 semantic channels and labels, quality 6",
            _reads(data),
            arrays=Decoder().decode(data, layers="color,semantic"))
-    bad = _invalid(data, cut="OPAC")
-    _write(out_dir, "truncated_opacity_payload", bad,
-           "semantic_small with the OPAC payload cut in half (frame and CRC rewritten)",
-           _reads(bad))
-    bad = _invalid(data, drop="OPAC")
-    _write(out_dir, "missing_opacity_chunk", bad,
-           "semantic_small without its OPAC chunk (a critical color chunk)", _reads(bad))
-    bad = _invalid(data, cut="SHDC")
-    _write(out_dir, "truncated_dc_payload", bad,
-           "semantic_small with the SHDC payload cut in half (frame and CRC rewritten)",
-           _reads(bad))
-    bad = _invalid(data, cut="SEML")
-    _write(out_dir, "truncated_label_payload", bad,
-           "semantic_small with the SEML payload cut in half (frame and CRC rewritten): the "
-           "color layer still decodes", _reads(bad))
+    halved = "payload cut in half (frame and CRC rewritten)"
+    for name, damage, what in (
+            ("truncated_opacity_payload", {"cut": "OPAC"}, f"the OPAC {halved}"),
+            ("missing_opacity_chunk", {"drop": "OPAC"}, "no OPAC chunk (a critical color chunk)"),
+            ("truncated_dc_payload", {"cut": "SHDC"}, f"the SHDC {halved}"),
+            ("truncated_label_payload", {"cut": "SEML"},
+             f"the SEML {halved}: the color layer still decodes")):
+        bad = _invalid(data, **damage)
+        _write(out_dir, name, bad, f"semantic_small with {what}", _reads(bad))
     _semantic_name_vectors(out_dir)
     _semantic_codebook_vectors(out_dir)
     _color_prior_vectors(out_dir, donut)
@@ -431,8 +425,9 @@ def _scored_steps_vectors(out_dir: Path, donut: GaussianScene) -> None:
     _write(out_dir, "scored_steps_nan_weight", bad,
            "scored_steps_q5 with channel 0's first ROTN score weight set to NaN (frame and "
            "CRC rewritten): invalid, reported at that weight", _reads(bad))
-    at = _rotn_coding_byte(data)
-    coding = read_layers(data, layers={"color"}).single_payload("ROTN")[0][at]
+    rotn = read_layers(data, layers={"color"}).single_payload("ROTN")[0]
+    at = rotation_coding_offset(rotn)
+    coding = rotn[at]
     bad = _invalid(data, patch=("ROTN", at, coding | 0x04))
     _write(out_dir, "coding_reserved_bit", bad,
            "scored_steps_q5 with bit 2 (reserved) of its first coded ROTN channel's coding "
@@ -445,18 +440,3 @@ def _after_rotn_step_index(data: bytes) -> int:
     r = ByteReader(read_layers(data, layers={"color"}).single_payload("ROTN")[0])
     rotation_class_table(r)
     return r.offset
-
-
-def _rotn_coding_byte(data: bytes) -> int:
-    """Offset in the ROTN payload of ``data`` of its first coded channel's ``coding`` byte."""
-    start = ByteReader(read_layers(data, layers={"color"}).single_payload("ROTN")[0])
-    start.byte_string("axis_stream")
-    start.varint("count")
-    channels = start.fixed("u8", "channel_count")
-    start.fixed("u8", "frac_bits")
-    for _ in range(channels):
-        at = start.offset
-        if start.fixed("u8", "coding") != 0:
-            return at
-        start.fixed("f32", "constant_value")
-    raise ValueError("every ROTN channel is a constant")

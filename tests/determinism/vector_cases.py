@@ -49,7 +49,7 @@ def _scene_cases(folder: Path) -> list[Case]:
     def compute(data_path: Path, layers: str) -> Callable[[], str]:
         def run() -> str:
             from csgs_codec.codec.decoder import Decoder
-            from csgs_codec.scene.ply_io import ply_bytes
+            from csgs_codec.interchange.ply_io import ply_bytes
 
             scene = Decoder().decode(data_path.read_bytes(), layers=layers)
             return hashlib.sha256(ply_bytes(scene)).hexdigest()

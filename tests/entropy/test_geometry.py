@@ -204,7 +204,7 @@ def test_encode_and_decode_are_identical_under_thread_counts_1_and_2():
 
 
 def test_donut_positions_round_trip_at_16_bits():
-    from csgs_codec.scene.ply_io import read_ply
+    from csgs_codec.interchange.ply_io import read_ply
 
     scene = read_ply(shared_path("scenes", "donut.ply"))
     q = quantize_to_grid(scene.positions, 16)

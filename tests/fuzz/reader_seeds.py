@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from csgs_codec.scene.ply_header import parse_header
+from csgs_codec.interchange.ply_header import parse_header
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "formats"
 FORMATS = ("ply", "ply-ascii", "compressed-ply", "spz", "sog", "glb", "splat", "ksplat")

@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.codec.encoder import Encoder
+from csgs_codec.interchange.ply_io import read_ply
 from csgs_codec.scene.gaussian_scene import GaussianScene
-from csgs_codec.scene.ply_io import read_ply
 from tests.codec.helpers import random_scene
 from tests.conformance import VECTORS_DIR
 from tests.conftest import FIXTURES, SAMPLE

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from csgs_codec.interchange.binary import dc_to_color, logit_to_alpha
+from csgs_codec.interchange.ply_reader import read_vertex_columns
 from csgs_codec.scene.gaussian_scene import GaussianScene
-from csgs_codec.scene.ply_reader import read_vertex_columns
 
 REPO = Path(__file__).resolve().parents[2]
 DATA = REPO / "tests" / "data" / "formats"

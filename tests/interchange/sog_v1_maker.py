@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from csgs_codec.interchange.ply_io import read_ply
 from csgs_codec.scene.gaussian_scene import GaussianScene
-from csgs_codec.scene.ply_io import read_ply
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "formats"
 WIDTH = 16

@@ -11,7 +11,7 @@ import pytest
 from csgs_codec.errors import DataLossWarning
 from csgs_codec.interchange import write_scene
 from csgs_codec.interchange.gltf import glb_bytes
-from csgs_codec.scene.ply_io import read_ply, write_ply
+from csgs_codec.interchange.ply_io import read_ply, write_ply
 from csgs_codec.scene_files import read_scene_with_report
 from tests.conftest import SAMPLE
 from tests.interchange.helpers import (
@@ -42,7 +42,7 @@ def donut(tmp_path_factory):
 def _decoded_by_splat_transform(path, tmp_path):
     out = tmp_path / (path.name.replace(".", "_") + ".decoded.ply")
     splat_transform(path, out)
-    from csgs_codec.scene.ply_reader import read_vertex_columns
+    from csgs_codec.interchange.ply_reader import read_vertex_columns
 
     _, _, columns = read_vertex_columns(out.read_bytes())
     return oracle_scene_arrays({k: np.asarray(v, np.float64) for k, v in columns.items()})

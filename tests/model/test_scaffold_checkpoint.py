@@ -13,8 +13,8 @@ from plyfile import PlyData, PlyElement
 from torch import nn
 
 from csgs_codec.errors import InputError, UnsupportedError
+from csgs_codec.interchange.scaffold_io import find_checkpoint_folder, read_scaffold, write_scaffold
 from csgs_codec.model.scaffold import ScaffoldMLPs
-from csgs_codec.scene.scaffold_io import find_checkpoint_folder, read_scaffold, write_scaffold
 from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene
 
 

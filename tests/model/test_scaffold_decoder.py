@@ -7,10 +7,10 @@ import pytest
 import torch
 
 from csgs_codec.errors import ModelError
+from csgs_codec.interchange.ply_io import read_ply, write_ply
 from csgs_codec.model.scaffold import SH_C0, ScaffoldDecoder, ScaffoldMLPs
 from csgs_codec.scene.anchor_scene import AnchorScene, MLPWeights, ScaffoldMLPWeights
 from csgs_codec.scene.camera import Camera
-from csgs_codec.scene.ply_io import read_ply, write_ply
 from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene
 
 

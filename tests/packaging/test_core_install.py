@@ -92,7 +92,7 @@ def test_pip_install_without_extras_decodes_and_imports_no_torch(tmp_path):
     subprocess.run([str(python), "-m", "pip", "install", "--quiet", str(REPO)], check=True,
                    timeout=900)
     code = ("import sys, hashlib, json; from csgs_codec import Decoder; "
-            "from csgs_codec.scene.ply_io import ply_bytes; "
+            "from csgs_codec.interchange.ply_io import ply_bytes; "
             f"d = open({str(VECTORS / 'scenes' / 'donut_q3.csgs')!r}, 'rb').read(); "
             "h = hashlib.sha256(ply_bytes(Decoder().decode(d))).hexdigest(); "
             "print(h, 'torch' in sys.modules)")

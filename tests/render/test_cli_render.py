@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from csgs_cli.main import main
+from csgs_codec.interchange.ply_io import write_ply
 from csgs_codec.render.image_io import load_png
-from csgs_codec.scene.ply_io import write_ply
 from tests.conftest import REPO, SAMPLE
 from tests.render.synthetic import blob_scene
 
@@ -107,7 +107,7 @@ def test_render_rejects_unsupported_scene_type(tmp_path, capsys):
 
 def test_render_decodes_a_csgs_bitstream(blob_path, tmp_path, capsys):
     from csgs_codec.codec.encoder import Encoder
-    from csgs_codec.scene.ply_io import read_ply
+    from csgs_codec.interchange.ply_io import read_ply
 
     bitstream = tmp_path / "blob.csgs"
     bitstream.write_bytes(Encoder(quality=9).encode(read_ply(blob_path)))

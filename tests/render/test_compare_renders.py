@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from csgs_cli.main import main
+from csgs_codec.interchange.ply_io import write_ply
 from csgs_codec.metrics.comparison import compare_scenes
 from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.orbit import look_at, orbit_cameras
-from csgs_codec.scene.ply_io import write_ply
 from tests.conftest import SAMPLE
 from tests.render.synthetic import SH_C0, blob_scene
 

@@ -7,10 +7,10 @@ import pytest
 import torch
 
 from csgs_codec.errors import InputError
+from csgs_codec.interchange.ply_io import read_ply
 from csgs_codec.render.numba_loader import numba_available
 from csgs_codec.render.rasterize_torch import rasterize_gaussians
 from csgs_codec.render.rasterizer import scene_tensors
-from csgs_codec.scene.ply_io import read_ply
 from tests.codec.helpers import random_scene
 from tests.conftest import shared_path
 from tests.render.test_raster_common import look_at_camera, orbit_view

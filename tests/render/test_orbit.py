@@ -96,7 +96,7 @@ def test_guess_up_defaults_to_minus_y_for_captures():
 @pytest.mark.parametrize(("name", "up"), [("donut", (0, 0, 1)), ("biker", (0, -1, 0)),
                                           ("playbot", (0, -1, 0)), ("plant", (0, -1, 0))])
 def test_guess_up_on_real_scenes(name, up):
-    from csgs_codec.scene.ply_io import read_ply
+    from csgs_codec.interchange.ply_io import read_ply
 
     path = shared_path("scenes", f"{name}.ply")
     if not path.exists():

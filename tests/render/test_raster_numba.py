@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from csgs_codec.errors import CsgsWarning
+from csgs_codec.interchange.ply_io import read_ply
 from csgs_codec.render import rasterizer
 from csgs_codec.render.numba_loader import numba_available
 from csgs_codec.render.rasterizer import render
-from csgs_codec.scene.ply_io import read_ply
 from tests.codec.helpers import random_scene
 from tests.conftest import shared_path
 from tests.render.test_raster_common import look_at_camera, orbit_view

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from csgs_cli.main import main
+from csgs_codec.interchange.ply_io import write_ply
 from csgs_codec.render.image_io import load_png
 from csgs_codec.render.preview import label_colors
-from csgs_codec.scene.ply_io import write_ply
 from tests.conftest import SAMPLE
 from tests.render.synthetic import blob_scene
 

@@ -6,15 +6,15 @@ import numpy as np
 import pytest
 
 from csgs_codec.errors import InputError
-from csgs_codec.scene.anchor_ply import (
+from csgs_codec.interchange.anchor_ply import (
     MASK_LOGIT_THRESHOLD,
     anchor_ply_bytes,
     parse_anchor_ply,
     read_anchor_ply,
     write_anchor_ply,
 )
+from csgs_codec.interchange.ply_header import parse_header
 from csgs_codec.scene.anchor_scene import AnchorScene, default_semantic_names
-from csgs_codec.scene.ply_header import parse_header
 from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene
 
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import pytest
 
 from csgs_codec.errors import InputError
-from csgs_codec.scene.ply_io import parse_ply_bytes
+from csgs_codec.interchange.ply_io import parse_ply_bytes
 from tests.scene.ply_samples import property_names
 
 NAMES = property_names()

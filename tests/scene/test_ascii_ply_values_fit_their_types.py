@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from csgs_codec.errors import CsgsWarning, InputError
-from csgs_codec.scene.ply_io import parse_ply_bytes
+from csgs_codec.interchange.ply_io import parse_ply_bytes
 from tests.scene.ply_samples import property_names
 
 NAMES = property_names(extra=("flags",))

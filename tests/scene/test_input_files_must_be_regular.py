@@ -15,12 +15,12 @@ import pytest
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.errors import InputError
 from csgs_codec.interchange import detect_format, read_interchange
+from csgs_codec.interchange.anchor_ply import read_anchor_ply
+from csgs_codec.interchange.ply_io import read_ply
+from csgs_codec.interchange.ply_mmap import MappedPly
 from csgs_codec.interchange.sog import read_sog
-from csgs_codec.scene.anchor_ply import read_anchor_ply
 from csgs_codec.scene.cameras_io import load_cameras
 from csgs_codec.scene.colmap_io import load_colmap_cameras
-from csgs_codec.scene.ply_io import read_ply
-from csgs_codec.scene.ply_mmap import MappedPly
 from csgs_codec.scene_files import read_scene
 from csgs_codec.untrusted import read_regular
 

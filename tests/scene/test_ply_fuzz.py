@@ -10,7 +10,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from csgs_codec.errors import InputError
-from csgs_codec.scene.ply_io import parse_ply_bytes
+from csgs_codec.interchange.ply_io import parse_ply_bytes
 from tests.scene.ply_samples import make_ply, property_names, random_values
 
 NAMES = property_names(9, extra=("sem_0",))

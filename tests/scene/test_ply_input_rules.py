@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from csgs_codec.errors import InputError
-from csgs_codec.scene.ply_io import parse_ply_bytes
+from csgs_codec.interchange.ply_io import parse_ply_bytes
 from tests.scene.ply_samples import make_ply, property_names, random_values
 
 NAMES = property_names()  # 17 properties, SH degree 0

@@ -6,8 +6,8 @@ import numpy as np
 import plyfile
 import pytest
 
+from csgs_codec.interchange.ply_io import parse_ply_bytes, ply_bytes, read_ply, write_ply
 from csgs_codec.scene import GaussianScene
-from csgs_codec.scene.ply_io import parse_ply_bytes, ply_bytes, read_ply, write_ply
 from tests.conftest import SAMPLE, SCENES, fixture, fixture_files, shared_path
 from tests.scene.ply_samples import make_ply, property_names, random_values
 

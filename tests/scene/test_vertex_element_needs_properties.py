@@ -9,8 +9,8 @@ import pytest
 
 from csgs_codec.errors import InputError
 from csgs_codec.interchange.compressed_ply import parse_compressed_ply
-from csgs_codec.scene.ply_io import parse_ply_bytes, read_ply
-from csgs_codec.scene.ply_mmap import MappedPly
+from csgs_codec.interchange.ply_io import parse_ply_bytes, read_ply
+from csgs_codec.interchange.ply_mmap import MappedPly
 from tests.scene.ply_samples import make_ply, property_names, random_values
 
 NAMES = property_names()

@@ -8,8 +8,8 @@ import pytest
 
 from csgs_cli.main import main
 from csgs_codec.codec.encoder import Encoder
+from csgs_codec.interchange.ply_io import read_ply, write_ply
 from csgs_codec.scene.cameras_io import resize_camera
-from csgs_codec.scene.ply_io import read_ply, write_ply
 from csgs_codec.semantic.synthetic import labelled_blob_scene
 from tests.semantic.scenes import (
     background_pixel,

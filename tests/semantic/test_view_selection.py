@@ -11,9 +11,9 @@ import pytest
 
 from csgs_cli.main import main
 from csgs_codec.errors import InputError
+from csgs_codec.interchange.ply_io import write_ply
 from csgs_codec.render.image_io import load_png
 from csgs_codec.render.preview import UNSELECTED_SHADE, highlight_selection, preview_camera
-from csgs_codec.scene.ply_io import write_ply
 from csgs_codec.semantic.synthetic import labelled_blob_scene
 from tests.semantic.scenes import centre_pixel
 

@@ -19,10 +19,10 @@ from csgs_codec import Decoder, Encoder
 from csgs_codec.chunks.scene_header import SceneHeader
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format import Chunk, read_layers, write_container
+from csgs_codec.interchange.ply_io import parse_ply_bytes, ply_bytes, write_ply
+from csgs_codec.interchange.ply_writer import vertex_ply_bytes
 from csgs_codec.render.rasterizer import render
 from csgs_codec.scene.orbit import orbit_cameras
-from csgs_codec.scene.ply_io import parse_ply_bytes, ply_bytes, write_ply
-from csgs_codec.scene.ply_writer import vertex_ply_bytes
 from tests.stability.stress_scenes import (
     ATTRIBUTES,
     far_outlier,

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from csgs_codec.errors import InputError
-from csgs_codec.scene.ply_io import parse_ply_bytes, ply_bytes, read_ply, write_ply
+from csgs_codec.interchange.ply_io import parse_ply_bytes, ply_bytes, read_ply, write_ply
 from tests.scene.ply_samples import make_ply, property_names
 from tests.stability.round_trips import stress_round_trip
 from tests.stability.stress_scenes import (

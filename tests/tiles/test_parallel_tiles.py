@@ -11,8 +11,8 @@ from csgs_codec import Decoder, Encoder, read_ply
 from csgs_codec.codec.parallel import run_jobs
 from csgs_codec.codec.tile_encoder import encode_ply_tiled
 from csgs_codec.errors import InputError
-from csgs_codec.scene.ply_io import write_ply
-from csgs_codec.scene.ply_mmap import MappedPly
+from csgs_codec.interchange.ply_io import write_ply
+from csgs_codec.interchange.ply_mmap import MappedPly
 from tests.codec.helpers import random_scene, steps_of
 
 

@@ -6,7 +6,7 @@ import pytest
 
 from csgs_cli.main import main
 from csgs_codec import Decoder
-from csgs_codec.scene.ply_io import read_ply, write_ply
+from csgs_codec.interchange.ply_io import read_ply, write_ply
 from tests.codec.helpers import random_scene
 
 

@@ -25,7 +25,7 @@ from csgs_codec.codec.tiling import (
     tile_count,
 )
 from csgs_codec.errors import InputError
-from csgs_codec.scene.ply_io import write_ply
+from csgs_codec.interchange.ply_io import write_ply
 from tests.codec.helpers import random_scene
 
 BIG = 20_000  # above 16,000: the 1,000 floor applies

@@ -52,7 +52,7 @@ def test_transforms_json_round_trip_keeps_images_masks_and_cameras(tmp_path, syn
 
 
 def test_synthetic_dataset_writes_its_ground_truth_scene_with_labels(tmp_path, synthetic):
-    from csgs_codec.scene.ply_reader import read_ply
+    from csgs_codec.interchange.ply_reader import read_ply
 
     target = synthetic.write(tmp_path)
     assert target == tmp_path / "transforms.json"

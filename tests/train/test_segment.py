@@ -13,7 +13,7 @@ from csgs_cli.main import main
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.describe import describe_bitstream
 from csgs_codec.errors import InputError
-from csgs_codec.scene.ply_io import read_ply
+from csgs_codec.interchange.ply_io import read_ply
 from csgs_codec.semantic.evaluation import mask_iou
 from csgs_codec.semantic.selection import click_selection
 from csgs_codec.train.segment import SegmentSettings, segment_scene

@@ -142,7 +142,7 @@ def test_quantized_features_give_click_selection_miou_above_0_9(tmp_path):
     """Files to features: write a synthetic dataset, load it back, train stage 2, round the
     features (Q = 1) and click each object's centre with the project's click selection."""
     evaluation = pytest.importorskip("csgs_codec.semantic.evaluation")
-    from csgs_codec.scene.ply_reader import read_ply
+    from csgs_codec.interchange.ply_reader import read_ply
     from csgs_codec.train.datasets import load_dataset
 
     make_synthetic_dataset(21, objects=4, gaussians_per_object=120, views=6, width=64,

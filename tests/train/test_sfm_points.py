@@ -22,9 +22,9 @@ needs_pycolmap = pytest.mark.skipif(not pycolmap_available(), reason="needs pyco
 def capture():
     """24 renders at 320x240 of the sample (a real trained scene) around an orbit: its
     images and cameras, and the scene whose Gaussians the points should lie on."""
+    from csgs_codec.interchange.ply_io import read_ply
     from csgs_codec.render.rasterizer import render
     from csgs_codec.scene.orbit import orbit_cameras
-    from csgs_codec.scene.ply_io import read_ply
 
     scene = read_ply(SAMPLE)
     views = []

@@ -78,9 +78,9 @@ def test_the_sample_segmented_then_encoded_by_default_opens(browser, default_enc
     import numpy as np
 
     from csgs_cli.main import main
+    from csgs_codec.interchange.ply_io import read_ply
     from csgs_codec.render.rasterizer import render
     from csgs_codec.scene.orbit import orbit_cameras
-    from csgs_codec.scene.ply_io import read_ply
     from csgs_codec.train.synthetic import write_transforms_dataset
     from csgs_codec.train.views import TrainingView
 

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.errors import InputError, UnsupportedError
-from csgs_codec.scene.anchor_ply import read_bytes
+from csgs_codec.interchange.anchor_ply import read_bytes
 from csgs_codec.scene.anchor_scene import HEADS, MLPWeights, ScaffoldMLPWeights
 
 HEAD_FILES = {"opacity": "opacity_mlp.pt", "cov": "cov_mlp.pt", "color": "color_mlp.pt"}

@@ -24,9 +24,9 @@ import numpy as np
 from csgs_codec import __version__
 from csgs_codec.atomic_write import write_atomically
 from csgs_codec.errors import CsgsWarning, InputError
+from csgs_codec.interchange.ply_reader import read_vertex_columns
+from csgs_codec.interchange.ply_writer import vertex_ply_bytes
 from csgs_codec.scene.anchor_scene import AnchorScene
-from csgs_codec.scene.ply_reader import read_vertex_columns
-from csgs_codec.scene.ply_writer import vertex_ply_bytes
 from csgs_codec.untrusted import read_regular
 
 #: Placeholder values the official trainer writes for the unused anchor opacity and rotation.

@@ -6,7 +6,7 @@ the number of ``f_rest_*`` properties, keeps semantic properties (``ins_feat_*``
 the file can hold: element counts are checked against the file size before the body is read.
 Nothing is read loosely: every ASCII row must hold one value per property, written as a PLY
 number (C's strtod syntax, or nan/inf) that fits the property's type, every element must have
-the rows its count declares (:mod:`csgs_codec.scene.ply_ascii`), and the body must end where
+the rows its count declares (:mod:`csgs_codec.interchange.ply_ascii`), and the body must end where
 the header's counts say (rows or bytes beyond them are an error, not ignored).
 """
 
@@ -21,9 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.errors import CsgsWarning, DataLossWarning, InputError
+from csgs_codec.interchange.ply_ascii import read_ascii_vertex_columns
+from csgs_codec.interchange.ply_header import MAX_HEADER_BYTES, PlyElement, PlyHeader, parse_header
 from csgs_codec.scene.gaussian_scene import SH_DEGREE_OF_REST, GaussianScene
-from csgs_codec.scene.ply_ascii import read_ascii_vertex_columns
-from csgs_codec.scene.ply_header import MAX_HEADER_BYTES, PlyElement, PlyHeader, parse_header
 from csgs_codec.untrusted import read_regular
 
 REQUIRED = ("x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",

@@ -1,6 +1,6 @@
 """Parsing of PLY headers: format, elements, properties and the byte size they promise.
 
-Only the header is read here; :mod:`csgs_codec.scene.ply_reader` reads the body. Every size
+Only the header is read here; :mod:`csgs_codec.interchange.ply_reader` reads the body. Every size
 the header announces is checked against the file size before anything is allocated.
 """
 

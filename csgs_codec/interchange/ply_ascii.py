@@ -16,7 +16,7 @@ import re
 import numpy as np
 
 from csgs_codec.errors import InputError
-from csgs_codec.scene.ply_header import PlyElement, PlyHeader
+from csgs_codec.interchange.ply_header import PlyElement, PlyHeader
 
 #: A PLY ASCII number as C's strtod reads it (decimal), or nan/inf: Python's float() also
 #: takes "1_000", which no PLY writer means.

@@ -2,9 +2,9 @@
 
 Layout (github.com/city-super/Scaffold-GS, ``scene/__init__.py`` ``Scene.save``):
 
-    MODEL/point_cloud/iteration_N/point_cloud.ply     anchors (see csgs_codec.scene.anchor_ply)
+    MODEL/point_cloud/iteration_N/point_cloud.ply     anchors (interchange/anchor_ply.py)
     MODEL/point_cloud/iteration_N/opacity_mlp.pt      traced heads, "split" mode
-    MODEL/point_cloud/iteration_N/cov_mlp.pt          (see csgs_codec.scene.scaffold_mlp_files)
+    MODEL/point_cloud/iteration_N/cov_mlp.pt          (interchange/scaffold_mlp_files.py)
     MODEL/point_cloud/iteration_N/color_mlp.pt
     MODEL/point_cloud/iteration_N/embedding_appearance.pt   when appearance_dim > 0
 
@@ -19,15 +19,15 @@ from pathlib import Path
 
 from csgs_codec.atomic_write import write_atomically
 from csgs_codec.errors import InputError
-from csgs_codec.scene.anchor_ply import anchor_ply_bytes, parse_anchor_ply, read_anchor_ply
-from csgs_codec.scene.anchor_scene import AnchorScene
-from csgs_codec.scene.scaffold_mlp_files import (
+from csgs_codec.interchange.anchor_ply import anchor_ply_bytes, parse_anchor_ply, read_anchor_ply
+from csgs_codec.interchange.scaffold_mlp_files import (
     APPEARANCE_FILE,
     HEAD_FILES,
     STATE_DICT_FILES,
     mlp_file_bytes,
     read_scaffold_mlps,
 )
+from csgs_codec.scene.anchor_scene import AnchorScene
 
 PLY_NAME = "point_cloud.ply"
 

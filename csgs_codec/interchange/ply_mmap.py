@@ -3,7 +3,7 @@
 For scenes larger than memory: :meth:`MappedPly.positions` reads only the x, y, z columns
 (block by block), and :meth:`MappedPly.scene` loads the rows of one tile. The rows convert
 to a :class:`~csgs_codec.scene.gaussian_scene.GaussianScene` exactly as
-:func:`~csgs_codec.scene.ply_reader.read_ply` converts a whole file, so a scene encoded from
+:func:`~csgs_codec.interchange.ply_reader.read_ply` converts a whole file, so a scene encoded from
 the map is the same as one encoded from ``read_ply``. ASCII PLY cannot be mapped.
 """
 
@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.errors import CsgsWarning, InputError
+from csgs_codec.interchange.ply_header import MAX_HEADER_BYTES, parse_header
+from csgs_codec.interchange.ply_reader import _columns_to_scene
 from csgs_codec.scene.gaussian_scene import GaussianScene
-from csgs_codec.scene.ply_header import MAX_HEADER_BYTES, parse_header
-from csgs_codec.scene.ply_reader import _columns_to_scene
 from csgs_codec.untrusted import open_regular
 
 #: Rows read at a time by :meth:`MappedPly.positions`.
