@@ -8,7 +8,7 @@ degrees, 800x600; refinement uses the default sphere of views at 400 pixels wide
 ``cpu_s`` the encode's CPU time. ``ratio_vs_presets`` divides the bytes by what the plain
 presets 1-9 need for the same held-out PSNR (log-size interpolated; nan outside their range),
 so a refined file below 1 is smaller than any plain encode of its quality. ``--stacked``
-adds view pruning and footprint rotation steps (mode 7) to each refined encode; the rest
+adds view pruning and footprint rotation steps (scored steps) to each refined encode; the rest
 use one rotation step (``rotation_steps="uniform"``), as when the results were first taken.
 
     .venv/bin/python benchmarks/refine.py --scenes donut plant --qualities 2 5 \\

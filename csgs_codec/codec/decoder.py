@@ -359,8 +359,8 @@ class Decoder:
             raise FormatError(f"unexpected color chunk(s) {sorted(extra)} for SH degree "
                               f"{header.sh_degree_coded}", chunk=sorted(extra)[0])
         modelled = modelled_streams(prior, names) if prior is not None else set()
-        # Rotations may derive their steps from the decoded scales and opacities (modes 6
-        # and 7): they are submitted after those, and wait for them only when a channel asks.
+        # Rotations may take scored steps from the decoded scales and opacities: they are
+        # submitted after those, and wait for them only when a channel asks.
         later = modelled | ({"rot"} if modelled & {"scale", "opacity"} else set())
         jobs: dict[str, Future] = {}
 

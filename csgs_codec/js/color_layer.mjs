@@ -81,7 +81,7 @@ function inverseShTransform(target, channels, n, band, offset) {
 
 /** One color stream, its values written into ``target`` (and for ROTN the dropped-component
  * indices returned); ``attributes`` (ROTN) = {logScales, opacity}, functions returning the
- * decoded SCAL and OPAC values modes 6 and 7 read; ``shTransforms`` the SHXF record or null. */
+ * decoded SCAL and OPAC values scored steps read; ``shTransforms`` the SHXF record or null. */
 export function decodeStream(container, header, code, priors, family, target, attributes = null, shTransforms = null) {
   const [data, offset] = single(container, code);
   const r = new ByteReader(data, offset, code);

@@ -55,7 +55,7 @@ export function planDecode(prep, { priorParts = 1, stages = STAGES } = {}) {
   add('GEOM', [], 'first', 1 + (sizes.GEOM + sizes.OUTL + sizes.OUTQ) * COST_PER_BYTE.GEOM);
   for (const code of prep.codes) {
     const needs = modelled.has(code) ? [...parts] : [];
-    if (code === 'ROTN') needs.push('OPAC', 'SCAL'); // modes 6 and 7 read them (§12.8)
+    if (code === 'ROTN') needs.push('OPAC', 'SCAL'); // scored steps read them (§12.8)
     const stage = BAND_CODES.includes(code) ? 'color' : 'first';
     add(code, needs, stage, 1 + sizes[code] * (COST_PER_BYTE[code] || 1));
   }

@@ -1,4 +1,5 @@
-"""The color hyperprior (CHYP, channel mode 5): rate only, exact decode, clear errors."""
+"""The color hyperprior (CHYP and the channels coded with its tables): rate only, exact
+decode, clear errors."""
 
 from __future__ import annotations
 

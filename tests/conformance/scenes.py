@@ -301,9 +301,9 @@ def _with_payload(data: bytes, code: str, payload: bytes, before: str | None = N
 
 
 def _color_prior_vectors(out_dir: Path, donut: GaussianScene) -> None:
-    """A file with the color hyperprior (CHYP, channel mode 5) and the same file without its
-    CHYP chunk. A short fit on 4,000 Gaussians, kept even where the network costs more than
-    it saves, so the vector stays small."""
+    """A file with the color hyperprior (CHYP, and channels coded with its tables) and the
+    same file without its CHYP chunk. A short fit on 4,000 Gaussians, kept even where the
+    network costs more than it saves, so the vector stays small."""
     from csgs_codec.decisions.color_prior_choice import PriorFitPolicy
     from csgs_codec.model.color_hyperprior import ColorFitSettings
 

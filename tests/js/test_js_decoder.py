@@ -94,7 +94,7 @@ def test_scene_vectors_decode_as_in_python(layers, threads, range_coder):
     results = run_js(SCENES, layers=layers, threads=threads, range_coder=range_coder)
     for path, js in zip(SCENES, results):
         _assert_same(js, _python(path, layers), f"{path.name} [{layers}]")
-    # The set holds both kinds, and the color hyperprior (mode 5) decodes.
+    # The set holds both kinds, and the color hyperprior decodes.
     assert any(r["ok"] for r in results) and not all(r["ok"] for r in results)
     assert next(r for p, r in zip(SCENES, results) if p.stem == "color_prior_q3")["ok"]
 

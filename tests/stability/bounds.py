@@ -125,8 +125,8 @@ class CodingSteps:
     #: SH bands (1..3) some tile codes in opponent colours (SHXF, FORMAT §12.24).
     opponent_bands: frozenset[int] = frozenset()
     #: How many step-table entries above ``steps["rot"]``'s a Gaussian's rotation step may
-    #: lie: 0 for one step, 12 when rotations are coded with classed steps (modes 6 and 7
-    #: clip each class to +-12 entries, eighth octaves, of the channel's step).
+    #: lie: 0 for one step, 12 when rotations are coded with scored steps (the encoder
+    #: clips each class to +-12 entries, eighth octaves, of the channel's step).
     rotation_class_offset: int = 0
 
 
