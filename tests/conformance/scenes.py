@@ -5,8 +5,9 @@ each read, plus the decoded arrays for the small ones; invalid vectors carry the
 and the chunk it names.
 
 While format 1.0 is a draft, vectors are rewritten only where a revision of the format says so
-(spec/CHANGES.md): revision 21, the cleanup before the freeze, rewrote them all once, and
-dropped the suffixes and frozen copies of earlier drafts.
+(spec/CHANGES.md): revision 21, the cleanup before the freeze, rewrote them all once without
+revision suffixes. The earlier drafts' vectors are never deleted: they stay as they landed
+(:data:`tests.conformance.RETIRED_SCENE_VECTORS`), no longer decoded.
 """
 
 from __future__ import annotations

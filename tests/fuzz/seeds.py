@@ -22,7 +22,7 @@ from csgs_codec.codec.encoder import Encoder
 from csgs_codec.interchange.ply_io import read_ply
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from tests.codec.helpers import random_scene
-from tests.conformance import VECTORS_DIR
+from tests.conformance import VECTORS_DIR, current
 from tests.conftest import FIXTURES, SAMPLE
 from tests.fuzz.container_edit import RawChunk, split_chunks
 
@@ -88,6 +88,6 @@ def build_seeds(vectors_dir: Path = VECTORS_DIR) -> list[Seed]:
             data = Encoder(quality=5, tile_size=TILED[name]).encode(scene)
             seeds.append(_seed(f"{name}_tiled", data))
     for family in SEED_VECTOR_FAMILIES:
-        for path in sorted((vectors_dir / family).glob("*.csgs")):
+        for path in current(sorted((vectors_dir / family).glob("*.csgs"))):
             seeds.append(_seed(f"vector:{path.stem}", path.read_bytes()))
     return seeds
