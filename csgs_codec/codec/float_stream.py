@@ -380,9 +380,12 @@ def read_float_stream(r: ByteReader, count: int, channels: int | None = None,
             prediction = predict(indices[:c], coefs, bias)
         stream = r.byte_string("residual_stream")
         k = coder.decode(stream, fields, context, r.chunk, r.offset - len(stream)) + prediction
-        top = int(np.abs(k).max()) if n else 0
+        magnitude = np.abs(k)
+        top = int(magnitude.max()) if n else 0
         room = (1 << 53) - abs(mean)
-        if n and np.any(np.abs(k) > room // q):
+        # One step: the largest index decides; per-Gaussian steps: each index against its own.
+        over = (n and np.any(magnitude > room // q)) if coding.scored else top > room // q
+        if over:
             raise r.error(f"channel {c}: decoded value exceeds 2^53 on its grid")
         peak = max(peak, top)
         indices[c] = k
