@@ -33,6 +33,7 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for IDEs and type che
     from csgs_codec.codec.decoder import Decoder
     from csgs_codec.codec.encoder import Encoder, EncodeResult
     from csgs_codec.codec.files import decode_file, encode_file
+    from csgs_codec.format.layout import Layer
     from csgs_codec.interchange import write_scene
     from csgs_codec.interchange.ply_io import read_ply, write_ply
     from csgs_codec.interchange.scaffold_io import read_scaffold, write_scaffold
@@ -63,10 +64,12 @@ _LAZY = {
     "read_scene": "csgs_codec.scene_files",
     "read_scene_with_report": "csgs_codec.scene_files",
     "write_scene": "csgs_codec.interchange",
+    "Layer": "csgs_codec.format.layout",
 }
 __all__ = [
     "__version__",
-    "Encoder", "EncoderConfig", "EncodeResult", "Decoder", "decode", "encode_file", "decode_file",
+    "Encoder", "EncoderConfig", "EncodeResult", "Decoder", "decode", "Layer", "encode_file",
+    "decode_file",
     "GaussianScene", "read_ply", "write_ply",
     "AnchorScene", "AnchorEncoder", "AnchorDecoder", "read_scaffold", "write_scaffold",
     "select_at_click", "read_scene", "read_scene_with_report", "write_scene",

@@ -47,7 +47,8 @@ class AnchorDecoder:
 
         Args:
             layers: "color" (anchors, MLPs, f / offsets / scaling; never reads a semantic
-                byte) or "color,semantic" (also the semantic features and labels).
+                byte) or "color,semantic" (also the semantic features and labels); or
+                ``Layer.COLOR`` / ``Layer.SEMANTIC``.
 
         Returns:
             The scene, anchors in canonical order; masked offsets are zero.

@@ -14,7 +14,8 @@ def decode(source, layers="color", *, tiles=None, region=None, threads: int | No
     Args:
         source: bytes, a path, a seekable binary file, or an object with ``size`` and
             ``read_range(offset, size)`` (see :class:`~csgs_codec.codec.decoder.Decoder`).
-        layers: "color" (default: stops before the semantic layer) or "color,semantic".
+        layers: "color" (default: stops before the semantic layer) or "color,semantic"; or
+            ``Layer.COLOR`` / ``Layer.SEMANTIC`` (:class:`csgs_codec.Layer`).
         tiles, region: which tiles of a tiled standard file to decode (see
             :meth:`Decoder.decode_with_report`); anchor files have no tiles, so both must be
             None for them.

@@ -27,6 +27,7 @@ from csgs_codec.entropy.geometry import decode_positions
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format import Container
 from csgs_codec.format.chunk import to_layer_set
+from csgs_codec.format.layout import Layer
 from csgs_codec.format.reader import name_source, needed_entries, read_frame
 from csgs_codec.format.source import CountingSource, open_source
 from csgs_codec.format.toc import read_toc
@@ -84,24 +85,27 @@ def check_region(region) -> tuple[float, ...] | None:
 
 
 #: What a ``layers`` argument may be, for error messages.
-LAYERS_ACCEPTED = ("'color' or 'color,semantic' (a comma-separated string, or a list of "
-                   "those names)")
+LAYERS_ACCEPTED = ("'color' or 'color,semantic' (a comma-separated string, a Layer, or a "
+                   "list of those)")
 
 
 def check_layers(layers) -> set[str]:
     """The layer names of a ``layers`` argument: a string such as "color" or
-    "color,semantic", or an iterable (list, tuple, set) of such names; the color layer is
-    always decoded.
+    "color,semantic", a :class:`~csgs_codec.format.layout.Layer` (``Layer.SEMANTIC``), or an
+    iterable (list, tuple, set) of such names or Layers; the color layer is always decoded.
 
     Raises:
-        InputError: anything else (None, a number, bytes, a non-string name), an unknown
-            layer name, or no layer at all.
+        InputError: anything else (None, a number, bytes, a name of another type), an
+            unknown layer name, or no layer at all.
     """
+    if isinstance(layers, Layer):
+        return parse_layers(layers.label)
     if isinstance(layers, str):
         return parse_layers(layers)
     if isinstance(layers, list | tuple | set | frozenset) and layers and all(
-            isinstance(name, str) for name in layers):
-        return parse_layers(layers)
+            isinstance(name, str | Layer) for name in layers):
+        return parse_layers([name.label if isinstance(name, Layer) else name
+                             for name in layers])
     raise InputError(f"layers must be {LAYERS_ACCEPTED}, got {layers!r}", property="layers")
 
 
@@ -153,8 +157,8 @@ class Decoder:
         :mod:`csgs_codec.format.source`).
 
         Args:
-            layers: "color" (geometry + color; never reads semantic bytes) or
-                "color,semantic".
+            layers: "color" or ``Layer.COLOR`` (geometry + color; never reads semantic
+                bytes), or "color,semantic" or ``Layer.SEMANTIC`` (see :func:`check_layers`).
             tiles, region: decode only some spatial tiles (see :meth:`decode_with_report`).
 
         Returns:

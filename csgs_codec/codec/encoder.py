@@ -168,17 +168,9 @@ class Encoder:
             raise InputError(f"unknown encoder setting(s) {sorted(unknown)}; the settings are "
                              f"the fields of EncoderConfig", property=sorted(unknown)[0])
         self.config: EncoderConfig = replace(base, **fields) if fields else base
-        c = self.config
-        self.preset: Preset = preset(c.effective_quality)
-        self.target_psnr, self.lambda_, self.fast = c.target_psnr, c.lambda_, c.fast
-        self.semantic, self.prune_opacity = c.semantic, c.prune_opacity
-        self.hyperprior = c.hyperprior and not c.fast
-        self.prior_fit = c.prior_fit
-        self.view_pruning, self.view_budget = c.prunes_views, c.view_budget
-        self.cameras = None if c.cameras is None else list(c.cameras)
-        self.rotation_steps, self.step_allocation = c.rotation_steps, c.step_allocation
-        self.refine = c.refine
-        self.tile_size, self.workers, self.ray = c.tile_size, c.workers, c.ray
+        #: The steps the encode starts from (the config's quality); experiments may set a
+        #: :class:`Preset` of their own here.
+        self.preset: Preset = preset(self.config.effective_quality)
         self.progress = progress or ignore_progress
         self._sensitivity = None  # (W (N,) of the scene being encoded, ViewDistribution)
 
@@ -199,20 +191,20 @@ class Encoder:
         start = time.perf_counter()
         scene.validate()
         # What the format cannot carry is refused here, before any coding.
-        check_encodable(scene, semantic=self.semantic != "none")
+        check_encodable(scene, semantic=self.config.semantic != "none")
         pruned = 0
-        if self.prune_opacity is not None and len(scene):
+        if self.config.prune_opacity is not None and len(scene):
             with np.errstate(over="ignore"):  # exp(-logit) is inf below -709: alpha 0
                 alpha = 1.0 / (1.0 + np.exp(-scene.opacity.astype(np.float64)))
-            keep = alpha >= self.prune_opacity
+            keep = alpha >= self.config.prune_opacity
             pruned = int((~keep).sum())
             original, scene = scene, scene.subset(keep)
         else:
             original = scene
-        if len(scene) <= effective_tile_size(len(scene), self.tile_size):
+        if len(scene) <= effective_tile_size(len(scene), self.config.tile_size):
             check_count(len(scene))  # a tiled scene's limit is per tile
         self._sensitivity = self._render_sensitivity(scene)
-        if (self.target_psnr is None and self.lambda_ is None) or not len(original):
+        if (self.config.target_psnr is None and self.config.lambda_ is None) or not len(original):
             allocation = self._allocate(scene)
             settings = self.preset if allocation is None else allocation.apply(self.preset)
             result = self._encode(scene, settings)
@@ -230,18 +222,18 @@ class Encoder:
 
         # A tiled scene keeps the preset: its streamed encode (csgs encode of a large binary
         # PLY) never holds the whole scene, and must write what a whole read writes.
-        if (self.fast or self.step_allocation is False or len(scene) < MIN_GAUSSIANS
-                or len(scene) > effective_tile_size(len(scene), self.tile_size)
-                or (self.step_allocation is None and not scene.sh_degree_in_use())):
+        if (self.config.fast or self.config.step_allocation is False or len(scene) < MIN_GAUSSIANS
+                or len(scene) > effective_tile_size(len(scene), self.config.tile_size)
+                or (self.config.step_allocation is None and not scene.sh_degree_in_use())):
             return None
         self._stage("step allocation")
-        return allocate_steps(scene, self.preset, rotation_rule=self.rotation_steps,
-                              cameras=self.cameras, progress=self._steps("step allocation"))
+        return allocate_steps(scene, self.preset, rotation_rule=self.config.rotation_steps,
+                              cameras=self.config.cameras, progress=self._steps("step allocation"))
 
     def _render_sensitivity(self, scene: GaussianScene):
         """(color sensitivity W (N,), its ViewDistribution) of ``scene``, or None when view
         pruning is off or the scene is too small for it."""
-        if not self.view_pruning or len(scene) < MIN_PRUNED_SCENE:
+        if not self.config.prunes_views or len(scene) < MIN_PRUNED_SCENE:
             return None
         from csgs_codec.render.sensitivity import blend_sensitivity
 
@@ -258,8 +250,8 @@ class Encoder:
             default_distribution,
         )
 
-        return (default_distribution(scene) if self.cameras is None
-                else camera_distribution(self.cameras, "the given cameras"))
+        return (default_distribution(scene) if self.config.cameras is None
+                else camera_distribution(self.config.cameras, "the given cameras"))
 
     def _search(self, scene: GaussianScene, original: GaussianScene) -> EncodeResult:
         """The target-PSNR or lambda search over the step multiplier (rate_control.py),
@@ -269,19 +261,19 @@ class Encoder:
         self._stage("rate control")
         # A target is a promise about the probe views, so only the lambda search (a trade
         # between rate and distortion anyway) scores on fewer views in fast mode.
-        fewer_views = self.fast and self.lambda_ is not None
+        fewer_views = self.config.fast and self.config.lambda_ is not None
         probe = (rc.RenderProbe(original, views=rc.FAST_PROBE_VIEWS) if fewer_views
                  else rc.RenderProbe(original))
 
         told = partial(announce, self.progress)  # each trial's message, as a stage
-        if self.lambda_ is not None:
-            steps = rc.FAST_LAMBDA_STEPS if self.fast else rc.LAMBDA_STEPS
-            search = rc.lambda_search(scene, self.lambda_, probe=probe, progress=told,
+        if self.config.lambda_ is not None:
+            steps = rc.FAST_LAMBDA_STEPS if self.config.fast else rc.LAMBDA_STEPS
+            search = rc.lambda_search(scene, self.config.lambda_, probe=probe, progress=told,
                                       steps=steps)
         else:
             limits = ({"search_steps": rc.FAST_SEARCH_STEPS, "tolerance": rc.FAST_TOLERANCE}
-                      if self.fast else {})
-            search = rc.target_search(scene, self.target_psnr, probe=probe, progress=told,
+                      if self.config.fast else {})
+            search = rc.target_search(scene, self.config.target_psnr, probe=probe, progress=told,
                                       **limits)
         # The hyperprior changes the rate only, so the search (which scores renders) runs
         # without its fit; the kept settings are encoded once more with it below.
@@ -293,22 +285,22 @@ class Encoder:
             except StopIteration as done:
                 result, report = done.value
                 break
-        kept = self.refine > 0
-        if self.refine:
+        kept = self.config.refine > 0
+        if self.config.refine:
             # Refinement lowers the render error at about the same size; the searched
             # encode stays when the refined one renders worse on the probe views (a target
             # missed, or a lambda search's distortion raised).
             self._stage("final encode")
             final = self._encode(scene, scaled_preset(report.multiplier))
             refined_psnr = probe.psnr(final.reconstruction)
-            floor = (self.target_psnr if self.lambda_ is None
+            floor = (self.config.target_psnr if self.config.lambda_ is None
                      else probe.psnr(result.reconstruction))
             kept = refined_psnr >= floor
             if kept:
                 result = final
-                if self.lambda_ is None:
+                if self.config.lambda_ is None:
                     report = replace(report, psnr=refined_psnr)
-        if self.hyperprior and not kept:
+        if self.config.fits_hyperprior and not kept:
             # The hyperprior changes the rate only: the search's settings coded with it.
             self._stage("final encode")
             final = self._encode(scene, scaled_preset(report.multiplier), refine=False)
@@ -327,7 +319,7 @@ class Encoder:
         trial = self._encode_all(scene, settings, hyperprior=False)
         self._stage("view pruning")
         in_input_order = trial.reconstruction.subset(np.argsort(trial.order, kind="stable"))
-        decision = decide(scene, in_input_order, weights, views.cameras, self.view_budget)
+        decision = decide(scene, in_input_order, weights, views.cameras, self.config.view_budget)
         record = ViewRecord(views.source, len(views.cameras), decision.dropped,
                             views.description)
         kept = np.flatnonzero(decision.keep)
@@ -350,11 +342,11 @@ class Encoder:
         start = time.perf_counter()
         self._stage("geometry")
         grid = PositionGrid.fit(scene.positions, settings.position_bits)
-        tile_size = effective_tile_size(len(scene), self.tile_size)
+        tile_size = effective_tile_size(len(scene), self.config.tile_size)
         if len(scene) > tile_size:
             from csgs_codec.codec.tile_encoder import encode_tiled
 
-            if self.refine:
+            if self.config.refine:
                 raise InputError(f"refinement works on scenes of one tile: this one has "
                                  f"{len(scene):,} Gaussians, more than the tile size "
                                  f"{tile_size:,}", property="refine")
@@ -365,7 +357,7 @@ class Encoder:
             cells, inside = grid.quantize(scene.positions)
             coded = self.code_scene(scene, settings, grid, cells, inside,
                                     hyperprior=hyperprior, record=record,
-                                    refine=refine and self.refine > 0)
+                                    refine=refine and self.config.refine > 0)
             self._stage("container")
             data = decodable_container(coded.chunks, len(scene))
             result = EncodeResult(data=data, reconstruction=coded.reconstruction,
@@ -402,7 +394,7 @@ class Encoder:
                   *far.chunks, *([record] if record is not None else [])]
 
         self._stage("color")
-        use_prior = self.hyperprior if hyperprior is None else hyperprior
+        use_prior = self.config.fits_hyperprior if hyperprior is None else hyperprior
         cells_in_order = (prior_cells(cells[inside_idx][perm], far_count) if use_prior
                           else None)
         plans = self._plan_color(streams.float_streams, settings)
@@ -417,7 +409,7 @@ class Encoder:
                                               max(grid.bits, 1), transforms)
         reconstruction = join_streams(decoded_streams, positions)
 
-        if self.semantic == "auto" and (ordered.semantic is not None or
+        if self.config.semantic == "auto" and (ordered.semantic is not None or
                                         ordered.labels is not None):
             self._stage("semantic")
             self._semantic_chunks(ordered, reconstruction, chunks, settings)
@@ -442,7 +434,7 @@ class Encoder:
     def _rotation_classes(self, plans: dict):
         """What makes the rotation stream's step classes from the planned scales and
         opacities (``derive`` of :func:`plan_float_stream`), or None for one step."""
-        return rotation_classes(self.rotation_steps, plans["scale"].recon,
+        return rotation_classes(self.config.rotation_steps, plans["scale"].recon,
                                 plans["opacity"].recon)
 
     def _refined_plans(self, ordered: GaussianScene, streams: SceneStreams, plans: dict,
@@ -458,7 +450,8 @@ class Encoder:
                   "quats": ordered.rotations}
         target_sh = np.concatenate([ordered.sh_dc[:, None, :], ordered.sh_rest], axis=1)
         refined = refine_streams(streams, plans, positions, target_sh, target, views.cameras,
-                                 RefineSettings(steps=self.refine), self._steps("refinement"))
+                                 RefineSettings(steps=self.config.refine),
+                                 self._steps("refinement"))
         if not refined:
             return plans
         streams.float_streams.update(refined)
@@ -475,7 +468,7 @@ class Encoder:
         if cells is not None:
             self._stage("color hyperprior")
             choice = choose_prior(plans, cells, pos_bits, self._steps("color hyperprior"),
-                                  self.prior_fit)
+                                  self.config.prior_fit)
         if choice.payload is not None:
             chunks.append(Chunk("CHYP", "color", choice.payload))
         if any(transforms):

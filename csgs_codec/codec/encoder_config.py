@@ -128,6 +128,12 @@ class EncoderConfig:
         return self.cameras is not None if self.view_pruning is None else self.view_pruning
 
     @property
+    def fits_hyperprior(self) -> bool:
+        """Whether the encode fits the color hyperprior: ``hyperprior``, except in fast
+        mode."""
+        return self.hyperprior and not self.fast
+
+    @property
     def effective_quality(self) -> int:
         """The preset the encode starts from (5 when no quality is given)."""
         return DEFAULT_QUALITY if self.quality is None else self.quality

@@ -113,7 +113,7 @@ def encode_tiled(encoder, scene: GaussianScene, grid: PositionGrid, settings: Pr
     """Encode ``scene`` (validated, more than ``tile_size`` Gaussians) as tiles with the
     ``encoder``'s settings; returns its :class:`~csgs_codec.codec.encoder.EncodeResult`.
     ``record`` (a ``vdis`` chunk) goes into tile 0, after its base chunks."""
-    use_prior = encoder.hyperprior if hyperprior is None else hyperprior
+    use_prior = encoder.config.fits_hyperprior if hyperprior is None else hyperprior
     jobs = plan_jobs(encoder, scene.positions, grid, settings, tile_size,
                      hyperprior=use_prior, scene=scene)
     outputs = _run_tiles(encoder, jobs)
@@ -147,7 +147,7 @@ def assemble(encoder, jobs: list[TileJob], outputs: list[TileOutput], count: int
 def _run_tiles(encoder, jobs: list[TileJob]) -> list[TileOutput]:
     """Code ``jobs`` with ``encoder``'s workers (or Ray), telling its progress of the tiles."""
     encoder.progress("tiles", 0, 0)
-    return run_jobs(encode_tile, jobs, workers=encoder.workers, ray=encoder.ray,
+    return run_jobs(encode_tile, jobs, workers=encoder.config.workers, ray=encoder.config.ray,
                     progress=partial(encoder.progress, "tiles"))
 
 
@@ -169,12 +169,13 @@ def encode_ply_tiled(encoder, path: str) -> object:
     settings = encoder.preset
     encoder.progress("geometry", 0, 0)
     positions = ply.positions()
-    tile_size = effective_tile_size(len(positions), encoder.tile_size)
+    tile_size = effective_tile_size(len(positions), encoder.config.tile_size)
     if len(positions) <= tile_size:
         check_count(len(positions))
     grid = PositionGrid.fit(positions, settings.position_bits)
     jobs = plan_jobs(encoder, positions, grid, settings, tile_size,
-                     hyperprior=encoder.hyperprior, source=ply.path, keep_reconstruction=False)
+                     hyperprior=encoder.config.fits_hyperprior, source=ply.path,
+                     keep_reconstruction=False)
     del positions
     outputs = _run_tiles(encoder, jobs)
     return assemble(encoder, jobs, outputs, ply.count)

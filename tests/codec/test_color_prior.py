@@ -203,7 +203,7 @@ def test_the_default_encoder_runs_the_full_fit_and_keeps_the_prior(donut):
 
     steps = []
     encoder = Encoder(progress=steps_of("color hyperprior", steps))
-    assert encoder.prior_fit is DEFAULT_PRIOR_FIT and DEFAULT_PRIOR_FIT.settings is None
+    assert encoder.config.prior_fit is DEFAULT_PRIOR_FIT and DEFAULT_PRIOR_FIT.settings is None
     result = encoder.encode_with_report(donut)
     assert steps[-1] == (ColorFitSettings().steps, ColorFitSettings().steps)
     assert "CHYP" in result.stream_bytes

@@ -71,3 +71,17 @@ def test_unknown_or_no_layer_names_are_input_errors(layers):
     with pytest.raises(InputError) as info:
         Decoder().decode(DATA, layers=layers)
     assert info.value.property == "layers"
+
+
+def test_layer_enum_members_name_the_same_layers_as_strings():
+    from csgs_codec import Layer, decode
+
+    labelled = Encoder(quality=4, hyperprior=False).encode(
+        random_scene(300, sh_degree=0, seed=5, labels=True))
+    both = Decoder().decode(labelled, layers="color,semantic")
+    assert both.labels is not None
+    for layers in (Layer.SEMANTIC, [Layer.COLOR, Layer.SEMANTIC], ["color", Layer.SEMANTIC]):
+        scene = decode(labelled, layers=layers)
+        assert (scene.labels == both.labels).all()
+        assert (scene.sh_dc == both.sh_dc).all() and (scene.positions == both.positions).all()
+    assert decode(labelled, layers=Layer.COLOR).labels is None

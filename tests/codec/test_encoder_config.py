@@ -88,8 +88,17 @@ def test_views_are_pruned_by_default_exactly_when_cameras_are_given():
     from csgs_codec.render.view_distribution import default_distribution
 
     cameras = default_distribution(random_scene(50, seed=1), directions=2).cameras
-    assert not Encoder().view_pruning and Encoder(view_pruning=True).view_pruning
-    assert Encoder(cameras=cameras).view_pruning
-    assert not Encoder(cameras=cameras, view_pruning=False).view_pruning
+    assert not Encoder().config.prunes_views and Encoder(view_pruning=True).config.prunes_views
+    assert Encoder(cameras=cameras).config.prunes_views
+    assert not Encoder(cameras=cameras, view_pruning=False).config.prunes_views
     with pytest.raises(InputError, match="view_pruning"):
         EncoderConfig(view_pruning="yes")
+
+
+def test_the_config_is_the_one_place_an_encoders_settings_live():
+    """No field is copied onto the Encoder, where a later change to one would not reach
+    the other: settings are read from ``encoder.config`` only."""
+    encoder = Encoder(quality=3, fast=True)
+    for name in EncoderConfig.field_names():
+        assert name not in vars(encoder), name
+    assert not encoder.config.fits_hyperprior and Encoder().config.fits_hyperprior
