@@ -13,7 +13,7 @@ REPO = Path(__file__).resolve().parents[1]
 SCENES = REPO.parent / "shared" / "data" / "scenes"
 #: Scenes that are full-precision training outputs; the others were decoded from a
 #: compressed format (see ../shared/data/README.md), which flatters that format's re-encode.
-FULL_PRECISION = {"donut", "fruit_drops", "leica_sofort_top8192"}
+FULL_PRECISION = {"donut", "fruit_drops", "leica_sofort_top8192", "yashica_t4_top8192"}
 
 
 def held_out_views(scene, width: int, height: int) -> list:

@@ -31,7 +31,7 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for IDEs and type che
     from csgs_codec.codec.anchor_decoder import AnchorDecoder
     from csgs_codec.codec.anchor_encoder import AnchorEncoder
     from csgs_codec.codec.decoder import Decoder
-    from csgs_codec.codec.encoder import Encoder, EncodeResult
+    from csgs_codec.codec.encoder import Encoder, EncodeReport
     from csgs_codec.codec.files import decode_file, encode_file
     from csgs_codec.format.layout import Layer
     from csgs_codec.interchange import write_scene
@@ -47,7 +47,7 @@ __version__ = "0.1.0"
 _LAZY = {
     "Encoder": "csgs_codec.codec.encoder",
     "EncoderConfig": "csgs_codec.codec.encoder_config",
-    "EncodeResult": "csgs_codec.codec.encoder",
+    "EncodeReport": "csgs_codec.codec.encoder",
     "Decoder": "csgs_codec.codec.decoder",
     "decode": "csgs_codec.codec.decode_any",
     "encode_file": "csgs_codec.codec.files",
@@ -68,7 +68,7 @@ _LAZY = {
 }
 __all__ = [
     "__version__",
-    "Encoder", "EncoderConfig", "EncodeResult", "Decoder", "decode", "Layer", "encode_file",
+    "Encoder", "EncoderConfig", "EncodeReport", "Decoder", "decode", "Layer", "encode_file",
     "decode_file",
     "GaussianScene", "read_ply", "write_ply",
     "AnchorScene", "AnchorEncoder", "AnchorDecoder", "read_scaffold", "write_scaffold",

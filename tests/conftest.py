@@ -65,7 +65,7 @@ def _held(lock_path: Path):
 
 @pytest.fixture(scope="session")
 def default_encoding(tmp_path_factory):
-    """``default_encoding(source) -> (path, EncodeResult)``: ``Encoder()`` with its default
+    """``default_encoding(source) -> (path, EncodeReport)``: ``Encoder()`` with its default
     settings on the scene file ``source`` (what `csgs encode SOURCE` writes, checked in
     tests/cli/test_codec_cli.py), encoded once per test run and written to ``path``, so the
     round-trip, JavaScript and browser tests of what users make share one encode. Workers

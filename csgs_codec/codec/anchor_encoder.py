@@ -14,7 +14,7 @@ the networks, picks the candidate and orders the chunks.
 Error bounds: anchor positions are exact cells (within float32 rounding of origin + cell *
 voxel) when the anchors lie on a voxel grid, else within half a cell of a 2^16-cell grid;
 every other coded value is within q / 2 + 2^-13 of its input, q the anchor's step for that
-attribute type (``AnchorEncodeResult.steps``, at most 4x the quality's base step); masked
+attribute type (``AnchorEncodeReport.steps``, at most 4x the quality's base step); masked
 offsets decode as 0; MLP weights are rounded to float16.
 
 Settings: a quality preset, or an expert rate-distortion weight ``lambda_`` (squared value
@@ -82,7 +82,7 @@ MAX_LAMBDA = math.log(2.0) / 6.0 * 2.0 ** 24
 
 
 @dataclass
-class AnchorEncodeResult:
+class AnchorEncodeReport:
     """What :meth:`AnchorEncoder.encode_with_report` returns.
 
     Attributes:
@@ -170,7 +170,7 @@ class AnchorEncoder:
         """The .csgs bytes of ``scene``."""
         return self.encode_with_report(scene).data
 
-    def encode_with_report(self, scene: AnchorScene) -> AnchorEncodeResult:
+    def encode_with_report(self, scene: AnchorScene) -> AnchorEncodeReport:
         """Encode ``scene``; report the reconstruction, order, steps and bytes per chunk."""
         start = time.perf_counter()
         scene.validate()
@@ -230,7 +230,7 @@ class AnchorEncoder:
             steps.update(self._semantic(s, cells, pos_bits, recon, chunks))
             fit_seconds += time.perf_counter() - fit_start
         data = write_container(chunks)
-        return AnchorEncodeResult(data, recon, order.astype(np.int64), steps,
+        return AnchorEncodeReport(data, recon, order.astype(np.int64), steps,
                                   {c.type: len(c.payload) for c in chunks},
                                   time.perf_counter() - start, fit_seconds)
 

@@ -4,7 +4,7 @@ Pipeline: validate -> optional pruning -> position grid (dense core) -> geometry
 order) and far points coded apart (far_points.py) ->
 attribute streams in that order -> chunks -> container. The encoder computes its own
 reconstruction with exactly the integer arithmetic the decoder runs, so
-``Decoder().decode(Encoder().encode(s))`` equals ``EncodeResult.reconstruction`` bit for bit.
+``Decoder().decode(Encoder().encode(s))`` equals ``EncodeReport.reconstruction`` bit for bit.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from csgs_codec.chunks.sh_colour_transform import colour_transform_payload
 from csgs_codec.chunks.view_record import ViewRecord
 from csgs_codec.codec.color_prior import prior_cells
 from csgs_codec.codec.derived_steps import rotation_classes
-from csgs_codec.codec.encode_result import EncodeResult
+from csgs_codec.codec.encode_report import EncodeReport
 from csgs_codec.codec.encoder_checks import check_count, check_encodable, decodable_container
 from csgs_codec.codec.encoder_config import EncoderConfig
 from csgs_codec.codec.float_stream import plan_float_stream
@@ -130,7 +130,7 @@ class Encoder:
             PSNR at the 7 of 22 presets where it moved steps, the others unchanged; the SH-0
             sample measured no gain for seconds of probing); True: for every
             scene; False: never. The preset's error bounds (:mod:`csgs_codec.decisions.presets`)
-            hold for the steps actually used (``EncodeResult.allocation``).
+            hold for the steps actually used (``EncodeReport.allocation``).
         refine: Adam steps that move each coded value to the lattice point whose decoded
             scene renders closest to the original over the viewing distribution (``cameras``
             or the default sphere; :mod:`csgs_codec.decisions.refinement`). Same format and
@@ -186,7 +186,7 @@ class Encoder:
         """The .csgs bytes of ``scene``."""
         return self.encode_with_report(scene).data
 
-    def encode_with_report(self, scene: GaussianScene) -> EncodeResult:
+    def encode_with_report(self, scene: GaussianScene) -> EncodeReport:
         """Encode ``scene`` and report the reconstruction, order and bytes per chunk."""
         start = time.perf_counter()
         scene.validate()
@@ -253,7 +253,7 @@ class Encoder:
         return (default_distribution(scene) if self.config.cameras is None
                 else camera_distribution(self.config.cameras, "the given cameras"))
 
-    def _search(self, scene: GaussianScene, original: GaussianScene) -> EncodeResult:
+    def _search(self, scene: GaussianScene, original: GaussianScene) -> EncodeReport:
         """The target-PSNR or lambda search over the step multiplier (rate_control.py),
         scored on probe renders of ``original``; the report goes to ``rate_control``."""
         from csgs_codec.decisions import rate_control as rc
@@ -310,7 +310,7 @@ class Encoder:
         return result
 
     def _encode(self, scene: GaussianScene, settings: Preset, *,
-                hyperprior: bool | None = None, refine: bool = True) -> EncodeResult:
+                hyperprior: bool | None = None, refine: bool = True) -> EncodeReport:
         """Encode a validated scene with ``settings``, leaving out the Gaussians view pruning
         removes (``order`` indexes ``scene``; see :meth:`_encode_all` for the rest)."""
         if self._sensitivity is None:
@@ -333,7 +333,7 @@ class Encoder:
 
     def _encode_all(self, scene: GaussianScene, settings: Preset, *,
                     hyperprior: bool | None = None, record: Chunk | None = None,
-                    refine: bool = True) -> EncodeResult:
+                    refine: bool = True) -> EncodeReport:
         """Encode every Gaussian of a validated (and pruned) scene with ``settings`` (and
         the color hyperprior when ``hyperprior``, default: the encoder's setting);
         ``record`` (a ``vdis`` chunk) ends the base layer when given; ``refine``: run the
@@ -360,7 +360,7 @@ class Encoder:
                                     refine=refine and self.config.refine > 0)
             self._stage("container")
             data = decodable_container(coded.chunks, len(scene))
-            result = EncodeResult(data=data, reconstruction=coded.reconstruction,
+            result = EncodeReport(data=data, reconstruction=coded.reconstruction,
                                   order=coded.order,
                                   stream_bytes={c.type: len(c.payload) for c in coded.chunks})
         result.seconds = time.perf_counter() - start

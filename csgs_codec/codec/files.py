@@ -6,13 +6,13 @@ import os
 
 from csgs_codec.atomic_write import check_output, write_atomically
 from csgs_codec.codec.decoder import Decoder
-from csgs_codec.codec.encoder import Encoder, EncodeResult
+from csgs_codec.codec.encoder import Encoder, EncodeReport
 from csgs_codec.interchange import read_interchange, warn_if_lossy, write_scene
 
 
 def encode_file(ply_path: str | os.PathLike, csgs_path: str | os.PathLike, *,
                 quality: int = 5, semantic: str = "auto", prune_opacity: float | None = None,
-                sanitize: bool = False) -> EncodeResult:
+                sanitize: bool = False) -> EncodeReport:
     """Encode the scene at ``ply_path`` (a 3DGS PLY or any format
     :func:`csgs_codec.interchange.read_interchange` reads; a lossy one warns) into ``csgs_path``
     (written atomically; an output that is the input, not a regular file or not writable is

@@ -16,7 +16,7 @@ from functools import partial
 import numpy as np
 
 from csgs_codec.chunks.tile_index import TileIndex, TileInfo, tile_info
-from csgs_codec.codec.encode_result import EncodeResult
+from csgs_codec.codec.encode_report import EncodeReport
 from csgs_codec.codec.parallel import run_jobs
 from csgs_codec.codec.tiling import effective_tile_size, split_tiles, tile_grid
 from csgs_codec.decisions.presets import Preset
@@ -111,7 +111,7 @@ def encode_tiled(encoder, scene: GaussianScene, grid: PositionGrid, settings: Pr
                  tile_size: int, *, hyperprior: bool | None = None,
                  record: Chunk | None = None):
     """Encode ``scene`` (validated, more than ``tile_size`` Gaussians) as tiles with the
-    ``encoder``'s settings; returns its :class:`~csgs_codec.codec.encoder.EncodeResult`.
+    ``encoder``'s settings; returns its :class:`~csgs_codec.codec.encoder.EncodeReport`.
     ``record`` (a ``vdis`` chunk) goes into tile 0, after its base chunks."""
     use_prior = encoder.config.fits_hyperprior if hyperprior is None else hyperprior
     jobs = plan_jobs(encoder, scene.positions, grid, settings, tile_size,
@@ -122,7 +122,7 @@ def encode_tiled(encoder, scene: GaussianScene, grid: PositionGrid, settings: Pr
 
 def assemble(encoder, jobs: list[TileJob], outputs: list[TileOutput], count: int,
              record: Chunk | None = None):
-    """The EncodeResult of coded tiles: the container (TIDX first), the reconstruction
+    """The EncodeReport of coded tiles: the container (TIDX first), the reconstruction
     (tiles in order; None when the tiles did not keep theirs) and the order into the input."""
     from csgs_codec.codec.encoder_checks import decodable_container
 
@@ -140,7 +140,7 @@ def assemble(encoder, jobs: list[TileJob], outputs: list[TileOutput], count: int
     order = np.concatenate([job.rows[out.order] for job, out in zip(jobs, outputs)])
     kept = [out.reconstruction for out in outputs]
     reconstruction = None if any(r is None for r in kept) else GaussianScene.concatenate(kept)
-    return EncodeResult(data=data, reconstruction=reconstruction, order=order,
+    return EncodeReport(data=data, reconstruction=reconstruction, order=order,
                         stream_bytes=stream_bytes, tiles=len(outputs))
 
 

@@ -15,7 +15,7 @@ fruit_drops 51.4 dB at 9, 60.2 at 10, 66.7 at 11; leica_sofort_top8192 48.7, 57.
 
 The encoder's step allocation (:mod:`csgs_codec.decisions.step_allocation`, on by default for
 scenes with SH bands) moves a scene's steps and grid bits from its preset's: the bounds below
-then hold for the settings it used (``EncodeResult.allocation.apply(preset)``; the file
+then hold for the settings it used (``EncodeReport.allocation.apply(preset)``; the file
 records each stream's step and the grid's bits), and for the preset itself with
 ``step_allocation=False`` (``--no-step-allocation``).
 

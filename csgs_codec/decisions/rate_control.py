@@ -176,7 +176,7 @@ def target_search(scene: GaussianScene, target_psnr: float, *,
                   search_steps: int = SEARCH_STEPS, tolerance: float = TOLERANCE):
     """The search for the coarsest encode of ``scene`` whose probe PSNR is at least
     ``target_psnr``, as a generator the encoder drives: it yields the :class:`Preset` to
-    encode next and is sent that encode's EncodeResult, so the search never calls back into
+    encode next and is sent that encode's EncodeReport, so the search never calls back into
     the encoder (``Encoder._search`` drives it).
 
     Args:
@@ -186,7 +186,7 @@ def target_search(scene: GaussianScene, target_psnr: float, *,
             one meets the target by less than ``tolerance`` dB.
 
     Returns (as the generator's value):
-        (EncodeResult, RateControlReport). When even the finest multiplier misses the
+        (EncodeReport, RateControlReport). When even the finest multiplier misses the
         target, that encode is returned with a CsgsWarning saying what it reached.
     """
     check_target(target_psnr)
@@ -251,7 +251,7 @@ def lambda_search(scene: GaussianScene, lam: float, *, probe: RenderProbe | None
         steps: encodes in all (>= 2).
 
     Returns (as the generator's value):
-        (EncodeResult, LambdaReport).
+        (EncodeReport, LambdaReport).
     """
     check_render_lambda(lam)
     probe = probe or RenderProbe(scene)

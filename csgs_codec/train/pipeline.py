@@ -27,7 +27,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from csgs_codec.codec.anchor_encoder import AnchorEncoder, AnchorEncodeResult
+from csgs_codec.codec.anchor_encoder import AnchorEncoder, AnchorEncodeReport
 from csgs_codec.decisions.presets import ANCHOR_BASE_STEPS, MULTIPLIERS
 from csgs_codec.errors import CsgsWarning, InputError, ModelError
 from csgs_codec.model.anchor_hyperprior import STEP_RANGE, FitSettings
@@ -98,7 +98,7 @@ class TrainResult:
     """
 
     data: bytes
-    encode: AnchorEncodeResult
+    encode: AnchorEncodeReport
     color_state: ColorStageState
     semantic: SemanticResult | None
     seconds: dict[str, float]
@@ -212,7 +212,7 @@ def _check_resumable(saved: ColorStageSettings, asked: ColorStageSettings,
                          "again without --resume", file=checkpoint)
 
 
-def _semantic_stages(views: list[TrainingView], color: AnchorEncodeResult,
+def _semantic_stages(views: list[TrainingView], color: AnchorEncodeReport,
                      settings: TrainSettings) -> SemanticResult:
     threads = torch.get_num_threads()
     torch.set_num_threads(settings.color.threads)
@@ -222,7 +222,7 @@ def _semantic_stages(views: list[TrainingView], color: AnchorEncodeResult,
         torch.set_num_threads(threads)
 
 
-def _semantic_steps(views: list[TrainingView], color: AnchorEncodeResult,
+def _semantic_steps(views: list[TrainingView], color: AnchorEncodeReport,
                     settings: TrainSettings) -> SemanticResult:
     scene: AnchorScene = color.reconstruction
     decoder = ScaffoldDecoder(scene)

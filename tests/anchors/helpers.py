@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 
-from csgs_codec.codec.anchor_encoder import AnchorEncoder, AnchorEncodeResult
+from csgs_codec.codec.anchor_encoder import AnchorEncoder, AnchorEncodeReport
 from csgs_codec.model.anchor_hyperprior import FitSettings
 from csgs_codec.scene.anchor_scene import AnchorScene
 from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene
@@ -21,7 +21,7 @@ def small_scene(anchors_per_object: int = 60, masked_fraction: float = 0.2) -> A
 
 @lru_cache(maxsize=8)
 def encoded(quality: int = 5, carm_groups: int = 5,
-            semantic: str = "auto") -> AnchorEncodeResult:
+            semantic: str = "auto") -> AnchorEncodeReport:
     """The cached encode of :func:`small_scene`."""
     return AnchorEncoder(quality, carm_groups=carm_groups, semantic=semantic,
                          fit=FAST_FIT).encode_with_report(small_scene())

@@ -4,10 +4,13 @@ and 9 with its default settings, to the Python decoder's arrays (issue #18's acc
 The default suite runs the two small SH-3 captures (real_sh3/, 4.7k and 8.2k Gaussians:
 every SH band, per-scene steps, the color hyperprior on the larger one) at the default
 quality; ``-m slow`` runs both at all three and adds the five shared scenes (up to 248k
-Gaussians). Skipped when node or ../shared is absent.
+Gaussians) and the SH-3 capture kept in benchmarks/data. Skipped when node or ../shared is
+absent.
 """
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import pytest
 
@@ -24,8 +27,12 @@ LARGE = [f"scenes/{name}.ply" for name in ("donut", "biker", "guitar", "plant", 
 QUALITIES = (1, 5, 9)
 
 
+#: The SH-3 capture the repository keeps (benchmarks/data, CC0): run where ../shared is absent.
+REPO_SH3 = Path(__file__).resolve().parents[2] / "benchmarks" / "data" / "yashica_t4_top8192.ply"
+
+
 def _check(relative: str, tmp_path, default_encoding, qualities=QUALITIES) -> None:
-    source = shared_path(*relative.split("/"))
+    source = REPO_SH3 if relative == "repo" else shared_path(*relative.split("/"))
     scene = read_ply(source)
     files, expected = [], []
     for quality in qualities:
@@ -59,6 +66,11 @@ def test_small_real_scenes_decode_as_in_python(relative, tmp_path, default_encod
 def test_the_small_scenes_decode_as_in_python_at_every_quality(relative, tmp_path,
                                                                default_encoding):
     _check(relative, tmp_path, default_encoding)
+
+
+@pytest.mark.slow
+def test_the_repository_sh3_capture_decodes_as_in_python(tmp_path, default_encoding):
+    _check("repo", tmp_path, default_encoding)
 
 
 @pytest.mark.slow

@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from csgs_codec.codec import sh_colour_transform as xf
-from csgs_codec.codec.encoder import EncodeResult
+from csgs_codec.codec.encoder import EncodeReport
 from csgs_codec.codec.float_stream import MAX_FRAC_BITS, frac_bits_for
 from csgs_codec.decisions.presets import Preset
 from csgs_codec.decisions.presets import preset_steps as stream_steps
@@ -137,7 +137,7 @@ def preset_steps(preset: Preset) -> CodingSteps:
                        preset.position_bits)
 
 
-def result_steps(result: EncodeResult, preset: Preset) -> CodingSteps:
+def result_steps(result: EncodeReport, preset: Preset) -> CodingSteps:
     """The steps an encode used: a rate-controlled encoder's plan where its report carries one
     (``result.plan`` with ``steps`` and ``position_bits``), else the preset's as the step
     allocation moved them (``result.allocation``, default on for scenes with SH bands)."""

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from functools import cache
 
 from csgs_codec import Decoder, Encoder
-from csgs_codec.codec.encoder import EncodeResult
+from csgs_codec.codec.encoder import EncodeReport
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from tests.stability.stress_scenes import STRESS_SCENES
 
@@ -24,7 +24,7 @@ class RoundTrip:
 
     original: GaussianScene
     reference: GaussianScene
-    result: EncodeResult
+    result: EncodeReport
     decoded: GaussianScene
 
 

@@ -10,7 +10,7 @@ from csgs_codec.scene.gaussian_scene import GaussianScene
 
 
 @dataclass
-class EncodeResult:
+class EncodeReport:
     """What :meth:`Encoder.encode_with_report` returns.
 
     Attributes:
