@@ -22,9 +22,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.bench_common import FULL_PRECISION, SCENES, document, emit  # noqa: E402
+from csgs_codec.codec.files import read_scene_with_report  # noqa: E402
 from csgs_codec.errors import DataLossWarning  # noqa: E402
 from csgs_codec.interchange.writers import scene_bytes  # noqa: E402
-from csgs_codec.scene_files import read_scene_with_report  # noqa: E402
 
 SAMPLE = Path(__file__).resolve().parents[1] / "samples" / "donut.ply"
 #: suffix -> largest position error the format allows for a scene within +-2048 units

@@ -1,5 +1,5 @@
 """Opening the scene a command is given: anchor scenes and INRIA output folders here, every
-other file through :func:`csgs_codec.scene_files.read_scene`, which knows the file types."""
+other file through :func:`csgs_codec.codec.files.read_scene`, which knows the file types."""
 
 from __future__ import annotations
 
@@ -65,7 +65,7 @@ def load_anchor_scene(path: str | Path):
 
 def load_scene(path: str | Path, *, command: str, layers: str = "color,semantic"):
     """Read the scene in ``path`` for ``csgs <command>``: any format
-    :func:`csgs_codec.scene_files.read_scene` recognises by content (PLY, compressed PLY,
+    :func:`csgs_codec.codec.files.read_scene` recognises by content (PLY, compressed PLY,
     .splat, .ksplat, SPZ, SOG, GLB), or a .csgs bitstream decoded with ``layers``: a
     GaussianScene, or for the commands in :data:`ANCHOR_COMMANDS` an AnchorScene when the
     .csgs holds one.
@@ -75,8 +75,8 @@ def load_scene(path: str | Path, *, command: str, layers: str = "color,semantic"
         FormatError: a malformed .csgs.
         UnsupportedError: a file type that is not a scene input of this command.
     """
+    from csgs_codec.codec.files import read_scene
     from csgs_codec.interchange import detect_format
-    from csgs_codec.scene_files import read_scene
 
     path = Path(path)
     try:

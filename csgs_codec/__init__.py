@@ -32,14 +32,13 @@ if TYPE_CHECKING:  # what the lazy names below resolve to, for IDEs and type che
     from csgs_codec.codec.anchor_encoder import AnchorEncoder
     from csgs_codec.codec.decoder import Decoder
     from csgs_codec.codec.encoder import Encoder, EncodeReport
-    from csgs_codec.codec.files import decode_file, encode_file
+    from csgs_codec.codec.files import decode_file, encode_file, read_scene, read_scene_with_report
     from csgs_codec.format.layout import Layer
     from csgs_codec.interchange import write_scene
     from csgs_codec.interchange.ply_io import read_ply, write_ply
     from csgs_codec.interchange.scaffold_io import read_scaffold, write_scaffold
     from csgs_codec.scene.anchor_scene import AnchorScene
     from csgs_codec.scene.gaussian_scene import GaussianScene
-    from csgs_codec.scene_files import read_scene, read_scene_with_report
     from csgs_codec.semantic.selection import select_at_click
 
 __version__ = "0.1.0"
@@ -61,8 +60,8 @@ _LAZY = {
     "read_scaffold": "csgs_codec.interchange.scaffold_io",
     "write_scaffold": "csgs_codec.interchange.scaffold_io",
     "select_at_click": "csgs_codec.semantic.selection",
-    "read_scene": "csgs_codec.scene_files",
-    "read_scene_with_report": "csgs_codec.scene_files",
+    "read_scene": "csgs_codec.codec.files",
+    "read_scene_with_report": "csgs_codec.codec.files",
     "write_scene": "csgs_codec.interchange",
     "Layer": "csgs_codec.format.layout",
 }

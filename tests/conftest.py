@@ -84,7 +84,7 @@ def default_encoding(tmp_path_factory):
                     result = pickle.loads(report.read_bytes())
                 else:
                     from csgs_codec import Encoder
-                    from csgs_codec.scene_files import read_scene
+                    from csgs_codec.codec.files import read_scene
 
                     scene = read_scene(source)
                     result = Encoder().encode_with_report(scene)

@@ -116,8 +116,8 @@ def run(args) -> int:
     from csgs_codec.atomic_write import check_output, write_atomically
     from csgs_codec.codec.encoder import COUNTED_STAGES, Encoder
     from csgs_codec.codec.encoder_config import EncoderConfig
+    from csgs_codec.codec.files import read_scene_with_report
     from csgs_codec.interchange import warn_if_lossy
-    from csgs_codec.scene_files import read_scene_with_report
 
     _check_exclusive(args)
     inria = inria_output(args.scene)

@@ -51,8 +51,8 @@ def describe_file(path: str, *, sanitize: bool = False) -> dict:
     """JSON-ready facts about the scene in ``path`` (any format csgs reads): ``format``
     (short name), ``format_name`` (with its version), ``format_version``, ``lossy``,
     ``details`` (format-specific), the scene summary, and for PLY input ``ply_format``."""
+    from csgs_codec.codec.files import read_scene_with_report
     from csgs_codec.scene.summary import summarize_scene
-    from csgs_codec.scene_files import read_scene_with_report
 
     scene, source = read_scene_with_report(path, sanitize=sanitize, layers="color,semantic")
     details = dict(source.details)

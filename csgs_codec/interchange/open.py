@@ -84,7 +84,7 @@ def detect_format(path: str | os.PathLike) -> str:
 def read_interchange(path: str | os.PathLike, *, sanitize: bool = False
                      ) -> tuple[GaussianScene, SceneSource]:
     """Read the scene in ``path`` in any format :func:`detect_format` names but ``.csgs``
-    (that one is the codec's: :func:`csgs_codec.scene_files.read_scene_with_report` reads both).
+    (that one is the codec's: :func:`csgs_codec.codec.files.read_scene_with_report` reads both).
 
     Args:
         path: a scene file, a SOG folder or its ``meta.json``.

@@ -11,7 +11,7 @@ import pytest
 
 from csgs_cli.main import main
 from csgs_codec.codec.decoder import Decoder
-from csgs_codec.scene_files import read_scene_with_report
+from csgs_codec.codec.files import read_scene_with_report
 from tests.interchange.helpers import DATA, matched
 
 INPUTS = {  # fixture -> (format name in info, version, SH degree, lossy)

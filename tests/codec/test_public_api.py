@@ -19,6 +19,10 @@ def test_readme_api_round_trip(tmp_path):
     assert (tmp_path / "s.csgs").read_bytes() == result.data == data
     assert csgs_codec.decode_file(tmp_path / "s.csgs", tmp_path / "s.ply") == 3
     assert csgs_codec.read_ply(tmp_path / "s.ply").equals(decoded)
+    # The Encoder's config or its fields, as Encoder takes them.
+    config = csgs_codec.EncoderConfig(quality=9)
+    again = csgs_codec.encode_file(fixture("three_points_sh3.ply"), tmp_path / "t.csgs", config)
+    assert again.data == data
 
 
 def test_importing_the_package_and_decoder_loads_no_torch():

@@ -14,8 +14,8 @@ import zipfile
 
 import pytest
 
+from csgs_codec.codec.files import read_scene_with_report
 from csgs_codec.errors import CsgsError, InputError
-from csgs_codec.scene_files import read_scene_with_report
 from tests.interchange.helpers import DATA
 
 FILES = ["brush_sh3.compressed.ply", "brush_sh3.sog", "brush_sh3.v2.spz", "brush_sh3.v3.spz",

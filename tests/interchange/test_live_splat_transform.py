@@ -8,11 +8,11 @@ import warnings
 import numpy as np
 import pytest
 
+from csgs_codec.codec.files import read_scene_with_report
 from csgs_codec.errors import DataLossWarning
 from csgs_codec.interchange import write_scene
 from csgs_codec.interchange.gltf import glb_bytes
 from csgs_codec.interchange.ply_io import read_ply, write_ply
-from csgs_codec.scene_files import read_scene_with_report
 from tests.conftest import SAMPLE
 from tests.interchange.helpers import (
     DATA,

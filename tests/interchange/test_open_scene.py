@@ -10,10 +10,10 @@ import pytest
 
 from csgs_codec import read_scene as lazy_read_scene
 from csgs_codec.codec.encoder import Encoder
+from csgs_codec.codec.files import read_scene, read_scene_with_report
 from csgs_codec.errors import InputError, UnsupportedError
 from csgs_codec.format import MAGIC
 from csgs_codec.interchange import detect_format
-from csgs_codec.scene_files import read_scene, read_scene_with_report
 from tests.interchange.helpers import DATA, matched
 
 CONTENT = {"brush_sh3.ply": "ply", "brush_sh3.compressed.ply": "ply",

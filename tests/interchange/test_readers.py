@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from csgs_codec.scene_files import read_scene_with_report
+from csgs_codec.codec.files import read_scene_with_report
 from tests.interchange.helpers import (
     DATA,
     alphas,

@@ -10,12 +10,12 @@ import warnings
 import numpy as np
 import pytest
 
+from csgs_codec.codec.files import read_scene_with_report
 from csgs_codec.errors import DataLossWarning, InputError, UnsupportedError
 from csgs_codec.interchange import write_scene
 from csgs_codec.interchange.gltf import glb_bytes, parse_glb
 from csgs_codec.interchange.splat import RECORD, parse_splat, splat_bytes
 from csgs_codec.interchange.spz import parse_spz, spz_bytes
-from csgs_codec.scene_files import read_scene_with_report
 from tests.interchange.helpers import DATA, alphas, colors, rotation_error
 
 SH_C0 = 0.28209479177387814

@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from csgs_codec.codec.decoder import Decoder
+from csgs_codec.codec.files import read_scene
 from csgs_codec.errors import InputError
 from csgs_codec.interchange import detect_format, read_interchange
 from csgs_codec.interchange.anchor_ply import read_anchor_ply
@@ -21,7 +22,6 @@ from csgs_codec.interchange.ply_mmap import MappedPly
 from csgs_codec.interchange.sog import read_sog
 from csgs_codec.scene.cameras_io import load_cameras
 from csgs_codec.scene.colmap_io import load_colmap_cameras
-from csgs_codec.scene_files import read_scene
 from csgs_codec.untrusted import read_regular
 
 REPO = Path(__file__).resolve().parents[2]
