@@ -79,9 +79,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_common import FULL_PRECISION, SCENES, document, emit, held_out_views  # noqa: E402
 from precision_bound import joint_bins, rule_features  # noqa: E402
 
+from csgs_codec.attributes.float_stream import _fit_prediction, frac_bits_for, predict  # noqa: E402
+from csgs_codec.attributes.streams import SceneStreams, join_streams, split_streams  # noqa: E402
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
-from csgs_codec.codec.float_stream import _fit_prediction, frac_bits_for, predict  # noqa: E402
-from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams  # noqa: E402
 from csgs_codec.decisions.presets import preset  # noqa: E402
 from csgs_codec.entropy.histogram import histogram_cost  # noqa: E402
 from csgs_codec.entropy.residual import (  # noqa: E402

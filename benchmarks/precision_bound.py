@@ -53,15 +53,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_common import FULL_PRECISION, SCENES, document, emit, held_out_views  # noqa: E402
 
+from csgs_codec.attributes.attribute_forms import (  # noqa: E402
+    normalize_quaternions,
+    quaternion_to_smallest_three,
+)
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
 from csgs_codec.interchange.ply_io import read_ply  # noqa: E402
 from csgs_codec.render.jacobian_sensitivity import jacobian_sensitivity  # noqa: E402
 from csgs_codec.render.rasterizer import render  # noqa: E402
 from csgs_codec.render.view_distribution import default_distribution  # noqa: E402
-from csgs_codec.scene.attribute_forms import (  # noqa: E402
-    normalize_quaternions,
-    quaternion_to_smallest_three,
-)
 
 #: Chunk type that carries each attribute group's bits.
 CHUNKS = {"position": ("GEOM", "OUTL", "OUTQ"), "dc": ("SHDC",), "band1": ("SHBA",),

@@ -31,11 +31,11 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from bench_common import SCENES, document, emit  # noqa: E402
 
 from csgs_codec import read_ply  # noqa: E402
+from csgs_codec.attributes.float_stream import plan_float_stream  # noqa: E402
+from csgs_codec.attributes.streams import split_streams  # noqa: E402
 from csgs_codec.chunks.color_streams import STREAM_CHUNKS  # noqa: E402
 from csgs_codec.codec.decoder import Decoder  # noqa: E402
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
-from csgs_codec.codec.float_stream import plan_float_stream  # noqa: E402
-from csgs_codec.codec.streams import split_streams  # noqa: E402
 from csgs_codec.decisions.presets import preset  # noqa: E402
 from csgs_codec.entropy.histogram import histogram_cost  # noqa: E402
 from csgs_codec.entropy.residual import quantize, to_grid  # noqa: E402

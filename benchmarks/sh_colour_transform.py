@@ -31,8 +31,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_common import document, emit  # noqa: E402
 from derived_steps import HeldOut  # noqa: E402
 
+from csgs_codec.attributes.float_stream import write_float_stream  # noqa: E402
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
-from csgs_codec.codec.float_stream import write_float_stream  # noqa: E402
 from csgs_codec.decisions.presets import PRESETS  # noqa: E402
 from csgs_codec.format.primitives import ByteWriter  # noqa: E402
 from csgs_codec.interchange.ply_io import read_ply  # noqa: E402

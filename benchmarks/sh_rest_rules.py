@@ -34,10 +34,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_common import document, emit  # noqa: E402
 from derived_steps import HeldOut, size_at_psnr  # noqa: E402
 
+import csgs_codec.attributes.float_stream as float_stream  # noqa: E402
+import csgs_codec.attributes.sh_colour_transform as colour_transform  # noqa: E402
 import csgs_codec.codec.encoder as encoder_module  # noqa: E402
-import csgs_codec.codec.float_stream as float_stream  # noqa: E402
-import csgs_codec.codec.sh_colour_transform as colour_transform  # noqa: E402
-from csgs_codec.codec import derived_steps  # noqa: E402
+from csgs_codec.attributes import derived_steps  # noqa: E402
 from csgs_codec.decisions.presets import preset_steps  # noqa: E402
 from csgs_codec.entropy.residual import STEP_COUNT, step_size  # noqa: E402
 from csgs_codec.interchange.ply_io import read_ply  # noqa: E402

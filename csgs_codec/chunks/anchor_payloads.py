@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from csgs_codec.codec.float_stream import read_float_stream, write_float_stream
+from csgs_codec.attributes.float_stream import read_float_stream, write_float_stream
 from csgs_codec.entropy.anchor_attributes import FRAC_BITS, MEAN_BITS
 from csgs_codec.entropy.morton import MAX_BITS
 from csgs_codec.entropy.residual import coded_value_limit

@@ -4,15 +4,21 @@ of the color streams' channels the network models, then the integer network (§1
 The color float streams, in order (dc, rest1.., opacity, scale, rot), have T channels in
 all; the mask says which of them the network models. With M modelled channels the network
 has 2M outputs per Gaussian: M mean indices (units of 1/64 step) then M scale-table indices.
-Evaluating it for the streams is :mod:`csgs_codec.codec.color_prior`'s job.
+
+What the network gives the float streams is here too (:func:`channel_priors`): it reads each
+Gaussian's integer grid cell (the geometry's cell; far outliers, which have none, read cell
+(0, 0, 0)); modelled channel j of a stream gets the prior ``mean = (out[:, j] + 32) >> 6``
+(the mean rounded half up to whole steps) and ``scale = out[:, M + j]``. Numpy only; the fit
+is :mod:`csgs_codec.model.color_hyperprior`'s.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from csgs_codec.attributes.float_stream import ChannelPrior
 from csgs_codec.chunks.color_streams import STREAM_CHANNELS
 from csgs_codec.entropy.intnet import IntMLP
 from csgs_codec.entropy.intnet_bytes import intnet_from_bytes, intnet_to_bytes
@@ -112,3 +118,47 @@ def read_color_prior(container, names: list[str], grid_bits: int) -> ColorPrior:
         raise FormatError(f"the color hyperprior needs a grid of at most {MAX_POS_BITS} bits, "
                           f"the header has {pos_bits}", chunk="CHYP", offset=offset)
     return prior_from_bytes(data, base_offset=offset, names=names, pos_bits=pos_bits)
+
+
+def modelled_streams(prior: ColorPrior, names: list[str]) -> set[str]:
+    """The streams among ``names`` with at least one channel the prior models."""
+    return {name for (name, _), on in zip(stream_layout(names), prior.mask) if on}
+
+
+def prior_cells(cells: np.ndarray, far_count: int) -> np.ndarray:
+    """The network input of every Gaussian in decoded order: (N, 3) int64, the grid cells of
+    the first N - far_count and (0, 0, 0) for the far outliers after them."""
+    return np.concatenate([np.asarray(cells, np.int64).reshape(-1, 3),
+                           np.zeros((far_count, 3), np.int64)])
+
+
+def channel_priors(prior: ColorPrior, cells: np.ndarray, names: list[str]
+                   ) -> dict[str, dict[int, ChannelPrior]]:
+    """Run the network on ``cells`` (N, 3): stream -> channel -> :class:`ChannelPrior`."""
+    out = prior.net.forward(cells)
+    modelled = [lc for lc, on in zip(stream_layout(names), prior.mask) if on]
+    m = len(modelled)
+    # Round the means in place and hand out column views: at millions of Gaussians, copies
+    # of these (N, 2M) outputs would cost as much memory and time as the network itself.
+    means = out[:, :m]
+    means += 1 << (MEAN_BITS - 1)
+    means >>= MEAN_BITS
+    result: dict[str, dict[int, ChannelPrior]] = {name: {} for name in names}
+    for j, (name, c) in enumerate(modelled):
+        result[name][c] = ChannelPrior(out[:, j], out[:, m + j])
+    return result
+
+
+def keep_outputs(prior: ColorPrior, keep: np.ndarray) -> ColorPrior:
+    """The prior restricted to the modelled channels where ``keep`` (M,) is true: the network's
+    last layer loses the other channels' rows, so the kept outputs are unchanged."""
+    keep = np.asarray(keep, bool)
+    rows = np.concatenate([keep, keep])
+    last = prior.net.layers[-1]
+    layer = replace(last, weights=last.weights[rows], biases=last.biases[rows])
+    net = IntMLP(prior.net.pos_bits, prior.net.num_freqs, prior.net.act_bits,
+                 prior.net.layers[:-1] + (layer,), prior.net.out_lo[rows],
+                 prior.net.out_hi[rows])
+    mask = prior.mask.copy()
+    mask[np.flatnonzero(mask)[~keep]] = False
+    return ColorPrior(mask, net)

@@ -1,5 +1,5 @@
 """The color layer's stream chunks (FORMAT §12.8-12.14), both directions: SHDC, SHBA-SHBC,
-OPAC and SCAL each hold one float stream (:mod:`csgs_codec.codec.float_stream`); ROTN holds
+OPAC and SCAL each hold one float stream (:mod:`csgs_codec.attributes.float_stream`); ROTN holds
 the dropped-component categorical stream, then the rotations' float stream.
 """
 
@@ -7,16 +7,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from csgs_codec.chunks.checks import check_finite
-from csgs_codec.codec.channel_coders import TABLE_CONSTANT, Coding
-from csgs_codec.codec.derived_steps import SCORE_FEATURES
-from csgs_codec.codec.float_stream import (
+from csgs_codec.attributes.channel_coders import TABLE_CONSTANT, Coding
+from csgs_codec.attributes.derived_steps import SCORE_FEATURES
+from csgs_codec.attributes.float_stream import (
     ChannelPrior,
     StreamPlan,
     read_float_stream,
     write_planned_stream,
 )
-from csgs_codec.codec.sh_colour_transform import band_colours
+from csgs_codec.attributes.sh_colour_transform import band_colours
+from csgs_codec.chunks.checks import check_finite
 from csgs_codec.entropy.categorical import decode_categorical, encode_categorical
 from csgs_codec.format.primitives import ByteReader, ByteWriter
 

@@ -7,16 +7,16 @@ OUTL: varint count, then (x, y, z) float32 per point.
 OUTQ: varint count Q, u8 mantissa bits b, the centre as three f64, Q exponent bytes
 (e = byte - 128), then the 3 Q mantissas as unsigned (b + 1)-bit fields u = m + 2^b, packed
 least significant bit first (field k = 3 i + a holds point i's axis a), the last byte's unused
-high bits zero. The arithmetic is in :mod:`csgs_codec.scene.far_positions`.
+high bits zero. The arithmetic is in :mod:`csgs_codec.attributes.far_positions`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from csgs_codec.attributes.far_positions import MAX_MANTISSA_BITS, dequantize_far
 from csgs_codec.chunks.checks import check_finite
 from csgs_codec.format.primitives import ByteReader, ByteWriter
-from csgs_codec.scene.far_positions import MAX_MANTISSA_BITS, dequantize_far
 
 EXPONENT_BIAS = 128
 

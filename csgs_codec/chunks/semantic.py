@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from csgs_codec.attributes.float_stream import read_float_stream, write_float_stream
 from csgs_codec.chunks.checks import check_finite
 from csgs_codec.chunks.semantic_codebook import read_codebook
 from csgs_codec.chunks.semantic_names import MAX_SEMANTIC_CHANNELS, names_from_bytes, names_to_bytes
-from csgs_codec.codec.float_stream import read_float_stream, write_float_stream
 from csgs_codec.entropy.residual import decode_symbols, encode_symbols
 from csgs_codec.entropy.table_choice import best_table
 from csgs_codec.errors import FormatError

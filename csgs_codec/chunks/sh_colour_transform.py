@@ -1,15 +1,13 @@
 """The SH colour transform record `SHXF` (FORMAT §12.24), both directions: a version, then
 one transform id per coded SH band (0 as colours, 1 in opponent colours). What the ids mean
-to the values is :mod:`csgs_codec.codec.sh_colour_transform`'s.
+to the values is :mod:`csgs_codec.attributes.sh_colour_transform`'s.
 """
 
 from __future__ import annotations
 
+from csgs_codec.attributes.sh_colour_transform import IDENTITY, OPPONENT
 from csgs_codec.format.primitives import ByteReader, ByteWriter
 
-#: Transform ids of the record.
-IDENTITY = 0
-OPPONENT = 1
 #: The record's version.
 SHXF_VERSION = 1
 

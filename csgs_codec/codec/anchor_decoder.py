@@ -15,6 +15,7 @@ import os
 
 import numpy as np
 
+from csgs_codec.attributes.anchor_grid import dequantize
 from csgs_codec.chunks.anchor_networks import color_channels, read_carm, read_hyperprior
 from csgs_codec.chunks.anchor_payloads import AnchorHeader, read_mlps
 from csgs_codec.chunks.anchor_semantic import read_anchor_semantic
@@ -25,7 +26,6 @@ from csgs_codec.chunks.anchor_streams import (
     read_offset_masks,
 )
 from csgs_codec.chunks.semantic import read_labels
-from csgs_codec.codec.anchor_grid import dequantize
 from csgs_codec.codec.decoder import check_layers
 from csgs_codec.entropy.anchor_attributes import hyper_params
 from csgs_codec.entropy.geometry import decode_positions

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from csgs_codec.attributes.anchor_grid import anchor_grid
 from csgs_codec.chunks.anchor_networks import carm_payload, color_channels, hyperprior_payload
 from csgs_codec.chunks.anchor_payloads import AnchorHeader, mlps_to_bytes
 from csgs_codec.chunks.anchor_semantic import anchor_semantic_payload, semantic_stream
@@ -42,7 +43,6 @@ from csgs_codec.chunks.anchor_streams import (
 )
 from csgs_codec.chunks.semantic import label_payload
 from csgs_codec.chunks.semantic_names import MAX_SEMANTIC_CHANNELS
-from csgs_codec.codec.anchor_grid import anchor_grid
 from csgs_codec.codec.encoder_checks import check_semantic_names
 from csgs_codec.codec.encoder_config import SEMANTIC_MODES
 from csgs_codec.decisions.presets import (

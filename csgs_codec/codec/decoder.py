@@ -12,17 +12,23 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from csgs_codec.attributes.position_grid import PositionGrid
+from csgs_codec.attributes.streams import SceneStreams, join_streams
 from csgs_codec.chunks.checks import check_finite
-from csgs_codec.chunks.color_prior import ColorPrior, read_color_prior
+from csgs_codec.chunks.color_prior import (
+    ColorPrior,
+    channel_priors,
+    modelled_streams,
+    prior_cells,
+    read_color_prior,
+)
 from csgs_codec.chunks.color_streams import CHUNK_STREAMS, STREAM_CHUNKS, read_color_stream
 from csgs_codec.chunks.far_points import read_far_positions
 from csgs_codec.chunks.scene_header import SceneHeader
 from csgs_codec.chunks.semantic import read_semantic_layer
 from csgs_codec.chunks.sh_colour_transform import read_colour_transform
 from csgs_codec.chunks.tile_index import TileIndex, TileInfo
-from csgs_codec.codec.color_prior import channel_priors, modelled_streams, prior_cells
 from csgs_codec.codec.container_access import parse_layers
-from csgs_codec.codec.streams import SceneStreams, join_streams
 from csgs_codec.entropy.geometry import decode_positions
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format import Container
@@ -32,7 +38,6 @@ from csgs_codec.format.reader import name_source, needed_entries, read_frame
 from csgs_codec.format.source import CountingSource, open_source
 from csgs_codec.format.toc import read_toc
 from csgs_codec.scene.gaussian_scene import GaussianScene
-from csgs_codec.scene.position_grid import PositionGrid
 
 #: Decoder limits against decompression bombs (FORMAT §10.1): a file may declare at most
 #: this many Gaussians, and at most this many per byte of the file (real files hold well

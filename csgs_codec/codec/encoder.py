@@ -15,6 +15,12 @@ from functools import partial
 
 import numpy as np
 
+from csgs_codec.attributes.derived_steps import rotation_classes
+from csgs_codec.attributes.float_stream import plan_float_stream
+from csgs_codec.attributes.position_grid import PositionGrid
+from csgs_codec.attributes.sh_colour_transform import apply_inverse, choose_transforms
+from csgs_codec.attributes.streams import SceneStreams, join_streams, split_streams
+from csgs_codec.chunks.color_prior import prior_cells
 from csgs_codec.chunks.color_streams import STREAM_CHUNKS, color_stream_payload
 from csgs_codec.chunks.scene_header import SceneHeader
 from csgs_codec.chunks.semantic import feature_payload, label_payload
@@ -25,14 +31,9 @@ from csgs_codec.chunks.semantic_codebook import (
 )
 from csgs_codec.chunks.sh_colour_transform import colour_transform_payload
 from csgs_codec.chunks.view_record import ViewRecord
-from csgs_codec.codec.color_prior import prior_cells
-from csgs_codec.codec.derived_steps import rotation_classes
 from csgs_codec.codec.encode_report import EncodeReport
 from csgs_codec.codec.encoder_checks import check_count, check_encodable, decodable_container
 from csgs_codec.codec.encoder_config import EncoderConfig
-from csgs_codec.codec.float_stream import plan_float_stream
-from csgs_codec.codec.sh_colour_transform import apply_inverse, choose_transforms
-from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
 from csgs_codec.codec.tiling import effective_tile_size
 from csgs_codec.decisions.color_prior_choice import (
     PriorChoice,
@@ -53,7 +54,6 @@ from csgs_codec.format.primitives import ByteWriter
 from csgs_codec.progress import announce, ignore_progress
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.scene.instance_table import InstanceTable
-from csgs_codec.scene.position_grid import PositionGrid
 
 #: Scenes with fewer Gaussians are not view-pruned: the sensitivity pass is not worth it and
 #: tiny test scenes stay whole.
@@ -119,7 +119,7 @@ class Encoder:
         rotation_steps: how each Gaussian's rotation step follows its decoded attributes, at
             no per-Gaussian cost (FORMAT §12.8): ``"footprint"`` (default) by its area,
             opacity and anisotropy (scored steps: coarser where a rotation barely shows;
-            :func:`csgs_codec.codec.derived_steps.footprint_steps`; scenes of 4,096+
+            :func:`csgs_codec.attributes.derived_steps.footprint_steps`; scenes of 4,096+
             Gaussians), ``"uniform"`` one step for every Gaussian.
         step_allocation: move each attribute group's step (DC, each SH band, opacity,
             scales, rotations) and the position grid's bits from the preset's, per scene,

@@ -15,6 +15,7 @@ from functools import partial
 
 import numpy as np
 
+from csgs_codec.attributes.position_grid import PositionGrid
 from csgs_codec.chunks.tile_index import TileIndex, TileInfo, tile_info
 from csgs_codec.codec.encode_report import EncodeReport
 from csgs_codec.codec.parallel import run_jobs
@@ -23,7 +24,6 @@ from csgs_codec.decisions.presets import Preset
 from csgs_codec.errors import InputError
 from csgs_codec.format import Chunk
 from csgs_codec.scene.gaussian_scene import GaussianScene
-from csgs_codec.scene.position_grid import PositionGrid
 
 
 @dataclass
@@ -161,9 +161,9 @@ def encode_ply_tiled(encoder, path: str) -> object:
     Raises:
         InputError: the file cannot be mapped or holds something the format cannot carry.
     """
+    from csgs_codec.attributes.position_grid import PositionGrid
     from csgs_codec.codec.encoder_checks import check_count
     from csgs_codec.interchange.ply_mmap import MappedPly
-    from csgs_codec.scene.position_grid import PositionGrid
 
     ply = MappedPly(path)
     settings = encoder.preset

@@ -7,7 +7,7 @@ Points are ranked along the axis by (coordinate, input index), so ties split the
 on every machine. The cut is a plane at the median coordinate: the outermost cells are
 unbounded, and a far outlier belongs to the cell whose half-spaces hold it, whichever that
 is. Every tile's Gaussians then share one position-grid cell size (that of the whole scene,
-:class:`~csgs_codec.scene.position_grid.PositionGrid`), so a tiled encode quantizes every
+:class:`~csgs_codec.attributes.position_grid.PositionGrid`), so a tiled encode quantizes every
 point as the untiled one does, each tile with its own grid origin and bits.
 
 Limits (issue #29): every tile costs its own chunks, headers and coder set-up, so a tile
@@ -22,9 +22,9 @@ import math
 
 import numpy as np
 
+from csgs_codec.attributes.position_grid import PositionGrid
 from csgs_codec.errors import InputError
 from csgs_codec.format.layout import MAX_CHUNKS
-from csgs_codec.scene.position_grid import PositionGrid
 
 #: Scenes with more Gaussians than this are tiled when no tile size is given.
 AUTO_TILE_THRESHOLD = 2_000_000

@@ -8,18 +8,19 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from csgs_codec.attributes.float_stream import (
+    ChannelPrior,
+    StreamPlan,
+    prior_stream,
+)
 from csgs_codec.chunks.color_prior import (
     MEAN_BITS,
     MEAN_LIMIT,
     ColorPrior,
+    channel_priors,
     color_prior_payload,
+    keep_outputs,
     stream_layout,
-)
-from csgs_codec.codec.color_prior import channel_priors, keep_outputs
-from csgs_codec.codec.float_stream import (
-    ChannelPrior,
-    StreamPlan,
-    prior_stream,
 )
 from csgs_codec.errors import CsgsWarning, ModelError
 
@@ -78,7 +79,7 @@ def choose_prior(plans: dict[str, StreamPlan], cells: np.ndarray, pos_bits: int,
     have been left out).
 
     Args:
-        cells: (N, 3) int64 network inputs (:func:`~csgs_codec.codec.color_prior.prior_cells`).
+        cells: (N, 3) int64 network inputs (:func:`~csgs_codec.chunks.color_prior.prior_cells`).
         pos_bits: the grid's bits per axis.
         on_step: optional ``on_step(done, total)`` told of the fit's training steps.
         policy: the fit's settings and when the prior is kept.

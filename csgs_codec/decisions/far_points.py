@@ -3,7 +3,7 @@ bytes, both directions, are :mod:`csgs_codec.chunks.far_points`.
 
 Up to :data:`EXACT_FAR_LIMIT` far points are kept exactly (OUTL, 12 bytes each: a handful of
 floaters costs nothing worth saving). More are coded with relative precision (OUTQ,
-:mod:`csgs_codec.scene.far_positions`) with ``b = position_bits + 1`` mantissa bits, so a far
+:mod:`csgs_codec.attributes.far_positions`) with ``b = position_bits + 1`` mantissa bits, so a far
 point errs by at most ``2^-position_bits`` times its Chebyshev distance from the grid's
 centre per axis (plus float32 rounding): the angular precision a grid cell has at the dense
 core's edge. Points that scheme cannot represent stay exact. The encoder warns
@@ -17,11 +17,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from csgs_codec.attributes.far_positions import MAX_MANTISSA_BITS, dequantize_far, quantize_far
+from csgs_codec.attributes.position_grid import PositionGrid
 from csgs_codec.chunks.far_points import exact_far_payload, relative_far_payload
 from csgs_codec.errors import CsgsWarning
 from csgs_codec.format import Chunk
-from csgs_codec.scene.far_positions import MAX_MANTISSA_BITS, dequantize_far, quantize_far
-from csgs_codec.scene.position_grid import PositionGrid
 
 #: At most this many far points are kept as exact float32 (OUTL) without trying OUTQ.
 EXACT_FAR_LIMIT = 16

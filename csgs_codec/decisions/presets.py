@@ -21,7 +21,7 @@ records each stream's step and the grid's bits), and for the preset itself with
 
 Position error bound guaranteed by a preset of ``position_bits`` = B, per axis, for every
 Gaussian (FORMAT §12.5, §12.20), with E the largest side of the dense core's 1-99 percentile
-box (csgs_codec/scene/position_grid.py; far floaters of any share below one half leave it
+box (csgs_codec/attributes/position_grid.py; far floaters of any share below one half leave it
 unchanged) and ulp32(x) the float32 spacing at the decoded coordinate:
 
 - a Gaussian on the position grid (every Gaussian within about 2^(20 - B) E of the core's centre,
@@ -29,7 +29,7 @@ unchanged) and ulp32(x) the float32 spacing at the decoded coordinate:
   cell = E / (2^B - 1) (:attr:`PositionGrid.max_error`);
 - a far point coded apart with relative precision (OUTQ): error <= 2^-B r + ulp32(x), with r
   its Chebyshev distance from the core's centre: the angular precision of a cell at the
-  core's edge (csgs_codec/scene/far_positions.py);
+  core's edge (csgs_codec/attributes/far_positions.py);
 - a far point kept exactly (OUTL: at most 16 far points in a scene, or one the relative code
   cannot represent): no error.
 """

@@ -2,7 +2,7 @@
 about to quantize so that the *decoded* scene renders like the original.
 
 The first plan of the color streams fixes each stream's lattice (grid, step and channel
-means, :class:`~csgs_codec.codec.float_stream.Lattice`). N Adam steps then optimise the
+means, :class:`~csgs_codec.attributes.float_stream.Lattice`). N Adam steps then optimise the
 coding-form values (DC and higher SH bands, opacity logits, log-scales, smallest-three
 rotation components; positions stay where the geometry decodes them) against renders of the
 original over the viewing distribution, with straight-through rounding onto those lattices:
@@ -23,8 +23,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 import torch
 
-from csgs_codec.codec.float_stream import StreamPlan
-from csgs_codec.codec.streams import SceneStreams
+from csgs_codec.attributes.float_stream import StreamPlan
+from csgs_codec.attributes.streams import SceneStreams
 from csgs_codec.entropy.residual import step_size
 from csgs_codec.render.projection import quaternions_from_smallest_three
 from csgs_codec.render.rasterize_torch import rasterize_gaussians

@@ -12,7 +12,7 @@ in whole grid bits) to minimise the Lagrangian cost
 D the foreground mean squared error of probe renders of the coded scene against the original
 (squared 8-bit levels, :class:`csgs_codec.decisions.rate_control.RenderProbe`'s measure, on a few
 small views of the viewing distribution), R the planned bits of every stream (each stream's
-own plan, before the hyperprior: :func:`csgs_codec.codec.float_stream.plan_float_stream`, and
+own plan, before the hyperprior: :func:`csgs_codec.attributes.float_stream.plan_float_stream`, and
 the octree's bytes for positions), and lambda the slope of the preset's own ladder at the
 preset (:func:`ladder_slope`: every step moved together up to an octave either way). The
 descent sets the ratio between the steps; every step then moves together back to the
@@ -30,13 +30,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from csgs_codec.codec.derived_steps import rotation_classes
-from csgs_codec.codec.float_stream import plan_float_stream
-from csgs_codec.codec.streams import SceneStreams, join_streams, split_streams
+from csgs_codec.attributes.derived_steps import rotation_classes
+from csgs_codec.attributes.float_stream import plan_float_stream
+from csgs_codec.attributes.position_grid import PositionGrid
+from csgs_codec.attributes.streams import SceneStreams, join_streams, split_streams
 from csgs_codec.decisions.presets import Preset, preset_steps
 from csgs_codec.entropy.geometry import encode_positions
 from csgs_codec.scene.gaussian_scene import GaussianScene
-from csgs_codec.scene.position_grid import PositionGrid
 
 #: Groups whose step the allocation moves (float stream names, and the position grid).
 GROUPS = ("dc", "rest1", "rest2", "rest3", "opacity", "scale", "rot", "position")

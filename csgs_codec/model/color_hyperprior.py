@@ -5,7 +5,7 @@ changes the rate only, never the reconstruction. For every Gaussian it reads the
 embedding of the Gaussian's integer grid cell and predicts, for every channel of every color
 stream, a mean (units of 1/64 of a quantization step) and a scale-table index of the channel's
 *base residual* b: the quantization index, or what is left of it after the channel-wise
-prediction from the channels before it (csgs_codec/codec/float_stream.py). The coded symbol
+prediction from the channels before it (csgs_codec/attributes/float_stream.py). The coded symbol
 is b - round(mean), with the frozen Gaussian table the scale index selects.
 
 Training minimises the estimated bits, -log2 of the Gaussian mass of [b - 1/2, b + 1/2]

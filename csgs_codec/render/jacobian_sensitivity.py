@@ -30,10 +30,10 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from csgs_codec.attributes.attribute_forms import quaternion_to_smallest_three
 from csgs_codec.errors import InputError
 from csgs_codec.render.projection import quaternions_from_smallest_three
 from csgs_codec.render.rasterize_torch import rasterize_gaussians
-from csgs_codec.scene.attribute_forms import quaternion_to_smallest_three
 from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.gaussian_scene import GaussianScene
 

@@ -75,7 +75,7 @@ def quaternions_from_smallest_three(axis: torch.Tensor, rest: torch.Tensor) -> t
     Args:
         axis: [N] int64 index of the dropped largest component.
         rest: [N, 3] the other three components times sqrt 2, in their order (as
-            :func:`csgs_codec.scene.attribute_forms.quaternion_to_smallest_three` gives them).
+            :func:`csgs_codec.attributes.attribute_forms.quaternion_to_smallest_three` gives them).
     """
     c = rest / math.sqrt(2.0)
     big = torch.sqrt(torch.clamp(1 - (c * c).sum(1), min=1e-12))

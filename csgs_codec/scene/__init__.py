@@ -1,5 +1,5 @@
-"""Scene data classes (Gaussian and anchor scenes, cameras), their coding forms and
-validation; files in and out are :mod:`csgs_codec.interchange`'s."""
+"""Scene data classes (Gaussian and anchor scenes, cameras) and their validation; files in
+and out are :mod:`csgs_codec.interchange`'s, coding forms :mod:`csgs_codec.attributes`'."""
 
 from csgs_codec.scene.gaussian_scene import SH_DEGREE_OF_REST, SH_REST_COUNTS, GaussianScene
 

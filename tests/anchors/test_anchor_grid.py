@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from csgs_codec.codec.anchor_grid import FALLBACK_BITS, anchor_grid
+from csgs_codec.attributes.anchor_grid import FALLBACK_BITS, anchor_grid
 from csgs_codec.errors import InputError
 
 

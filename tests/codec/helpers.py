@@ -44,7 +44,7 @@ def color_chunks(data: bytes) -> list:
 
 def rotn_channel_reader(payload: bytes):
     """(reader just past the first coded channel's step index, its
-    :class:`~csgs_codec.codec.channel_coders.Coding`, the step index's offset) of a ROTN
+    :class:`~csgs_codec.attributes.channel_coders.Coding`, the step index's offset) of a ROTN
     payload whose coded channels have scored steps."""
     from csgs_codec.chunks.color_streams import rotation_class_table
     from csgs_codec.format.primitives import ByteReader

@@ -93,8 +93,8 @@ def test_invalid_scene_is_refused_before_encoding():
 
 
 def test_out_of_range_prediction_coefficient_is_refused():
-    from csgs_codec.codec.channel_coders import PREDICTED_FLAG, TABLE_FROZEN
-    from csgs_codec.codec.float_stream import read_float_stream
+    from csgs_codec.attributes.channel_coders import PREDICTED_FLAG, TABLE_FROZEN
+    from csgs_codec.attributes.float_stream import read_float_stream
     from csgs_codec.format.primitives import ByteReader, ByteWriter
 
     out = ByteWriter()

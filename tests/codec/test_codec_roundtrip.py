@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from csgs_codec.codec import sh_colour_transform as xf
+from csgs_codec.attributes import sh_colour_transform as xf
+from csgs_codec.attributes.attribute_forms import normalize_quaternions
+from csgs_codec.attributes.position_grid import PositionGrid
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
 from csgs_codec.decisions.presets import preset
 from csgs_codec.format import read_layers
 from csgs_codec.interchange.ply_io import read_ply
-from csgs_codec.scene.attribute_forms import normalize_quaternions
-from csgs_codec.scene.position_grid import PositionGrid
 from tests.codec.helpers import SHORT_PRIOR_FIT, random_scene
 from tests.conftest import SAMPLE, SCENES, fixture, fixture_files
 
@@ -190,8 +190,8 @@ def test_duplicate_positions_keep_their_own_attributes():
 
 
 def test_correlated_channels_are_predicted_and_cost_less():
-    from csgs_codec.codec.channel_coders import PREDICTED_FLAG, TABLE_FROZEN
-    from csgs_codec.codec.float_stream import read_float_stream, write_float_stream
+    from csgs_codec.attributes.channel_coders import PREDICTED_FLAG, TABLE_FROZEN
+    from csgs_codec.attributes.float_stream import read_float_stream, write_float_stream
     from csgs_codec.format.primitives import ByteReader, ByteWriter
 
     rng = np.random.default_rng(5)

@@ -10,9 +10,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from csgs_codec.chunks.color_prior import ColorPrior, color_prior_payload, prior_from_bytes
+from csgs_codec.chunks.color_prior import (
+    ColorPrior,
+    color_prior_payload,
+    keep_outputs,
+    prior_from_bytes,
+)
 from csgs_codec.chunks.scene_header import SceneHeader
-from csgs_codec.codec.color_prior import keep_outputs
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
 from csgs_codec.decisions.color_prior_choice import PriorFitPolicy

@@ -8,12 +8,12 @@ import dataclasses
 import pytest
 
 from csgs_codec import Encoder, EncoderConfig
+from csgs_codec.attributes.position_grid import PositionGrid
 from csgs_codec.codec.encoder import COUNTED_STAGES
 from csgs_codec.codec.tile_encoder import plan_jobs
 from csgs_codec.decisions.color_prior_choice import PriorFitPolicy
 from csgs_codec.errors import InputError
 from csgs_codec.model.color_hyperprior import ColorFitSettings
-from csgs_codec.scene.position_grid import PositionGrid
 from tests.codec.helpers import random_scene
 
 

@@ -20,14 +20,14 @@ import numpy as np
 import pytest
 
 from csgs_codec import Decoder, Encoder
+from csgs_codec.attributes.far_positions import quantize_far
+from csgs_codec.attributes.position_grid import PositionGrid
 from csgs_codec.chunks.far_points import relative_far_payload
 from csgs_codec.chunks.scene_header import SceneHeader
 from csgs_codec.decisions.presets import preset
 from csgs_codec.errors import CsgsWarning, FormatError
 from csgs_codec.format import Chunk, read_layers, write_container
 from csgs_codec.interchange.ply_io import read_ply
-from csgs_codec.scene.far_positions import quantize_far
-from csgs_codec.scene.position_grid import PositionGrid
 from tests.conftest import SAMPLE
 
 QUALITY = 5

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from csgs_codec.codec import float_stream
+from csgs_codec.attributes import float_stream
 from csgs_codec.format.primitives import ByteReader, ByteWriter
 
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 
-import csgs_codec.codec.channel_coders as channel_coders
-from csgs_codec.codec.channel_coders import TABLE_FROZEN, TABLE_HISTOGRAM
+import csgs_codec.attributes.channel_coders as channel_coders
+from csgs_codec.attributes.channel_coders import TABLE_FROZEN, TABLE_HISTOGRAM
+from csgs_codec.attributes.float_stream import read_float_stream, write_float_stream
 from csgs_codec.codec.decoder import Decoder
-from csgs_codec.codec.float_stream import read_float_stream, write_float_stream
 from csgs_codec.format.primitives import ByteReader, ByteWriter
 from tests.conformance import VECTORS_DIR
 

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from csgs_cli.main import main
+from csgs_codec.attributes.float_stream import plan_float_stream
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
-from csgs_codec.codec.float_stream import plan_float_stream
 from csgs_codec.errors import InputError
 from csgs_codec.interchange.ply_io import read_ply, write_ply
 from csgs_codec.metrics.comparison import score_views
@@ -86,7 +86,7 @@ def test_refinement_is_deterministic(head):
 def test_refinement_with_scored_steps_decodes_exactly_and_reports_its_steps(head,
                                                                              monkeypatch):
     """Rotations on scored steps keep their values (their steps follow the refined scales)."""
-    from csgs_codec.codec import derived_steps
+    from csgs_codec.attributes import derived_steps
 
     monkeypatch.setattr(derived_steps, "FOOTPRINT_MIN_GAUSSIANS", 1000)  # head has 3,000
     steps = []

@@ -6,9 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from csgs_codec.chunks.color_streams import rotation_coding_offset
-from csgs_codec.codec.decoder import Decoder
-from csgs_codec.codec.derived_steps import (
+from csgs_codec.attributes.derived_steps import (
     FOOTPRINT_MIN_GAUSSIANS,
     FOOTPRINT_WEIGHTS,
     THRESHOLDS,
@@ -18,8 +16,10 @@ from csgs_codec.codec.derived_steps import (
     score,
     score_features,
 )
+from csgs_codec.attributes.float_stream import read_float_stream
+from csgs_codec.chunks.color_streams import rotation_coding_offset
+from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
-from csgs_codec.codec.float_stream import read_float_stream
 from csgs_codec.entropy.residual import step_size
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format import Chunk, read_layers, write_container

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from csgs_codec.attributes import sh_colour_transform as xf
 from csgs_codec.chunks import sh_colour_transform as shxf
-from csgs_codec.codec import sh_colour_transform as xf
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
 from csgs_codec.errors import FormatError

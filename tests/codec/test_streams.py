@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from csgs_codec.codec.streams import constant_channels, join_streams, split_streams
+from csgs_codec.attributes.attribute_forms import normalize_quaternions
+from csgs_codec.attributes.streams import constant_channels, join_streams, split_streams
 from csgs_codec.decisions.presets import PRESETS, preset
 from csgs_codec.errors import InputError
 from csgs_codec.interchange.ply_io import read_ply
-from csgs_codec.scene.attribute_forms import normalize_quaternions
 from tests.conftest import SAMPLE, fixture
 
 

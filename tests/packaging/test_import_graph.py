@@ -118,3 +118,56 @@ def test_the_decoders_import_no_encoder_decision():
                     "csgs_codec.chunks.color_streams"):
         assert decoder in graph
         assert not {m for m in _reachable(graph, decoder) if m.startswith("csgs_codec.decisions")}
+
+
+#: The packages of csgs_codec from the bottom up: a package imports only packages of lower
+#: rank (modules of the same package import each other freely). A new package must be placed
+#: here; equal ranks do not import each other.
+PACKAGE_RANKS = {
+    "errors": 0,
+    "untrusted": 1, "atomic_write": 1, "progress": 1, "extras": 1,
+    "format": 2,                                  # the .csgs container
+    "entropy": 3, "scene": 3,                     # coders; scene classes
+    "attributes": 4,                              # values <-> integers (FORMAT §12)
+    "chunks": 5, "interchange": 5, "render": 5, "model": 5,
+    "metrics": 6, "semantic": 6,
+    "decisions": 7,                               # what only the encoder decides
+    "codec": 8,                                   # Encoder, Decoder, anchors, tiles, files
+    "train": 9, "web": 9, "js": 9,
+    "": 10,                                       # csgs_codec/__init__.py
+}
+
+
+def _package(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else ""
+
+
+def layer_violations(graph: dict[str, set[str]]) -> list[str]:
+    """Imports from a package to one of equal or higher rank in :data:`PACKAGE_RANKS`."""
+    bad = []
+    for module, deps in graph.items():
+        here = _package(module)
+        for dep in deps:
+            there = _package(dep)
+            if there != here and PACKAGE_RANKS[there] >= PACKAGE_RANKS[here]:
+                bad.append(f"{module} -> {dep}")
+    return sorted(bad)
+
+
+def test_every_package_has_a_rank():
+    packages = {_package(m) for m in import_graph()}
+    assert packages <= set(PACKAGE_RANKS), packages - set(PACKAGE_RANKS)
+
+
+def test_packages_import_only_lower_layers():
+    """The layering a reader relies on: the container below the coders, attribute coding
+    below the chunks that carry it, encoder decisions below the Encoder and Decoder."""
+    assert layer_violations(import_graph()) == []
+
+
+def test_the_layer_check_sees_an_upward_import():
+    graph = {"csgs_codec.attributes.float_stream": {"csgs_codec.chunks.color_streams"},
+             "csgs_codec.chunks.color_streams": set()}
+    assert layer_violations(graph) == [
+        "csgs_codec.attributes.float_stream -> csgs_codec.chunks.color_streams"]

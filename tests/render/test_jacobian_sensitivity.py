@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 import torch
 
+from csgs_codec.attributes.attribute_forms import quaternion_to_smallest_three
 from csgs_codec.errors import InputError
 from csgs_codec.render.jacobian_sensitivity import jacobian_sensitivity
 from csgs_codec.render.projection import quaternions_from_smallest_three
 from csgs_codec.render.rasterize_torch import rasterize_gaussians
-from csgs_codec.scene.attribute_forms import quaternion_to_smallest_three
 from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.orbit import look_at
 from tests.render.synthetic import blob_scene

@@ -8,15 +8,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from csgs_codec.errors import InputError
-from csgs_codec.interchange.ply_io import read_ply
-from csgs_codec.scene.attribute_forms import (
+from csgs_codec.attributes.attribute_forms import (
     clamp_opacity_logits,
     normalize_quaternions,
     quaternion_to_smallest_three,
     smallest_three_to_quaternion,
 )
-from csgs_codec.scene.position_grid import MAX_BITS, PositionGrid
+from csgs_codec.attributes.position_grid import MAX_BITS, PositionGrid
+from csgs_codec.errors import InputError
+from csgs_codec.interchange.ply_io import read_ply
 from tests.conftest import SAMPLE
 
 finite = st.floats(-1e3, 1e3, allow_nan=False, width=32)

@@ -7,14 +7,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from csgs_codec.codec.channel_coders import (
+from csgs_codec.attributes.channel_coders import (
     PREDICTED_FLAG,
     SCORED_FLAG,
     TABLE_CONSTANT,
     TABLE_FROZEN,
     TABLE_HISTOGRAM,
 )
-from csgs_codec.codec.float_stream import read_float_stream
+from csgs_codec.attributes.float_stream import read_float_stream
 from csgs_codec.entropy.residual import encode_symbols
 from csgs_codec.errors import FormatError
 from csgs_codec.format.primitives import ByteReader, ByteWriter

@@ -22,20 +22,20 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from csgs_codec.codec import sh_colour_transform as xf
-from csgs_codec.codec.encoder import EncodeReport
-from csgs_codec.codec.float_stream import MAX_FRAC_BITS, frac_bits_for
-from csgs_codec.decisions.presets import Preset
-from csgs_codec.decisions.presets import preset_steps as stream_steps
-from csgs_codec.entropy.residual import STEP_COUNT, step_index, step_size
-from csgs_codec.format import read_layers
-from csgs_codec.scene.attribute_forms import (
+from csgs_codec.attributes import sh_colour_transform as xf
+from csgs_codec.attributes.attribute_forms import (
     OPACITY_LOGIT_LIMIT,
     normalize_quaternions,
     quaternion_to_smallest_three,
 )
+from csgs_codec.attributes.float_stream import MAX_FRAC_BITS, frac_bits_for
+from csgs_codec.attributes.position_grid import PositionGrid
+from csgs_codec.codec.encoder import EncodeReport
+from csgs_codec.decisions.presets import Preset
+from csgs_codec.decisions.presets import preset_steps as stream_steps
+from csgs_codec.entropy.residual import STEP_COUNT, step_index, step_size
+from csgs_codec.format import read_layers
 from csgs_codec.scene.gaussian_scene import GaussianScene
-from csgs_codec.scene.position_grid import PositionGrid
 
 
 def snapped_step(step: float, frac_bits: int) -> float:
@@ -116,8 +116,8 @@ def assert_rotations_within(decoded: np.ndarray, reference: np.ndarray, step: fl
 class CodingSteps:
     """The steps an encode used: stream name -> step (coding-form units), and grid bits.
 
-    Stream names: "dc", "rest1".."rest3", "opacity", "scale", "rot" (csgs_codec/codec/streams.py)
-    and "semantic".
+    Stream names: "dc", "rest1".."rest3", "opacity", "scale", "rot"
+    (csgs_codec/attributes/streams.py) and "semantic".
     """
 
     steps: dict[str, float]
@@ -155,8 +155,8 @@ def result_steps(result: EncodeReport, preset: Preset) -> CodingSteps:
 def rotation_class_offset(data: bytes) -> int:
     """:attr:`CodingSteps.rotation_class_offset` of the file ``data``: the classes' clip
     when any tile's ROTN codes a channel with classed steps, else 0."""
+    from csgs_codec.attributes.derived_steps import FOOTPRINT_CLIP
     from csgs_codec.chunks.color_streams import rotation_class_table
-    from csgs_codec.codec.derived_steps import FOOTPRINT_CLIP
     from csgs_codec.format.primitives import ByteReader
 
     container = read_layers(data, layers={"color"})

@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from csgs_codec.codec.float_stream import MAX_FRAC_BITS
+from csgs_codec.attributes.attribute_forms import normalize_quaternions
+from csgs_codec.attributes.float_stream import MAX_FRAC_BITS
 from csgs_codec.decisions.presets import PRESETS, preset
-from csgs_codec.scene.attribute_forms import normalize_quaternions
 from tests.stability.bounds import (
     assert_all_finite,
     assert_within_bounds,

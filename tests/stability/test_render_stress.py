@@ -18,11 +18,11 @@ import numpy as np
 import pytest
 import torch
 
+from csgs_codec.attributes.attribute_forms import normalize_quaternions
 from csgs_codec.errors import InputError
 from csgs_codec.render.numba_loader import numba_available
 from csgs_codec.render.projection import project_gaussians
 from csgs_codec.render.rasterizer import render, scene_tensors
-from csgs_codec.scene.attribute_forms import normalize_quaternions
 from csgs_codec.scene.orbit import orbit_cameras
 from tests.stability.round_trips import stress_round_trip
 from tests.stability.stress_scenes import STRESS_SCENES, plain_scene

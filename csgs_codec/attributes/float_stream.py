@@ -2,9 +2,10 @@
 
 Each channel is a constant (one float32, no bits per Gaussian) or quantization indices
 k = round((a - mu) / q) on the value grid, decoded as ``float32((mu + q * k) * 2^-F)``. A coded
-channel's record says, in its ``coding`` byte (:class:`csgs_codec.codec.channel_coders.Coding`):
+channel's record says, in its ``coding`` byte
+(:class:`csgs_codec.attributes.channel_coders.Coding`):
 
-- where its residuals' tables come from (:mod:`csgs_codec.codec.channel_coders`): frozen
+- where its residuals' tables come from (:mod:`csgs_codec.attributes.channel_coders`): frozen
   Gaussian tables, a frequency table of its own (histogram), or the color layer's INR
   hyperprior, which predicts a mean and a table per Gaussian from its position;
 - whether k is predicted from the indices of the channels before it (a channel-wise
@@ -12,7 +13,7 @@ channel's record says, in its ``coding`` byte (:class:`csgs_codec.codec.channel_
   ``P = floor((sum_j A_j * k_j + B) / 2^12)`` in exact int64, and ``k - P`` is coded;
 - whether its steps follow *scored classes* (rotation streams only): the step of Gaussian i
   is ``step_index + offsets[class_i]`` with the class a cell of two scores of its decoded
-  log-scales and opacity logit (:mod:`csgs_codec.codec.derived_steps`), one table per class.
+  log-scales and opacity logit (:mod:`csgs_codec.attributes.derived_steps`), one table per class.
 
 The encoder picks, per channel, what codes smallest (counting the coefficients), so
 prediction is used only where it pays.
@@ -24,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from csgs_codec.codec.channel_coders import (
+from csgs_codec.attributes.channel_coders import (
     CODERS,
     PLANNED_CODERS,
     TABLE_CONSTANT,
@@ -34,7 +35,7 @@ from csgs_codec.codec.channel_coders import (
     ChannelPrior,
     Coding,
 )
-from csgs_codec.codec.derived_steps import (
+from csgs_codec.attributes.derived_steps import (
     MAX_CLASSES,
     SCORE_FEATURES,
     ScoredSteps,

@@ -207,7 +207,7 @@ ROTATION_RULES = ("footprint", "uniform")
 def rotation_classes(rule: str, log_scales: np.ndarray, opacity: np.ndarray):
     """What makes the rotation stream's step classes under ``rule`` ("footprint" or
     "uniform") from decoded ``log_scales`` (N, 3) and opacity logits (N, 1) or (N,): the
-    ``derive`` callable of :func:`csgs_codec.codec.float_stream.plan_float_stream`, or None
+    ``derive`` callable of :func:`csgs_codec.attributes.float_stream.plan_float_stream`, or None
     for one step."""
     if rule == "uniform":
         return None

@@ -3,7 +3,7 @@ one class per table source that costs, lays out and reads a channel's residuals.
 
 A coded channel's record is: ``coding``, ``mean``, ``step_index``, the scored-step table (when
 ``coding`` says so), the table source's own fields, the prediction (when ``coding`` says so),
-then the residual stream. :mod:`csgs_codec.codec.float_stream` plans streams and walks the
+then the residual stream. :mod:`csgs_codec.attributes.float_stream` plans streams and walks the
 records; the classes here hold what differs between table sources, so adding one is adding a
 class, not a branch in three places.
 """

@@ -7,7 +7,7 @@ operations, so every decoder reconstructs identical positions.
 The cell size comes from the robust extent (percentile box) of the scene's *dense core*
 (:func:`dense_core`), not of all points: far floaters, whatever their share below one half,
 do not coarsen the grid. Gaussians that lie outside what ``max_bits`` can cover at that cell
-size are "far points", coded apart (:mod:`csgs_codec.scene.far_positions`).
+size are "far points", coded apart (:mod:`csgs_codec.attributes.far_positions`).
 """
 
 from __future__ import annotations

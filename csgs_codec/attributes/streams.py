@@ -1,6 +1,6 @@
 """Split a scene into the attribute streams the color layer codes, and join them back.
 
-A stream is one attribute type in its coding form (see csgs_codec/scene/attribute_forms.py):
+A stream is one attribute type in its coding form (see csgs_codec/attributes/attribute_forms.py):
 
     dc        (N, 3)            SH degree-0 coefficients
     rest1..3  (N, 3 * (2b+1))   SH band b coefficients, only for bands 1..degree in use
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from csgs_codec.scene.attribute_forms import (
+from csgs_codec.attributes.attribute_forms import (
     clamp_opacity_logits,
     quaternion_to_smallest_three,
     smallest_three_to_quaternion,

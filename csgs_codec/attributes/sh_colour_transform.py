@@ -23,9 +23,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from csgs_codec.chunks.sh_colour_transform import IDENTITY, OPPONENT
-from csgs_codec.codec.float_stream import plan_float_stream
+from csgs_codec.attributes.float_stream import plan_float_stream
 from csgs_codec.errors import FormatError
+
+#: Transform ids (the ``SHXF`` record's values): a band coded as colours, or in opponent
+#: colours.
+IDENTITY = 0
+OPPONENT = 1
 
 #: The inverse's binary64 constants (FORMAT §12.24): about 1/sqrt 3, 1/sqrt 2, 1/sqrt 6 and
 #: twice the last (exact).
@@ -106,7 +110,7 @@ def choose_transforms(plans: dict, values: dict[str, np.ndarray], steps: dict[st
     """The encoder's choice per band: the opponent transform where its plan codes smaller.
 
     Args:
-        plans: stream name -> the :class:`csgs_codec.codec.float_stream.StreamPlan` of the
+        plans: stream name -> the :class:`csgs_codec.attributes.float_stream.StreamPlan` of the
             bands as colours (``rest1``.. present for the coded bands).
         values: stream name -> (N, C) coding-form values (the bands as colours).
         steps: stream name -> quantization step (each band's, ``rest1``..).
