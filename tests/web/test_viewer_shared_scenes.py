@@ -1,9 +1,12 @@
 """The browser viewer opens the default encode of every shared scene (issue #28): the five
 standard scenes and a full-precision SH-3 capture, when ../shared is present (an absent scene
-is skipped, saying so). Kept apart from the sample's tests so that test workers share them.
+is skipped, saying so), and of the SH-3 capture the repository keeps (benchmarks/data), which
+every run has. Kept apart from the sample's tests so that test workers share them.
 """
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import pytest
 
@@ -20,4 +23,11 @@ SHARED_SCENES = ("scenes/donut", "scenes/biker", "scenes/guitar", "scenes/plant"
 def test_the_default_encode_of_every_shared_scene_opens(browser, default_encode, name):
     folder, stem = name.split("/")
     state, python = open_in_page(browser, default_encode(shared_path(folder, f"{stem}.ply")))
+    assert decoded_as_in_python(state, python), state["error"]
+
+
+def test_the_default_encode_of_the_repositorys_sh3_capture_opens(browser, default_encode):
+    """Every SH band, per-scene steps and the colour transform, without ../shared."""
+    scene = Path(__file__).resolve().parents[2] / "benchmarks" / "data" / "yashica_t4_top8192.ply"
+    state, python = open_in_page(browser, default_encode(scene))
     assert decoded_as_in_python(state, python), state["error"]
