@@ -17,7 +17,8 @@ default encoder: rotation steps by footprint, FORMAT §12.8 scored steps, and ea
 allocation, csgs_codec/decisions/step_allocation.py); ``preset`` keeps the preset's steps
 (``--no-step-allocation``, the default before 2026-11-27, so ``plain`` of earlier results);
 ``allocated`` allocates on every scene (``--step-allocation``; the default skips SH-0 scenes);
-``uniform`` is ``plain`` with one rotation step for all (``--rotation-steps uniform``); ``stacked``
+``uniform`` is ``plain`` with one rotation step for all (``--rotation-steps uniform``); ``pruned``
+is ``plain`` with view pruning on the default viewing distribution (``--view-prune``); ``stacked``
 adds the opt-in distortion-side levers of issue 17
 (view pruning on the default viewing distribution, ``--refine-steps`` refinement steps) at
 ``--stacked-qualities``. For each peer point and variant, ``csgs_size_ratio[variant]`` is the
@@ -71,7 +72,7 @@ def scores(refs, scene, cameras, backend) -> dict:
 #: Encoder options of each variant (the quality is added per row).
 VARIANTS = {"plain": {}, "uniform": {"rotation_steps": "uniform"},
             "preset": {"step_allocation": False}, "allocated": {"step_allocation": True},
-            "stacked": {"view_pruning": True}}
+            "stacked": {"view_pruning": True}, "pruned": {"view_pruning": True}}
 #: Variants the others are compared with at equal foreground PSNR
 #: (``size_vs_<variant>_at_same_psnr``).
 BASELINES = ("uniform", "preset")
