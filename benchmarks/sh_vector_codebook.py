@@ -46,6 +46,10 @@ alphabet range. ``index_bits_order0`` (N x H) is the index cost without learning
 reference. The file the row stands for is the default encode's bytes less its SH band chunks
 (SHBA-SHBC and SHXF) plus the VQ bits / 8.
 
+``vq45_K*_coded`` rows (``--coded-ks``, K <= 255) write the whole-vector codebook and the
+indices with the codec's own coders instead (float streams per band, a categorical stream
+with its table): their cost is bytes, and their PSNR is that of the decoded codebook.
+
 ``ratio_vs_presets`` is the row's bytes over what the preset curve needs for its PSNR (log-size
 linear in PSNR; null outside the curve): below 1 the codebook pays. The default rows carry
 theirs too (near 1; not exactly, the curve interpolates between presets).
@@ -177,6 +181,42 @@ def vq_row(rest: np.ndarray, degree: int, kind: str, k: int, steps: dict, iters:
     return out, cost
 
 
+def coded_vq_row(rest: np.ndarray, degree: int, k: int, steps: dict, iters: int,
+                 codebook_step: float) -> tuple[np.ndarray, dict]:
+    """(decoded rest (N, B, 3), cost record) of ``vq45_K{k}_coded``: the whole-vector codebook
+    written with the codec's own coders, so its cost is bytes, not an estimate: each band's
+    columns of the codebook as a float stream (:func:`write_float_stream`, step
+    ``codebook_step`` times the band's scalar step), the indices, assigned to the nearest
+    *decoded* codebook row, as a categorical stream with its table
+    (:func:`encode_categorical`, K <= 255), plus 4 bytes for K and the bands (a chunk's
+    header)."""
+    from csgs_codec.attributes.float_stream import write_float_stream
+    from csgs_codec.entropy.categorical import encode_categorical
+    from csgs_codec.format.primitives import ByteWriter
+
+    n, coeffs = rest.shape[0], SH_REST_COUNTS[degree]
+    x = rest[:, :coeffs, :].reshape(n, coeffs * 3)
+    band = band_of_dims(degree, False)
+    start = time.perf_counter()
+    codebook = kmeans(x, k, iters).astype(np.float64)
+    out = ByteWriter()
+    for b in range(1, degree + 1):
+        cols = band == b
+        codebook[:, cols] = write_float_stream(out, codebook[:, cols].astype(np.float32),
+                                               codebook_step * steps[f"rest{b}"])
+    index, _ = nearest(x, codebook.astype(np.float32))
+    indices = encode_categorical(index, k)
+    cost = {"codebook_bits": 8.0 * len(out), "index_bits": 8.0 * len(indices),
+            "index_bits_order0": order0_bits(index), "residual_bits": 0.0}
+    cost["vq_bits"] = cost["codebook_bits"] + cost["index_bits"] + 32.0
+    cost["vq_seconds"] = time.perf_counter() - start
+    decoded = codebook[index]
+    cost["rms_error"] = float(np.sqrt(np.mean((decoded - x) ** 2)))
+    result = np.zeros_like(rest)
+    result[:, :coeffs, :] = decoded.reshape(n, coeffs, 3)
+    return result, cost
+
+
 def default_encode(scene, held: HeldOut, quality: int, rest_scale: float = 1.0
                    ) -> tuple[dict, object]:
     """(row, EncodeReport) of the default encode at ``quality`` (its SH-band step times
@@ -248,6 +288,9 @@ def main() -> int:
     parser.add_argument("--residual-ks", type=int, nargs="*", default=[256, 1024])
     parser.add_argument("--residual-scales", type=float, nargs="*", default=[1.0, 2.0])
     parser.add_argument("--rest-scales", type=float, nargs="*", default=[0.5, 2.0, 4.0])
+    parser.add_argument("--coded-ks", type=int, nargs="*", default=[],
+                        help="K (<= 255) of whole-vector codebooks written with the codec's "
+                             "own coders (vq45_K*_coded rows: real bytes)")
     parser.add_argument("--iters", type=int, default=8)
     parser.add_argument("--codebook-step", type=float, default=0.25)
     parser.add_argument("--subset", type=int, help="a fixed random subset (seed 0) of N")
@@ -307,17 +350,23 @@ def main() -> int:
         variants = [(kind, k, 0.0) for kind in args.kinds for k in args.ks]
         variants += [(kind, k, r) for kind in args.kinds for k in args.residual_ks
                      for r in args.residual_scales]
+        variants += [("coded", k, 0.0) for k in args.coded_ks]
         for kind, k, residual in variants:
             vectors = (3 if kind == "vq15" else 1) * len(scene)
             if k > vectors // 2:
                 continue
-            decoded, cost = vq_row(rest, degree, kind, k, steps, args.iters,
-                                   args.codebook_step, residual)
+            if kind == "coded":
+                decoded, cost = coded_vq_row(rest, degree, k, steps, args.iters,
+                                             args.codebook_step)
+            else:
+                decoded, cost = vq_row(rest, degree, kind, k, steps, args.iters,
+                                       args.codebook_step, residual)
             candidate = replace(result.reconstruction, sh_rest=decoded.astype(np.float32))
             nbytes = base["file_bytes"] - base["sh_bytes"] + cost["vq_bits"] / 8
             psnr = held.psnr(candidate)
             row = {"scene": name, "gaussians": len(scene), "quality": quality,
-                   "variant": f"{kind}_K{k}" + (f"_res{residual:g}" if residual else ""),
+                   "variant": (f"vq45_K{k}_coded" if kind == "coded" else f"{kind}_K{k}"
+                               + (f"_res{residual:g}" if residual else "")),
                    "file_bytes": nbytes, "scalar_sh_bytes": base["sh_bytes"],
                    "vq_bytes": cost["vq_bits"] / 8, **cost,
                    "band_steps": [steps[f"rest{b}"] for b in range(1, degree + 1)],
