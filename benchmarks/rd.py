@@ -18,7 +18,8 @@ allocation, csgs_codec/decisions/step_allocation.py); ``preset`` keeps the prese
 (``--no-step-allocation``, the default before 2026-11-27, so ``plain`` of earlier results);
 ``allocated`` allocates on every scene (``--step-allocation``; the default skips SH-0 scenes);
 ``uniform`` is ``plain`` with one rotation step for all (``--rotation-steps uniform``); ``pruned``
-is ``plain`` with view pruning on the default viewing distribution (``--view-prune``); ``stacked``
+is ``plain`` with view pruning on the default viewing distribution (``--view-prune``);
+``refined`` is ``plain`` with ``--refine-steps`` refinement steps (``--refine``); ``stacked``
 adds the opt-in distortion-side levers of issue 17
 (view pruning on the default viewing distribution, ``--refine-steps`` refinement steps) at
 ``--stacked-qualities``. For each peer point and variant, ``csgs_size_ratio[variant]`` is the
@@ -72,7 +73,8 @@ def scores(refs, scene, cameras, backend) -> dict:
 #: Encoder options of each variant (the quality is added per row).
 VARIANTS = {"plain": {}, "uniform": {"rotation_steps": "uniform"},
             "preset": {"step_allocation": False}, "allocated": {"step_allocation": True},
-            "stacked": {"view_pruning": True}, "pruned": {"view_pruning": True}}
+            "stacked": {"view_pruning": True}, "pruned": {"view_pruning": True},
+            "refined": {}}
 #: Variants the others are compared with at equal foreground PSNR
 #: (``size_vs_<variant>_at_same_psnr``).
 BASELINES = ("uniform", "preset")
@@ -82,7 +84,7 @@ def csgs_rows(name, original, refs, cameras, qualities, backend, variant: str = 
               refine_steps: int = 0) -> list[dict]:
     """Encode, decode, check and score ``original`` at each quality with one variant."""
     options = dict(VARIANTS[variant])
-    if variant == "stacked":
+    if variant in ("stacked", "refined"):
         options["refine"] = refine_steps
     rows = []
     for q in qualities:

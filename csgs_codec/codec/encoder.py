@@ -19,6 +19,7 @@ from csgs_codec.attributes.derived_steps import rotation_classes
 from csgs_codec.attributes.float_stream import plan_float_stream
 from csgs_codec.attributes.position_grid import PositionGrid
 from csgs_codec.attributes.sh_colour_transform import apply_inverse, choose_transforms
+from csgs_codec.attributes.sh_colour_transform import forward as forward_colour_transform
 from csgs_codec.attributes.streams import SceneStreams, join_streams, split_streams
 from csgs_codec.chunks.color_prior import prior_cells
 from csgs_codec.chunks.color_streams import STREAM_CHUNKS, color_stream_payload
@@ -398,13 +399,15 @@ class Encoder:
         cells_in_order = (prior_cells(cells[inside_idx][perm], far_count) if use_prior
                           else None)
         plans = self._plan_color(streams.float_streams, settings)
-        transforms: tuple[int, ...] = ()
-        if refine:  # refinement optimises the bands as colours: they stay colours
-            plans = self._refined_plans(ordered, streams, plans, positions, settings)
-        else:
-            transforms, sh_plans = choose_transforms(plans, streams.float_streams,
-                                                     preset_steps(settings))
-            plans.update(sh_plans)
+        transforms, sh_plans = choose_transforms(plans, streams.float_streams,
+                                                 preset_steps(settings))
+        plans.update(sh_plans)
+        if refine:  # refinement moves the values in the space they are coded in
+            for name in sh_plans:
+                streams.float_streams[name] = forward_colour_transform(
+                    streams.float_streams[name])
+            plans = self._refined_plans(ordered, streams, plans, positions, settings,
+                                        transforms)
         decoded_streams = self._color_chunks(streams, plans, chunks, cells_in_order,
                                               max(grid.bits, 1), transforms)
         reconstruction = join_streams(decoded_streams, positions)
@@ -438,10 +441,12 @@ class Encoder:
                                 plans["opacity"].recon)
 
     def _refined_plans(self, ordered: GaussianScene, streams: SceneStreams, plans: dict,
-                       positions: np.ndarray, p: Preset) -> dict:
+                       positions: np.ndarray, p: Preset,
+                       transforms: tuple[int, ...] = ()) -> dict:
         """The color plans after refinement (:mod:`csgs_codec.decisions.refinement`): the
-        refined values planned on the lattices of ``plans``. ``streams`` is updated in
-        place to the refined values."""
+        refined values planned on the lattices of ``plans``. ``streams`` (the SH bands
+        ``transforms`` marks opponent in opponent colours) is updated in place to the
+        refined values."""
         from csgs_codec.decisions.refinement import RefineSettings, refine_streams
 
         self._stage("refinement")
@@ -451,7 +456,7 @@ class Encoder:
         target_sh = np.concatenate([ordered.sh_dc[:, None, :], ordered.sh_rest], axis=1)
         refined = refine_streams(streams, plans, positions, target_sh, target, views.cameras,
                                  RefineSettings(steps=self.config.refine),
-                                 self._steps("refinement"))
+                                 self._steps("refinement"), transforms)
         if not refined:
             return plans
         streams.float_streams.update(refined)

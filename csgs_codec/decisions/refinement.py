@@ -3,8 +3,9 @@ about to quantize so that the *decoded* scene renders like the original.
 
 The first plan of the color streams fixes each stream's lattice (grid, step and channel
 means, :class:`~csgs_codec.attributes.float_stream.Lattice`). N Adam steps then optimise the
-coding-form values (DC and higher SH bands, opacity logits, log-scales, smallest-three
-rotation components; positions stay where the geometry decodes them) against renders of the
+coding-form values (DC and higher SH bands, each band in the colours or opponent colours it
+is coded in (FORMAT §12.24), opacity logits, log-scales, smallest-three rotation components;
+positions stay where the geometry decodes them) against renders of the
 original over the viewing distribution, with straight-through rounding onto those lattices:
 the forward pass renders exactly what the decoder would output, the gradient passes the
 rounding. The encoder then plans the refined values on the same lattices, so each value
@@ -24,6 +25,13 @@ import numpy as np
 import torch
 
 from csgs_codec.attributes.float_stream import StreamPlan
+from csgs_codec.attributes.sh_colour_transform import (
+    INVERSE_A,
+    INVERSE_B,
+    INVERSE_C,
+    INVERSE_D,
+    OPPONENT,
+)
 from csgs_codec.attributes.streams import SceneStreams
 from csgs_codec.entropy.residual import step_size
 from csgs_codec.render.projection import quaternions_from_smallest_three
@@ -53,7 +61,8 @@ class RefineSettings:
 def refine_streams(streams: SceneStreams, plans: dict[str, StreamPlan],
                    positions: np.ndarray, target_sh: np.ndarray, target: dict[str, np.ndarray],
                    cameras: Sequence[Camera], settings: RefineSettings,
-                   on_step: Callable[[int, int], None] | None = None) -> dict[str, np.ndarray]:
+                   on_step: Callable[[int, int], None] | None = None,
+                   transforms: tuple[int, ...] = ()) -> dict[str, np.ndarray]:
     """Refined coding-form values of the streams that have a plain lattice.
 
     Args:
@@ -66,6 +75,9 @@ def refine_streams(streams: SceneStreams, plans: dict[str, StreamPlan],
         cameras: the viewing distribution.
         settings: the fit's settings.
         on_step: told ``(done, total)`` after each step.
+        transforms: the SH colour transform of each band (``SHXF``'s ids, band 1 first):
+            a band marked opponent is held in ``streams`` and refined in opponent colours,
+            turned back to colours for the renders.
 
     Returns:
         {stream name: (N, C) float32} for every refined stream: values whose planning on the
@@ -79,7 +91,7 @@ def refine_streams(streams: SceneStreams, plans: dict[str, StreamPlan],
     torch.set_num_threads(1)
     try:
         return _fit(streams, plans, names, positions, target_sh, target, views, settings,
-                    on_step)
+                    on_step, transforms)
     finally:
         torch.set_num_threads(threads)
 
@@ -114,7 +126,8 @@ class _StraightThrough:
 
 def _fit(streams: SceneStreams, plans: dict[str, StreamPlan], names: list[str],
          positions: np.ndarray, target_sh: np.ndarray, target: dict[str, np.ndarray],
-         views: list[Camera], settings: RefineSettings, on_step) -> dict[str, np.ndarray]:
+         views: list[Camera], settings: RefineSettings, on_step,
+         transforms: tuple[int, ...]) -> dict[str, np.ndarray]:
     values = streams.float_streams
     lattices = {s: _StraightThrough(plans[s], values[s]) for s in names}
     params = {s: torch.nn.Parameter(torch.as_tensor(values[s].astype(np.float32).copy()))
@@ -147,7 +160,8 @@ def _fit(streams: SceneStreams, plans: dict[str, StreamPlan], names: list[str],
         decoded = {s: lattices[s](params[s]) if s in lattices else decoded_fixed[s]
                    for s in plans}
         coefficients = [decoded["dc"].reshape(n, 1, 3)]
-        coefficients += [decoded[s].reshape(n, -1, 3) for s in plans if s.startswith("rest")]
+        coefficients += [_as_colours(decoded[s], int(s[4:]), transforms).reshape(n, -1, 3)
+                         for s in plans if s.startswith("rest")]
         sh_coded = torch.cat(coefficients, dim=1)
         quats = quaternions_from_smallest_three(axis, decoded["rot"])
         loss = 0.0
@@ -167,6 +181,18 @@ def _fit(streams: SceneStreams, plans: dict[str, StreamPlan], names: list[str],
         if on_step is not None:
             on_step(done, settings.steps)
     return {s: params[s].detach().numpy().astype(np.float32) for s in names}
+
+
+def _as_colours(values: torch.Tensor, band: int, transforms: tuple[int, ...]) -> torch.Tensor:
+    """Band ``band``'s (N, 3K) values as colours: the opponent inverse of FORMAT §12.24 (in
+    the tensor's precision, differentiable) where ``transforms`` marks the band opponent."""
+    if band > len(transforms) or transforms[band - 1] != OPPONENT:
+        return values
+    y0, y1, y2 = values[:, 0::3] * INVERSE_A, values[:, 1::3] * INVERSE_B, values[:, 2::3]
+    red = (y0 + y1) + INVERSE_C * y2
+    green = y0 - INVERSE_D * y2
+    blue = (y0 - y1) + INVERSE_C * y2
+    return torch.stack([red, green, blue], dim=-1).reshape(values.shape)
 
 
 def _padded(sh: torch.Tensor, count: int) -> torch.Tensor:

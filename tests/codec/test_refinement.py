@@ -100,6 +100,27 @@ def test_refinement_with_scored_steps_decodes_exactly_and_reports_its_steps(head
     assert Decoder().decode(result.data).equals(result.reconstruction)
 
 
+def test_refinement_keeps_the_opponent_colours_of_sh_bands():
+    """Refinement moves the band values in the opponent colours they are coded in: the file
+    keeps SHXF, decodes to the reconstruction, and renders closer to the original."""
+    from tests.codec.test_sh_colour_transform import chunk_types
+    from tests.conformance.scenes import correlated_sh3_scene
+
+    scene = correlated_sh3_scene()
+    plain = Encoder(quality=3, hyperprior=False).encode_with_report(scene)
+    refined = Encoder(quality=3, hyperprior=False, refine=3).encode_with_report(scene)
+    assert "SHXF" in chunk_types(plain.data) and "SHXF" in chunk_types(refined.data)
+    assert Decoder().decode(refined.data).equals(refined.reconstruction)
+    assert not np.array_equal(refined.reconstruction.sh_rest, plain.reconstruction.sh_rest)
+    views = default_distribution(scene).cameras[::7]
+
+    def psnr(result):
+        decoded = result.reconstruction.subset(np.argsort(result.order))
+        return np.mean([v.foreground_psnr for v in score_views(scene, decoded, views)])
+
+    assert psnr(refined) > psnr(plain)
+
+
 @pytest.mark.parametrize("bad", [-1, 1.5, True, "10", 10**6])
 def test_a_bad_step_count_is_refused(bad):
     with pytest.raises(InputError, match="refine"):
