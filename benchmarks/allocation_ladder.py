@@ -22,6 +22,8 @@ none used by the encoder):
 - ``reference``: one scene-level allocation: today's descent at quality
   :data:`REFERENCE_QUALITY` (kept whatever it saves there), applied as offsets at every
   preset, recentred to that preset's probe error and kept at a saving of MIN_SAVING there;
+- ``descent_only``: ``today`` without the coarser-grid fallback (a descent whose saving
+  the probe cannot resolve keeps the preset's grid too), the rule before it;
 - ``curve``: today's descent and recentring, kept when it plans MIN_SAVING fewer bits than
   the preset's own ladder (the preset with every step moved together by -2..2 half octaves,
   the points today fits lambda to) needs for the same probe error, instead of fewer bits
@@ -243,9 +245,22 @@ def _curve(scene, preset, *, rotation_rule="footprint", cameras=None, progress=N
                              float(cost(offsets) / (d0 + lam * r0)), rate_ratio)
 
 
+def _descent_only(scene, preset, **kwargs):
+    """The ``descent_only`` variant: today's allocation without its coarser-grid fallback
+    (where the descent's saving is below what the probe resolves, the preset's steps and
+    grid both), the encoder's rule before 2026-11-27's second change."""
+    sa = step_allocation
+    fallback = sa._coarser_grid
+    sa._coarser_grid = lambda r0, d0, cost, evaluate: ({}, (r0, d0))
+    try:
+        return _today(scene, preset, **kwargs)
+    finally:
+        sa._coarser_grid = fallback
+
+
 #: Allocation function of each allocating variant (None: the preset's steps).
 VARIANTS = {"presets": None, "today": _today, "ladder": _ladder, "reference": _reference,
-            "curve": _curve}
+            "curve": _curve, "descent_only": _descent_only}
 
 
 def encode_row(scene, held: HeldOut, quality: int, variant: str) -> dict:

@@ -123,10 +123,30 @@ def test_a_saving_below_what_the_probe_resolves_keeps_the_preset(monkeypatch):
     found = allocate_steps(scene, PRESETS[5])
     assert found.offsets and found.rate_ratio < 1.0
     monkeypatch.setattr(sa, "MIN_SAVING", 1.0 - found.rate_ratio + 1e-9)
+    monkeypatch.setattr(sa, "_coarser_grid", lambda r0, d0, cost, evaluate: ({}, (r0, d0)))
     kept = allocate_steps(scene, PRESETS[5])
     assert kept.offsets == {} and kept.rate_ratio == found.rate_ratio
     assert kept.apply(PRESETS[5]) == PRESETS[5]
     assert "cannot resolve" in kept.summary() and "moved" in found.summary()
+
+
+def test_a_descent_the_probe_cannot_resolve_still_takes_a_coarser_grid_that_pays(
+        monkeypatch):
+    """Gaussians 36 cells wide at quality 5: fewer grid bits barely move a pixel."""
+    monkeypatch.setattr(sa, "MIN_SAVING", 1.0)  # no descent is kept
+    scene = random_scene(1500, sh_degree=1, seed=3)
+    allocation = allocate_steps(scene, PRESETS[5])
+    assert list(allocation.offsets) == ["position"] and allocation.offsets["position"] < 0
+    assert allocation.rate_ratio < 1.0 and allocation.cost_ratio < 1.0
+    assert "coarser" in allocation.summary()
+    result = Encoder(quality=5, hyperprior=False).encode_with_report(scene)
+    assert result.allocation == allocation
+    assert Decoder().decode(result.data).equals(result.reconstruction)
+    # Gaussians a cell wide: a coarser grid shows, the preset keeps its grid.
+    small = random_scene(1500, sh_degree=1, seed=3)
+    small.scales = small.scales - 4.0
+    kept = allocate_steps(small, PRESETS[5])
+    assert kept.offsets == {} and kept.lambda_ > 0.0  # probed, and the grid stayed
 
 
 def test_a_window_renders_the_same_from_the_gaussians_that_reach_it():
