@@ -283,7 +283,8 @@ def encode_row(scene, held: HeldOut, quality: int, variant: str) -> dict:
                 spent[0] += time.perf_counter() - start
 
         step_allocation.allocate_steps = timed
-        encoder = Encoder(quality=quality)
+        # step_allocation=True: SH-0 scenes are allocated too (the default skips them).
+        encoder = Encoder(quality=quality, step_allocation=True)
     try:
         result = encoder.encode_with_report(scene)
     finally:
