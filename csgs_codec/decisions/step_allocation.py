@@ -41,9 +41,11 @@ from csgs_codec.scene.gaussian_scene import GaussianScene
 #: Groups whose step the allocation moves (float stream names, and the position grid).
 GROUPS = ("dc", "rest1", "rest2", "rest3", "opacity", "scale", "rot", "position")
 #: A group's step moves by at most this many half octaves from the preset's (3 octaves);
-#: the grid by at most this many bits.
+#: the grid by at most this many bits (fruit_drops took all 4 of an earlier bound at every
+#: quality and 5 at qualities 6-8 once it could, at 0.86-0.92x the presets' bytes there
+#: against 0.89-0.93x).
 MAX_OFFSET = 6
-MAX_BIT_OFFSET = 4
+MAX_BIT_OFFSET = 6
 #: Coordinate-descent passes over the groups.
 PASSES = 2
 #: The allocation is kept only when it plans at least this share fewer bits than the preset
@@ -156,8 +158,9 @@ class _Probe:
         self.steps = preset_steps(preset)
         from csgs_codec.render.rasterizer import scene_tensors
 
-        tensors = scene_tensors(scene)
-        self.reach = [window_reach(tensors, cam) for cam in cameras]
+        self._tensors = scene_tensors(scene)
+        self.reach = [window_reach(self._tensors, cam) for cam in cameras]
+        self._grid_reach: dict[int, list[np.ndarray]] = {}
         refs = render_references(scene, cameras, backend="auto")
         self.masks = [foreground_mask(r.alpha) for r in refs]
         self.references = [to_unit_range(r.image)[m].astype(np.float64)
@@ -208,10 +211,13 @@ class _Probe:
             self._scores[key] = self._measure(offsets)
         return self._scores[key]
 
+    def grid_bits(self, offsets: dict[str, int]) -> int:
+        """The position grid's bits under ``offsets``."""
+        return int(np.clip(self.preset.position_bits + offsets.get("position", 0), 1, 21))
+
     def coded(self, offsets: dict[str, int]) -> tuple[float, GaussianScene]:
         """(planned bits, the decoded scene in input order) of ``offsets``."""
-        bits, positions = self._position(
-            int(np.clip(self.preset.position_bits + offsets.get("position", 0), 1, 21)))
+        bits, positions = self._position(self.grid_bits(offsets))
         decoded = {}
         for name in self.streams.float_streams:
             cost, recon = self._plan(name, offsets)
@@ -220,14 +226,30 @@ class _Probe:
         return bits, join_streams(SceneStreams(decoded, self.streams.rot_axis,
                                                self.streams.sh_degree_stored), positions)
 
+    def reach_on_grid(self, bits: int) -> list[np.ndarray]:
+        """Each window's Gaussians (:func:`window_reach`) when positions decode on a grid of
+        ``bits``: those that reach it from their own positions or from their decoded ones.
+        A coarse grid moves a small Gaussian by more than its own size, which the steps'
+        moves never do, so the windows of such a grid take the Gaussians it moves into
+        them as well."""
+        import torch
+
+        if bits not in self._grid_reach:
+            _, positions = self._position(bits)
+            moved = {**self._tensors, "means": torch.as_tensor(positions)}
+            self._grid_reach[bits] = [np.union1d(own, window_reach(moved, cam))
+                                      for own, cam in zip(self.reach, self.cameras)]
+        return self._grid_reach[bits]
+
     def _measure(self, offsets: dict[str, int]) -> tuple[float, float]:
         from csgs_codec.metrics.comparison import to_unit_range
         from csgs_codec.render.rasterizer import render
 
         bits, coded = self.coded(offsets)
+        grid_bits = self.grid_bits(offsets)
         errors = []
-        for cam, reach, mask, ref in zip(self.cameras, self.reach, self.masks,
-                                         self.references):
+        for cam, reach, mask, ref in zip(self.cameras, self.reach_on_grid(grid_bits),
+                                         self.masks, self.references):
             if mask.any():
                 image = to_unit_range(render(coded.subset(reach), cam,
                                              backend="auto").image)[mask]
@@ -382,10 +404,10 @@ def _coarser_grid(r0: float, d0: float, cost, evaluate
     lower it.
 
     The grid's share of a file and of its error are both large enough for the probe to
-    resolve: on the three SH-3 captures every descent took 1-4 bits from the preset's grid,
-    and in the 16 of 24 presets (qualities 2-9) where the whole allocation was not kept,
-    this fallback coded them at 0.81-0.99x the presets' bytes at equal held-out PSNR
-    (mean over qualities 2-9 without / with it: fruit_drops 0.957 / 0.888,
+    resolve: on the three SH-3 captures the descent took 1-5 bits from the preset's grid at
+    every quality 2-9, and at the 16 of those 24 presets where the whole allocation was not
+    kept, this fallback coded them at 0.81-0.99x the presets' bytes at equal held-out PSNR
+    (mean over qualities 2-9 without / with it: fruit_drops 0.953 / 0.883,
     leica_sofort_top8192 0.943 / 0.926, yashica_t4_top8192 0.954 / 0.922;
     benchmarks/results/allocation_grid_2026-11-27.json)."""
     offsets: dict[str, int] = {}
