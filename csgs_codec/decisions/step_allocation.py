@@ -236,7 +236,9 @@ class _Probe:
 
         if bits not in self._grid_reach:
             _, positions = self._position(bits)
-            moved = {**self._tensors, "means": torch.as_tensor(positions)}
+            means = self._tensors["means"]
+            moved = {**self._tensors, "means": torch.as_tensor(positions, dtype=means.dtype,
+                                                               device=means.device)}
             self._grid_reach[bits] = [np.union1d(own, window_reach(moved, cam))
                                       for own, cam in zip(self.reach, self.cameras)]
         return self._grid_reach[bits]

@@ -132,7 +132,7 @@ def test_a_saving_below_what_the_probe_resolves_keeps_the_preset(monkeypatch):
 
 def test_a_descent_the_probe_cannot_resolve_still_takes_a_coarser_grid_that_pays(
         monkeypatch):
-    """Gaussians 36 cells wide at quality 5: fewer grid bits barely move a pixel."""
+    """Gaussians about 37 grid cells wide at quality 5: fewer grid bits barely show."""
     monkeypatch.setattr(sa, "MIN_SAVING", 1.0)  # no descent is kept
     scene = random_scene(1500, sh_degree=1, seed=3)
     allocation = allocate_steps(scene, PRESETS[5])
