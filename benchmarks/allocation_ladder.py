@@ -29,6 +29,9 @@ none used by the encoder):
   the points today fits lambda to) needs for the same probe error, instead of fewer bits
   than the preset at its own error: no extra probe renders.
 
+``--probe-views N`` gives every allocating variant N probe directions and windows instead of
+the encoder's 12.
+
 The encoder's allocation function is swapped per variant, so every variant runs in the same
 process on the same scene. Each row gives the file's bytes, the held-out PSNR, the wall
 seconds the allocation took (``allocation_s``, 0 for the presets), the offsets chosen (half
@@ -347,10 +350,15 @@ def main() -> int:
     parser.add_argument("--qualities", type=int, nargs="+", default=list(range(2, 10)))
     parser.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
     parser.add_argument("--size", default="400x300")
+    parser.add_argument("--probe-views", type=int, default=None,
+                        help="probe directions and windows of every allocating variant "
+                             "(default: the encoder's PROBE_VIEWS)")
     parser.add_argument("--out")
     args = parser.parse_args()
     size = tuple(int(v) for v in args.size.split("x"))
     variants = ["presets"] + [v for v in args.variants if v != "presets"]
+    if args.probe_views:  # a denser probe for every variant (the encoder keeps its own)
+        step_allocation.PROBE_DIRECTIONS = step_allocation.PROBE_VIEWS = args.probe_views
 
     def log(row: dict) -> None:
         print(f"{row['scene']} q{row['quality']} {row['variant']}: {row['bytes']} B, "
