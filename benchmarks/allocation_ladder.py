@@ -114,6 +114,17 @@ def _ladder_points(probe, float_groups) -> dict:
     return {k: probe.rate_distortion(_shifted({}, k, float_groups)) for k in (0, -2, -1, 1, 2)}
 
 
+def _probe_with_ladder(scene, preset, rotation_rule, cameras):
+    """(probe, groups, float groups, the preset's ladder points) of ``scene`` around
+    ``preset`` (:func:`_probe`, :func:`_ladder_points`), or None where allocate_steps keeps
+    the preset without probing."""
+    setup = _probe(scene, preset, rotation_rule, cameras)
+    if setup is None:
+        return None
+    probe, groups, float_groups = setup
+    return probe, groups, float_groups, _ladder_points(probe, float_groups)
+
+
 def _descend(groups: list[str], cost) -> tuple[dict, float]:
     """allocate_steps' coordinate descent on ``cost(offsets)``: (offsets, their cost)."""
     sa = step_allocation
@@ -144,11 +155,10 @@ def _ladder(scene, preset, *, rotation_rule="footprint", cameras=None, progress=
     coordinate descent on the mean over :data:`SHIFTS` of each ladder point's J over its
     J without offsets, recentred at the preset; ``cost_ratio`` is that mean."""
     sa = step_allocation
-    setup = _probe(scene, preset, rotation_rule, cameras)
+    setup = _probe_with_ladder(scene, preset, rotation_rule, cameras)
     if setup is None:
         return sa.StepAllocation()
-    probe, groups, float_groups = setup
-    points = _ladder_points(probe, float_groups)
+    probe, groups, float_groups, points = setup
     r0, d0 = points[0]
     lams = {s: sa.ladder_slope([points[s]] + [points[k] for k in points if k != s])
             for s in SHIFTS}
@@ -224,11 +234,10 @@ def _curve(scene, preset, *, rotation_rule="footprint", cameras=None, progress=N
     lands up to half an octave finer than the preset and today's ratio counts that quality
     as rate. ``rate_ratio`` is the ratio at equal probe error."""
     sa = step_allocation
-    setup = _probe(scene, preset, rotation_rule, cameras)
+    setup = _probe_with_ladder(scene, preset, rotation_rule, cameras)
     if setup is None:
         return sa.StepAllocation()
-    probe, groups, float_groups = setup
-    points = _ladder_points(probe, float_groups)
+    probe, groups, float_groups, points = setup
     r0, d0 = points[0]
     lam = sa.ladder_slope(list(points.values()))
     if lam is None:
