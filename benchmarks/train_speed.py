@@ -1,12 +1,14 @@
 """Training speed: stage-1 steps per second and the semantic stage's time on one device.
 
-    python benchmarks/train_speed.py [--device cpu|cuda] [--size 512x384] [--steps 60]
-        [--anchors 2000] [--offsets 10] [--semantic-iterations 40] [--out FILE]
+    python benchmarks/train_speed.py [--device cpu|cuda] [--rasterizer auto|torch|gsplat]
+        [--size 512x384] [--steps 60] [--anchors 2000] [--offsets 10]
+        [--gaussians-per-object 1500] [--views 24] [--semantic-iterations 40] [--out FILE]
 
 Stage 1 (csgs_codec/train/color_stage.py) runs ``--steps`` steps on a seeded synthetic
-dataset (5 objects x 1,500 Gaussians, 24 views at ``--size``) from about ``--anchors``
-anchors with ``--offsets`` Gaussian slots each (2,000 x 10: about 20k slots), growth off so
-the slot count holds; the first 5 steps are a warm-up left out of the rate. The semantic
+dataset (5 objects x ``--gaussians-per-object`` Gaussians, ``--views`` views at ``--size``)
+from about ``--anchors`` anchors with ``--offsets`` Gaussian slots each (2,000 x 10: about
+20k slots), growth off so the slot count holds, through ``--rasterizer`` (auto: gsplat on
+CUDA when installed); the first 5 steps are a warm-up left out of the rate. The semantic
 stage (csgs_codec/train/semantic_stage.py) trains ``--semantic-iterations`` steps on a small
 scene (3 objects x 50 Gaussians, 3 views at 32x24: the gpu test's case). The JSON (schema
 csgs-bench/1) has the device, steps/s, seconds, and on CUDA the peak GPU memory.
@@ -27,10 +29,15 @@ WARMUP = 5
 
 
 def stage_one_speed(device: str, width: int, height: int, steps: int, anchors: int,
-                    offsets: int) -> dict:
-    """Steps/s of stage 1 after a warm-up, and the Gaussian slots trained."""
+                    offsets: int, *, rasterizer: str = "auto", gaussians_per_object: int = 1500,
+                    views: int = 24, profile_steps: int = 0, profile_out: str | None = None
+                    ) -> dict:
+    """Steps/s of stage 1 after a warm-up, and the Gaussian slots trained; with
+    ``profile_steps`` > 0, that many more steps run under torch.profiler and its table (ops
+    by self CPU time, then by device time) goes to ``profile_out``."""
     import torch
 
+    from csgs_codec.render.differentiable import resolve_training_rasterizer
     from csgs_codec.train.color_stage import (
         ColorStageSettings,
         initial_state,
@@ -38,11 +45,12 @@ def stage_one_speed(device: str, width: int, height: int, steps: int, anchors: i
     )
     from csgs_codec.train.synthetic import make_synthetic_dataset
 
-    data = make_synthetic_dataset(0, objects=5, gaussians_per_object=1500, views=24,
-                                  width=width, height=height)
-    settings = ColorStageSettings(iterations=WARMUP + steps, initial_anchors=anchors,
+    data = make_synthetic_dataset(0, objects=5, gaussians_per_object=gaussians_per_object,
+                                  views=views, width=width, height=height)
+    settings = ColorStageSettings(iterations=WARMUP + steps + profile_steps,
+                                  initial_anchors=anchors,
                                   max_anchors=anchors, n_offsets=offsets, growth_start=1.0,
-                                  growth_end=1.0, device=device)
+                                  growth_end=1.0, device=device, rasterizer=rasterizer)
     state = initial_state(data.views, data.scene.positions, settings)
     slots = int(state.model.cells.shape[0]) * offsets
     times = []
@@ -53,12 +61,36 @@ def stage_one_speed(device: str, width: int, height: int, steps: int, anchors: i
         times.append(time.perf_counter())
 
     start = time.perf_counter()
-    train_color_stage(data.views, state, progress=tick)
+    train_color_stage(data.views, state, progress=tick, stop_at=WARMUP + steps)
     total = time.perf_counter() - start
+    if profile_steps > 0 and profile_out:
+        write_profile(lambda: train_color_stage(data.views, state), device, profile_out)
     timed = times[WARMUP:] if len(times) > WARMUP + 1 else times
     rate = (len(timed) - 1) / (timed[-1] - timed[0]) if len(timed) > 1 else None
     return {"steps": WARMUP + steps, "seconds": total, "steps_per_s": rate,
-            "gaussian_slots": slots, "size": f"{width}x{height}"}
+            "gaussian_slots": slots, "size": f"{width}x{height}",
+            "rasterizer": resolve_training_rasterizer(rasterizer, device)}
+
+
+def write_profile(run, device: str, path: str) -> None:
+    """Run ``run()`` under torch.profiler and write its op tables (self CPU time, then
+    device time; 40 rows each) to ``path``."""
+    import torch
+    from torch.profiler import ProfilerActivity, profile
+
+    activities = [ProfilerActivity.CPU]
+    if device.startswith("cuda"):
+        activities.append(ProfilerActivity.CUDA)
+    with profile(activities=activities) as prof:
+        run()
+        if device.startswith("cuda"):
+            torch.cuda.synchronize()
+    table = prof.key_averages()
+    parts = [table.table(sort_by="self_cpu_time_total", row_limit=40)]
+    if device.startswith("cuda"):
+        parts.append(table.table(sort_by="self_cuda_time_total", row_limit=40))
+    with open(path, "w", encoding="utf-8") as handle:
+        handle.write("\n\n".join(parts))
 
 
 def semantic_stage_time(device: str, iterations: int) -> dict:
@@ -82,7 +114,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--steps", type=int, default=60)
     parser.add_argument("--anchors", type=int, default=2000)
     parser.add_argument("--offsets", type=int, default=10)
+    parser.add_argument("--rasterizer", default="auto", choices=("auto", "torch", "gsplat"))
+    parser.add_argument("--gaussians-per-object", type=int, default=1500)
+    parser.add_argument("--views", type=int, default=24)
     parser.add_argument("--semantic-iterations", type=int, default=40)
+    parser.add_argument("--profile-steps", type=int, default=0,
+                        help="steps after the timed ones to run under torch.profiler")
+    parser.add_argument("--profile-out", help="where the profiler's tables go")
     parser.add_argument("--out")
     args = parser.parse_args(argv)
     import torch
@@ -93,12 +131,18 @@ def main(argv: list[str] | None = None) -> int:
         row["gpu"] = torch.cuda.get_device_name()
         torch.cuda.reset_peak_memory_stats()
     row["stage1"] = stage_one_speed(args.device, width, height, args.steps, args.anchors,
-                                    args.offsets)
-    row["semantic_stage"] = semantic_stage_time(args.device, args.semantic_iterations)
+                                    args.offsets, rasterizer=args.rasterizer,
+                                    gaussians_per_object=args.gaussians_per_object,
+                                    views=args.views, profile_steps=args.profile_steps,
+                                    profile_out=args.profile_out)
+    if args.semantic_iterations > 0:
+        row["semantic_stage"] = semantic_stage_time(args.device, args.semantic_iterations)
     if args.device.startswith("cuda"):
         row["peak_gpu_bytes"] = torch.cuda.max_memory_allocated()
-    print(f"{args.device}: stage 1 {row['stage1']['steps_per_s']} steps/s, semantic stage "
-          f"{row['semantic_stage']['seconds']:.1f} s", file=sys.stderr)
+    semantic = row.get("semantic_stage", {}).get("seconds")
+    print(f"{args.device} ({row['stage1']['rasterizer']}): stage 1 "
+          f"{row['stage1']['steps_per_s']} steps/s with {row['stage1']['gaussian_slots']} "
+          f"slots at {args.size}; semantic stage {semantic} s", file=sys.stderr)
     emit(document("train_speed", [row]), args.out)
     return 0
 

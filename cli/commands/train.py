@@ -76,6 +76,10 @@ def add_arguments(parser) -> None:
                         help="continue from the checkpoint in --checkpoint-dir")
     parser.add_argument("--device", default="cpu", choices=("cpu", "cuda"),
                         help="torch device to train on (default cpu)")
+    parser.add_argument("--rasterizer", default="auto", choices=("auto", "torch", "gsplat"),
+                        help="differentiable rasterizer for stage 1 (default auto: gsplat's "
+                             "CUDA kernels with --device cuda when gsplat is installed, else "
+                             "the torch reference)")
     parser.add_argument("--threads", type=int, default=defaults.THREADS, metavar="N",
                         help="torch CPU threads (default 1: the same file on every machine; "
                              "more can be faster for large scenes on a quiet machine)")
@@ -90,6 +94,7 @@ def run(args) -> int:
     from csgs_cli.dataset_input import check_output_folder, downscale_for
     from csgs_codec.atomic_write import write_atomically
     from csgs_codec.codec.describe import describe_bitstream
+    from csgs_codec.render.differentiable import resolve_training_rasterizer
     from csgs_codec.train.color_stage import ColorStageSettings
     from csgs_codec.train.datasets import load_dataset
     from csgs_codec.train.evaluation import score_views, split_views
@@ -123,13 +128,15 @@ def run(args) -> int:
     color = ColorStageSettings(
         iterations=args.iterations, rate_weight=args.rate_weight, quality=args.quality,
         initial_anchors=args.anchors, max_anchors=args.max_anchors, feat_dim=args.features,
-        n_offsets=args.offsets, seed=args.seed, device=args.device, threads=args.threads)
+        n_offsets=args.offsets, seed=args.seed, device=args.device, threads=args.threads,
+        rasterizer=args.rasterizer)
     try:
         color.validate()
     except InputError as error:
         option = OPTION_OF_SETTING.get(error.property, error.property or "")
         raise InputError(error.message.replace(error.property or "", option),
                          property=f"--{option.replace('_', '-')}") from None
+    resolve_training_rasterizer(args.rasterizer, args.device)  # fail before loading images
     check_output_folder(Path(args.output))
     views = load_dataset(args.data, downscale=downscale_for(args.data, args.resolution),
                          masks=None if args.no_semantic else args.masks,

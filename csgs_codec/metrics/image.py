@@ -28,7 +28,7 @@ FOREGROUND_ALPHA = 0.05
 def psnr(reference: np.ndarray, candidate: np.ndarray) -> float:
     """Peak signal-to-noise ratio in dB of two [0, 1] images of the same shape; inf if equal."""
     a, b = _pair(reference, candidate)
-    return _psnr_from_mse(float(np.mean((a - b) ** 2)))
+    return psnr_from_mse(float(np.mean((a - b) ** 2)))
 
 
 def foreground_psnr(reference: np.ndarray, candidate: np.ndarray, mask: np.ndarray) -> float:
@@ -44,7 +44,7 @@ def foreground_psnr(reference: np.ndarray, candidate: np.ndarray, mask: np.ndarr
         raise InputError(f"mask shape {mask.shape} does not match image shape {a.shape[:2]}")
     if not mask.any():
         return float("nan")
-    return _psnr_from_mse(float(np.mean((a[mask] - b[mask]) ** 2)))
+    return psnr_from_mse(float(np.mean((a[mask] - b[mask]) ** 2)))
 
 
 def foreground_mask(alpha: np.ndarray, threshold: float = FOREGROUND_ALPHA) -> np.ndarray:
@@ -74,5 +74,6 @@ def _pair(reference: np.ndarray, candidate: np.ndarray) -> tuple[np.ndarray, np.
     return a, b
 
 
-def _psnr_from_mse(mse: float) -> float:
+def psnr_from_mse(mse: float) -> float:
+    """PSNR in dB of images in [0, 1] whose mean squared error is ``mse``; inf for 0."""
     return math.inf if mse == 0 else 10.0 * math.log10(1.0 / mse)

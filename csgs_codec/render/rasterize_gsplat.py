@@ -4,15 +4,19 @@ Colors come from this package's SH evaluation (:func:`csgs_codec.render.sh.sh_to
 only projection and compositing are gsplat's. gsplat bounds each footprint at three standard
 deviations where the reference uses the exact 1/255 alpha contour, so images agree closely
 but not to the last bit.
+
+:func:`rasterize_gaussians_gsplat` is the differentiable form training uses on CUDA (same
+outputs as :func:`csgs_codec.render.rasterize_torch.rasterize_gaussians`);
+:func:`rasterize_gsplat` is the render-to-arrays form behind the ``"gsplat"`` backend.
 """
 
 from __future__ import annotations
 
-import numpy as np
 import torch
 
-from csgs_codec.errors import UnsupportedError
+from csgs_codec.errors import InputError, UnsupportedError
 from csgs_codec.render.projection import DEFAULT_NEAR_PLANE, LOW_PASS_VARIANCE
+from csgs_codec.render.rasterize_torch import RasterTensors
 from csgs_codec.render.render_output import RenderOutput
 from csgs_codec.render.sh import sh_to_color
 from csgs_codec.scene.camera import Camera
@@ -29,12 +33,78 @@ def gsplat_available() -> bool:
     return True
 
 
+def rasterize_gaussians_gsplat(means: torch.Tensor, log_scales: torch.Tensor,
+                               quats: torch.Tensor, opacity_logits: torch.Tensor,
+                               camera: Camera, *, sh: torch.Tensor | None = None,
+                               colors: torch.Tensor | None = None,
+                               features: torch.Tensor | None = None,
+                               background: torch.Tensor | tuple[float, float, float] | None
+                               = None,
+                               near_plane: float = DEFAULT_NEAR_PLANE) -> RasterTensors:
+    """Render one view with gsplat's ``rasterization``, differentiably, on the inputs' GPU.
+
+    Args:
+        means: [N, 3] world positions on a CUDA device; log_scales: [N, 3] natural-log
+            scales; quats: [N, 4] rotations (w, x, y, z), normalised by gsplat;
+            opacity_logits: [N] opacities before the sigmoid.
+        camera: the view (its size sets H, W).
+        sh: [N, K, 3] SH coefficients (DC first), evaluated by this package, or
+        colors: [N, 3] colors used as they are (exactly one of the two).
+        features: optional [N, F] per-Gaussian features, accumulated like colors.
+        background: RGB behind the scene, default black.
+        near_plane: camera-space z (world units) below which Gaussians are culled.
+
+    Returns:
+        :class:`RasterTensors` in float32 on the inputs' device: image [H, W, 3] with the
+        background composited behind, alpha [H, W], depth [H, W] (expected z, 0 where alpha
+        is 0), features [H, W, F] or None; each differentiable with respect to every tensor
+        argument.
+
+    Raises:
+        UnsupportedError: gsplat missing or the inputs not on a CUDA device.
+        InputError: both or neither of ``sh`` and ``colors``, or mis-shaped features.
+    """
+    if not means.is_cuda or not gsplat_available():
+        raise UnsupportedError("the gsplat rasterizer needs CUDA tensors and gsplat installed")
+    if (sh is None) == (colors is None):
+        raise InputError("give exactly one of sh and colors", property="sh")
+    from gsplat import rasterization
+
+    device, n = means.device, means.shape[0]
+    means = means.to(torch.float32)
+    w2c = torch.as_tensor(camera.world_to_camera, dtype=torch.float32, device=device)
+    if sh is not None:
+        centre = -w2c[:3, :3].T @ w2c[:3, 3]
+        colors = sh_to_color(sh.to(torch.float32), means - centre)
+    channels = [colors.to(torch.float32)]
+    if features is not None:
+        if features.ndim != 2 or features.shape[0] != n:
+            raise InputError(f"expected [N, F] with N = {n}, got {tuple(features.shape)}",
+                             property="features")
+        channels.append(features.to(torch.float32))
+    values = torch.cat(channels, dim=1) if len(channels) > 1 else channels[0]
+    intrinsics = torch.tensor([[camera.fx, 0.0, camera.cx], [0.0, camera.fy, camera.cy],
+                               [0.0, 0.0, 1.0]], dtype=torch.float32, device=device)
+    rendered, alphas, _ = rasterization(
+        means, quats.to(torch.float32), torch.exp(log_scales.to(torch.float32)),
+        torch.sigmoid(opacity_logits.to(torch.float32)), values, w2c[None], intrinsics[None],
+        camera.width, camera.height, near_plane=near_plane, eps2d=LOW_PASS_VARIANCE,
+        sh_degree=None, render_mode="RGB+ED", rasterize_mode="classic", packed=False)
+    rendered, alpha = rendered[0], alphas[0, ..., 0]
+    bg = (torch.zeros(3, dtype=torch.float32, device=device) if background is None
+          else torch.as_tensor(background, dtype=torch.float32, device=device))
+    image = rendered[..., :3] + (1.0 - alpha)[..., None] * bg
+    depth = torch.where(alpha > 0, rendered[..., -1], torch.zeros_like(alpha))
+    feats = rendered[..., 3:-1] if features is not None else None
+    return RasterTensors(image, alpha, depth, feats)
+
+
 def rasterize_gsplat(means: torch.Tensor, log_scales: torch.Tensor, quats: torch.Tensor,
                      opacity_logits: torch.Tensor, sh: torch.Tensor, camera: Camera, *,
                      features: torch.Tensor | None = None,
                      background: tuple[float, float, float] = (0.0, 0.0, 0.0),
                      near_plane: float = DEFAULT_NEAR_PLANE) -> RenderOutput:
-    """Render one view on the GPU with gsplat's ``rasterization``.
+    """Render one view on the GPU with gsplat and copy the maps back as arrays.
 
     Args:
         means: [N, 3]; log_scales: [N, 3]; quats: [N, 4] (w, x, y, z); opacity_logits: [N];
@@ -45,35 +115,19 @@ def rasterize_gsplat(means: torch.Tensor, log_scales: torch.Tensor, quats: torch
         near_plane: camera-space z below which Gaussians are culled.
 
     Returns:
-        :class:`RenderOutput` with backend "gsplat" (arrays copied back to the CPU).
+        :class:`RenderOutput` with backend "gsplat" (float32 arrays on the CPU).
 
     Raises:
         UnsupportedError: no CUDA device or gsplat not installed.
     """
     if not gsplat_available():
         raise UnsupportedError("the gsplat backend needs a CUDA GPU and gsplat installed")
-    from gsplat import rasterization
-
     device = torch.device("cuda")
-    means, log_scales, quats, opacity_logits, sh = (
-        t.to(device, torch.float32) for t in (means, log_scales, quats, opacity_logits, sh))
-    w2c = torch.as_tensor(camera.world_to_camera, dtype=torch.float32, device=device)
-    centre = -w2c[:3, :3].T @ w2c[:3, 3]
-    channels = [sh_to_color(sh, means - centre)]
-    if features is not None:
-        channels.append(features.to(device, torch.float32))
-    colors = torch.cat(channels, dim=1)
-    intrinsics = torch.tensor([[camera.fx, 0.0, camera.cx], [0.0, camera.fy, camera.cy],
-                               [0.0, 0.0, 1.0]], dtype=torch.float32, device=device)
-    rendered, alphas, _ = rasterization(
-        means, quats, torch.exp(log_scales), torch.sigmoid(opacity_logits), colors,
-        w2c[None], intrinsics[None], camera.width, camera.height, near_plane=near_plane,
-        eps2d=LOW_PASS_VARIANCE, sh_degree=None, render_mode="RGB+ED",
-        rasterize_mode="classic")
-    rendered = rendered[0].detach().cpu().numpy()
-    alpha = alphas[0, ..., 0].detach().cpu().numpy().astype(np.float32)
-    bg = np.asarray(background, dtype=np.float32)
-    image = rendered[..., :3] + (1.0 - alpha)[..., None] * bg
-    depth = np.where(alpha > 0, rendered[..., -1], 0.0).astype(np.float32)
-    feats = rendered[..., 3:-1] if features is not None else None
-    return RenderOutput(image.astype(np.float32), alpha, depth, feats, "gsplat")
+    with torch.no_grad():
+        out = rasterize_gaussians_gsplat(
+            *(t.to(device) for t in (means, log_scales, quats, opacity_logits)), camera,
+            sh=sh.to(device), features=None if features is None else features.to(device),
+            background=background, near_plane=near_plane)
+    feats = None if out.features is None else out.features.cpu().numpy()
+    return RenderOutput(out.image.cpu().numpy(), out.alpha.cpu().numpy(),
+                        out.depth.cpu().numpy(), feats, "gsplat")

@@ -20,7 +20,8 @@ from torch import nn
 
 from csgs_codec.errors import InputError
 from csgs_codec.model.scaffold import NeuralGaussians, ScaffoldMLPs, neural_gaussians
-from csgs_codec.render.rasterize_torch import RasterTensors, rasterize_gaussians
+from csgs_codec.render.differentiable import rasterize_for_training
+from csgs_codec.render.rasterize_torch import RasterTensors
 from csgs_codec.scene.anchor_scene import AnchorScene
 from csgs_codec.scene.camera import Camera
 
@@ -161,9 +162,10 @@ class AnchorModel(nn.Module):
                                 self.mask(), centre)
 
     def render(self, camera: Camera, values: dict[str, torch.Tensor] | None = None,
-               background: tuple[float, float, float] | None = None
-               ) -> tuple[RasterTensors, NeuralGaussians]:
-        """Render ``camera``'s view differentiably.
+               background: tuple[float, float, float] | None = None,
+               rasterizer: str = "auto") -> tuple[RasterTensors, NeuralGaussians]:
+        """Render ``camera``'s view differentiably through ``rasterizer`` (see
+        :func:`csgs_codec.render.differentiable.resolve_training_rasterizer`).
 
         Returns:
             (maps: image [H, W, 3], alpha [H, W], depth [H, W]; the N neural Gaussians).
@@ -171,10 +173,9 @@ class AnchorModel(nn.Module):
         g = self.spawn(camera, values)
         opacity = g.opacities.clamp(OPACITY_EPS, 1.0 - OPACITY_EPS)
         logits = torch.log(opacity) - torch.log1p(-opacity)
-        # "auto": the numba compositor on CPU float32 (same images and gradients as the
-        # torch reference to float32 rounding, several times faster), torch elsewhere.
-        out = rasterize_gaussians(g.positions, g.log_scales, g.rotations, logits, camera,
-                                  colors=g.colors, background=background, compositor="auto")
+        out = rasterize_for_training(g.positions, g.log_scales, g.rotations, logits, camera,
+                                     colors=g.colors, background=background,
+                                     rasterizer=rasterizer)
         return out, g
 
     def slot_positions(self) -> torch.Tensor:

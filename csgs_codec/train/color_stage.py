@@ -30,7 +30,8 @@ import torch
 
 from csgs_codec.decisions.presets import ANCHOR_BASE_STEPS, ANCHOR_QUALITIES, MULTIPLIERS
 from csgs_codec.errors import InputError, ModelError
-from csgs_codec.metrics.image import psnr
+from csgs_codec.metrics.image import psnr_from_mse
+from csgs_codec.render.differentiable import TRAINING_RASTERIZERS
 from csgs_codec.train import defaults
 from csgs_codec.train.anchor_growth import (
     GrowthStats,
@@ -85,6 +86,8 @@ class ColorStageSettings:
             spin (measured: 40 tiny steps took 39 s with 2 threads on a loaded 2-core machine,
             3.8 s with 1).
         background: RGB behind the scene, as in the training images.
+        rasterizer: "auto" (gsplat on CUDA when installed, else the torch reference), "torch"
+            or "gsplat" (see :mod:`csgs_codec.render.differentiable`).
     """
 
     iterations: int = defaults.ITERATIONS
@@ -112,6 +115,7 @@ class ColorStageSettings:
     device: str = "cpu"
     background: tuple[float, float, float] = (0.0, 0.0, 0.0)
     threads: int = defaults.THREADS
+    rasterizer: str = "auto"
 
     def validate(self) -> None:
         """Raise InputError naming the first setting out of range."""
@@ -137,6 +141,7 @@ class ColorStageSettings:
             ("final_lr_ratio", 0.0 < self.final_lr_ratio <= 1.0),
             ("seed", 0 <= self.seed < 2**63),
             ("device", self.device in ("cpu", "cuda") or self.device.startswith("cuda:")),
+            ("rasterizer", self.rasterizer in TRAINING_RASTERIZERS),
             ("learning_rates", set(self.learning_rates) == set(LEARNING_RATE_GROUPS)
              and all(math.isfinite(v) and v > 0 for v in self.learning_rates.values())),
         ]
@@ -244,14 +249,17 @@ def make_optimizers(state: ColorStageState, keep_shared: bool = False) -> None:
     changes their shapes) and one over the MLPs and the rate model (kept if ``keep_shared``)."""
     lrs = state.settings.learning_rates
     model = state.model
+    # On CUDA one fused kernel per optimiser step instead of a dozen per parameter group:
+    # training there is bound by kernel launches. The CPU keeps the default implementation.
+    fused = {"fused": True} if torch.device(state.settings.device).type == "cuda" else {}
     state.anchor_optimizer = torch.optim.Adam(
         [{"params": [t], "lr": lrs[name], "name": name}
-         for name, t in model.anchor_tensors().items()], eps=1e-15)
+         for name, t in model.anchor_tensors().items()], eps=1e-15, **fused)
     if not keep_shared or state.shared_optimizer is None:
         state.shared_optimizer = torch.optim.Adam(
             [{"params": list(model.mlps.parameters()), "lr": lrs["mlps"], "name": "mlps"},
              {"params": list(state.rate_model.parameters()), "lr": lrs["rate"],
-              "name": "rate"}], eps=1e-15)
+              "name": "rate"}], eps=1e-15, **fused)
 
 
 def _resize_anchor_optimizer(state: ColorStageState, old: dict[str, torch.Tensor],
@@ -360,16 +368,16 @@ def _train_steps(views: list[TrainingView], state: ColorStageState,
             noisy = {name: add_quantization_noise(getattr(model, name), steps[name],
                                                   generator=state.noise_generator)
                      for name in steps}
-        out, gaussians = model.render(camera, noisy, s.background)
+        out, gaussians = model.render(camera, noisy, s.background, s.rasterizer)
         gaussians.positions.retain_grad()
         loss = photometric_loss(out.image, targets[index], s.ssim_weight)
-        bits_per_parameter = 0.0
+        bits_per_parameter = torch.zeros((), dtype=torch.float64, device=loss.device)
         if with_rate and s.rate_weight > 0:
             estimate = rate_model.estimate(model.cells, noisy, model.mask())
             mask_loss = torch.sigmoid(model.mask_logits).mean()
             loss = loss + s.rate_weight * (estimate.bits_per_parameter
                                            + s.mask_weight * mask_loss)
-            bits_per_parameter = float(estimate.bits_per_parameter.detach())
+            bits_per_parameter = estimate.bits_per_parameter.detach()
         if not loss.requires_grad:  # the view sees no Gaussian: nothing to learn from it
             state.step += 1
             continue
@@ -397,10 +405,13 @@ def _train_steps(views: list[TrainingView], state: ColorStageState,
             seen_cache[index] = view_counts(model.positions.cpu().numpy(), [camera]) > 0
         state.stats.record(gaussians, camera, model.n_offsets, seen_cache[index])
         state.step += 1
-        with torch.no_grad():
-            quality = psnr(out.image.detach().clamp(0, 1).cpu().numpy(),
-                           views[index].image)
-        for key, value in (("loss", float(loss.detach())), ("psnr", quality),
+        with torch.no_grad():  # on the device: three scalars cross to the host in one copy
+            error = (out.image.detach().clamp(0, 1).double() - targets[index].double()).square()
+            scalars = torch.stack([loss.detach().double(), error.mean(),
+                                   bits_per_parameter.double()]).tolist()
+        loss_value, bits_per_parameter = scalars[0], scalars[2]
+        quality = psnr_from_mse(scalars[1])
+        for key, value in (("loss", loss_value), ("psnr", quality),
                            ("bits_per_parameter", bits_per_parameter),
                            ("anchors", float(model.count))):
             state.history[key].append(value)
@@ -415,7 +426,7 @@ def _train_steps(views: list[TrainingView], state: ColorStageState,
                 seen_cache.clear()
             state.stats = GrowthStats.empty(model.count, model.n_offsets)
         if progress is not None:
-            progress(StageProgress(state.step, s.iterations, float(loss.detach()), quality,
+            progress(StageProgress(state.step, s.iterations, loss_value, quality,
                                    bits_per_parameter, model.count))
     state.seconds += time.perf_counter() - began
     return state

@@ -50,13 +50,17 @@ def test_semantic_stage_trains_on_cuda():
     assert result.losses[-1] < 0.2 * result.losses[0]
 
 
-def test_stage_one_trains_on_cuda():
+@pytest.mark.parametrize("rasterizer", ["torch", "gsplat"])
+def test_stage_one_trains_on_cuda(rasterizer):
+    from csgs_codec.render.rasterize_gsplat import gsplat_available
     from csgs_codec.train.color_stage import initial_state, train_color_stage
     from tests.train.stage1_data import tiny_color_settings, tiny_dataset
 
+    if rasterizer == "gsplat" and not gsplat_available():
+        pytest.skip("gsplat is not installed")
     data = tiny_dataset()
     state = initial_state(data.views, data.scene.positions,
-                          tiny_color_settings(device="cuda"))
+                          tiny_color_settings(device="cuda", rasterizer=rasterizer))
     train_color_stage(data.views, state)
     psnr = np.asarray(state.history["psnr"])
     assert np.isfinite(state.history["loss"]).all()
