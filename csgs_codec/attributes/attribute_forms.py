@@ -13,10 +13,7 @@ A Gaussian has four rotations: turning it half a turn about any of its own axes 
 or k) flips two axes and leaves its covariance as it was. Those four quaternions hold the same
 four magnitudes in different places, so the encoder can always pick the one whose ``w`` is
 the largest (:func:`canonical_rotations`): the dropped-component index is then 0 for every
-Gaussian and costs nothing, where trained captures spend up to 2 bits a Gaussian on it. Nor
-does the order of a Gaussian's axes mean anything: where that codes smaller
-(:mod:`csgs_codec.decisions.axis_order`) the encoder sorts its scales, largest first, and
-turns the rotation with them (:func:`canonical_orientations`).
+Gaussian and costs nothing, where trained captures spend up to 2 bits a Gaussian on it.
 """
 
 from __future__ import annotations
@@ -59,65 +56,6 @@ def canonical_rotations(rotations: np.ndarray) -> np.ndarray:
     chosen = turned[largest, np.arange(len(q))]
     chosen *= np.where(chosen[:, :1] < 0, -1.0, 1.0)  # -q is the same rotation
     return chosen.astype(np.float32)
-
-
-def canonical_orientations(rotations: np.ndarray, log_scales: np.ndarray
-                           ) -> tuple[np.ndarray, np.ndarray]:
-    """The same Gaussians with their axes in a canonical order: scales largest first, and the
-    rotation that goes with them in the form of :func:`canonical_rotations`.
-
-    Relabelling a Gaussian's axes (and flipping one where the relabelling would mirror it)
-    leaves its covariance as it was, so the order carries no information; sorted, the three
-    log-scales code about log2(6) bits a Gaussian smaller. Ties keep their order.
-
-    Args:
-        rotations: (N, 4) quaternions (w, x, y, z), any norm (as :func:`normalize_quaternions`).
-        log_scales: (N, 3) natural-log scales.
-
-    Returns:
-        (rotations (N, 4) float32, log_scales (N, 3) float32).
-    """
-    scales = np.asarray(log_scales, dtype=np.float32)
-    order = np.argsort(-scales, axis=1, kind="stable")
-    matrices = _rotation_matrices(normalize_quaternions(rotations).astype(np.float64))
-    relabelled = np.take_along_axis(matrices, order[:, None, :], axis=2)
-    mirrored = np.linalg.det(relabelled) < 0
-    relabelled[mirrored, :, 2] *= -1.0
-    return (canonical_rotations(_quaternions(relabelled)),
-            np.take_along_axis(scales, order, axis=1))
-
-
-def _rotation_matrices(q: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) rotation matrices of (N, 4) unit quaternions (w, x, y, z)."""
-    w, x, y, z = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], axis=-1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], axis=-1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], axis=-1),
-    ], axis=1)
-
-
-def _quaternions(m: np.ndarray) -> np.ndarray:
-    """(N, 4) unit quaternions (w, x, y, z) of (N, 3, 3) rotation matrices, each from the
-    formula whose divisor is largest (the well-conditioned one)."""
-    trace = m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2]
-    # 4 * the squared magnitude of w, x, y, z in turn.
-    four = np.stack([1 + trace, 1 + m[:, 0, 0] - m[:, 1, 1] - m[:, 2, 2],
-                     1 - m[:, 0, 0] + m[:, 1, 1] - m[:, 2, 2],
-                     1 - m[:, 0, 0] - m[:, 1, 1] + m[:, 2, 2]], axis=1)
-    pick = np.argmax(four, axis=1)
-    big = 0.5 * np.sqrt(np.maximum(four[np.arange(len(m)), pick], 1e-300))
-    zy, xz, yx = m[:, 2, 1] - m[:, 1, 2], m[:, 0, 2] - m[:, 2, 0], m[:, 1, 0] - m[:, 0, 1]
-    xy, xz2, yz = m[:, 0, 1] + m[:, 1, 0], m[:, 0, 2] + m[:, 2, 0], m[:, 1, 2] + m[:, 2, 1]
-    d = 4.0 * big
-    options = np.stack([
-        np.stack([big, zy / d, xz / d, yx / d], axis=1),
-        np.stack([zy / d, big, xy / d, xz2 / d], axis=1),
-        np.stack([xz / d, xy / d, big, yz / d], axis=1),
-        np.stack([yx / d, xz2 / d, yz / d, big], axis=1),
-    ])
-    q = options[pick, np.arange(len(m))]
-    return q / np.linalg.norm(q, axis=1, keepdims=True)
 
 
 def quaternion_to_smallest_three(rotations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -36,7 +36,6 @@ from csgs_codec.codec.encode_report import EncodeReport
 from csgs_codec.codec.encoder_checks import check_count, check_encodable, decodable_container
 from csgs_codec.codec.encoder_config import EncoderConfig
 from csgs_codec.codec.tiling import effective_tile_size
-from csgs_codec.decisions.axis_order import sorted_axes_pay
 from csgs_codec.decisions.color_prior_choice import (
     PriorChoice,
     choose_prior,
@@ -66,13 +65,11 @@ MIN_PRUNED_SCENE = 1024
 class CodedScene:
     """One scene or tile coded: its ``chunks`` (tile 0, in layer order), the
     ``reconstruction`` the decoder will output and ``order`` (N,) int64, the index of each
-    decoded Gaussian in the coded scene; ``sorted_axes``: its axes coded largest scale
-    first."""
+    decoded Gaussian in the coded scene."""
 
     chunks: list[Chunk]
     reconstruction: GaussianScene
     order: np.ndarray
-    sorted_axes: bool = False
 
 
 #: The stages whose steps :attr:`Encoder.progress` is told of (the others only start).
@@ -366,8 +363,7 @@ class Encoder:
             data = decodable_container(coded.chunks, len(scene))
             result = EncodeReport(data=data, reconstruction=coded.reconstruction,
                                   order=coded.order,
-                                  stream_bytes={c.type: len(c.payload) for c in coded.chunks},
-                                  sorted_axes=coded.sorted_axes)
+                                  stream_bytes={c.type: len(c.payload) for c in coded.chunks})
         result.seconds = time.perf_counter() - start
         return result
 
@@ -389,8 +385,7 @@ class Encoder:
         far_count = len(far.order)
         ordered = scene.subset(order)
 
-        sorted_axes = sorted_axes_pay(ordered, self.preset)
-        streams = split_streams(ordered, sorted_axes)
+        streams = split_streams(ordered)
         header = SceneHeader(
             count=len(ordered), sh_degree_stored=streams.sh_degree_stored,
             sh_degree_coded=sum(1 for k in streams.float_streams if k.startswith("rest")),
@@ -421,7 +416,7 @@ class Encoder:
                                         ordered.labels is not None):
             self._stage("semantic")
             self._semantic_chunks(ordered, reconstruction, chunks, settings)
-        return CodedScene(chunks, reconstruction, order, sorted_axes)
+        return CodedScene(chunks, reconstruction, order)
 
     # ------------------------------------------------------------------ layers
     def _plan_color(self, values: dict[str, np.ndarray], p: Preset,

@@ -34,7 +34,6 @@ from csgs_codec.attributes.derived_steps import rotation_classes
 from csgs_codec.attributes.float_stream import plan_float_stream
 from csgs_codec.attributes.position_grid import PositionGrid
 from csgs_codec.attributes.streams import SceneStreams, join_streams, split_streams
-from csgs_codec.decisions.axis_order import sorted_axes_pay
 from csgs_codec.decisions.presets import Preset, preset_steps
 from csgs_codec.entropy.geometry import encode_positions
 from csgs_codec.scene.gaussian_scene import GaussianScene
@@ -155,7 +154,7 @@ class _Probe:
         self.preset = preset
         self.rotation_rule = rotation_rule
         self.cameras = cameras
-        self.streams: SceneStreams = split_streams(scene, sorted_axes_pay(scene, preset))
+        self.streams: SceneStreams = split_streams(scene)
         self.steps = preset_steps(preset)
         from csgs_codec.render.rasterizer import scene_tensors
 

@@ -25,7 +25,6 @@ import numpy as np
 from csgs_codec.attributes import sh_colour_transform as xf
 from csgs_codec.attributes.attribute_forms import (
     OPACITY_LOGIT_LIMIT,
-    canonical_orientations,
     canonical_rotations,
     normalize_quaternions,
     quaternion_to_smallest_three,
@@ -200,13 +199,11 @@ def assert_opponent_band_within(name: str, decoded: np.ndarray, reference: np.nd
 
 
 def assert_within_bounds(decoded: GaussianScene, reference: GaussianScene,
-                         coding: CodingSteps, *, sorted_axes: bool) -> None:
+                         coding: CodingSteps) -> None:
     """Every decoded attribute within the bounds of ``coding``'s steps of ``reference``.
 
-    Both scenes are in the decoder's order. Scales and rotations are compared in the form the
-    encoder codes (the same Gaussians): rotations as :func:`canonical_rotations` gives them,
-    and, where the encoder sorted the axes (``sorted_axes``, the report's), axes in the order
-    of :func:`canonical_orientations`.
+    Both scenes are in the decoder's order. Rotations are compared in the form the encoder
+    codes them (:func:`canonical_rotations`: the same Gaussians).
     """
     assert len(decoded) == len(reference)
     assert decoded.sh_rest.shape == reference.sh_rest.shape
@@ -225,9 +222,9 @@ def assert_within_bounds(decoded: GaussianScene, reference: GaussianScene,
                   step[f"rest{band}"])
     clamped = np.clip(reference.opacity, -OPACITY_LOGIT_LIMIT, OPACITY_LOGIT_LIMIT)
     assert_values_within("opacity", decoded.opacity, clamped, step["opacity"])
-    rotations, scales = coded_orientations(reference, sorted_axes)
-    assert_values_within("scales", decoded.scales, scales, step["scale"])
-    assert_rotations_within(decoded.rotations, rotations, step["rot"],
+    assert_values_within("scales", decoded.scales, reference.scales, step["scale"])
+    assert_rotations_within(decoded.rotations, canonical_rotations(reference.rotations),
+                            step["rot"],
                             coding.rotation_class_offset)
     assert (decoded.semantic is None) == (reference.semantic is None)
     if reference.semantic is not None:
@@ -236,15 +233,6 @@ def assert_within_bounds(decoded: GaussianScene, reference: GaussianScene,
                              step["semantic"])
     if reference.labels is not None:
         assert np.array_equal(decoded.labels, reference.labels), "labels"
-
-
-def coded_orientations(scene: GaussianScene, sorted_axes: bool
-                       ) -> tuple[np.ndarray, np.ndarray]:
-    """(rotations (N, 4), log-scales (N, 3)) of ``scene`` in the form the encoder codes them
-    (``sorted_axes``: the report's decision)."""
-    if sorted_axes:
-        return canonical_orientations(scene.rotations, scene.scales)
-    return canonical_rotations(scene.rotations), scene.scales.astype(np.float32)
 
 
 def assert_all_finite(scene: GaussianScene) -> None:
