@@ -7,8 +7,9 @@ PYTHONPATH pointing there).
 
 Each scene is rendered on the held-out views (16 orbit views at 20 degrees + 12 at 45, at
 ``--size``, none used by the encoder), then encoded with ``Encoder(quality=q)`` and decoded;
-rows give the bytes, the mean foreground PSNR against the original's renders and ``--label``
-(say, the commit).
+rows give the bytes, the mean foreground PSNR against the original's renders, whether the
+encoder sorted the axes (``EncodeReport.sorted_axes``, null where the version has no such
+field) and ``--label`` (say, the commit).
 """
 
 from __future__ import annotations
@@ -45,7 +46,8 @@ def main(argv: list[str] | None = None) -> int:
             report = Encoder(quality=quality).encode_with_report(scene)
             rows.append({"scene": Path(path).stem, "label": args.label, "quality": quality,
                          "bytes": len(report.data),
-                         "held_out_fg_psnr_db": held.psnr(Decoder().decode(report.data))})
+                         "held_out_fg_psnr_db": held.psnr(Decoder().decode(report.data)),
+                         "sorted_axes": getattr(report, "sorted_axes", None)})
             print(rows[-1], file=sys.stderr, flush=True)
     emit(document("encode_points", rows, held_out_views=f"16 @20deg + 12 @45deg, {args.size}"),
          args.out)

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csgs_codec.attributes.attribute_forms import (
+    canonical_orientations,
     canonical_rotations,
     clamp_opacity_logits,
     quaternion_to_smallest_three,
@@ -59,9 +60,11 @@ class SceneStreams:
         return int(self.rot_axis.shape[0])
 
 
-def split_streams(scene: GaussianScene) -> SceneStreams:
-    """The coding-form streams of ``scene`` (no quantization here), rotations in the form of
-    :func:`canonical_rotations`."""
+def split_streams(scene: GaussianScene, sort_axes: bool = False) -> SceneStreams:
+    """The coding-form streams of ``scene`` (no quantization here): rotations in the form of
+    :func:`canonical_rotations`, and with ``sort_axes`` each Gaussian's axes sorted by scale
+    first (:func:`canonical_orientations`; :mod:`csgs_codec.decisions.axis_order` says when
+    that pays)."""
     n = len(scene)
     streams = {"dc": scene.sh_dc.astype(np.float32)}
     for band in range(1, scene.sh_degree_in_use() + 1):
@@ -69,10 +72,14 @@ def split_streams(scene: GaussianScene) -> SceneStreams:
         streams[f"rest{band}"] = np.ascontiguousarray(
             scene.sh_rest[:, lo:hi, :].reshape(n, (hi - lo) * 3))
     streams["opacity"] = clamp_opacity_logits(scene.opacity).reshape(n, 1)
-    streams["scale"] = scene.scales.astype(np.float32)
-    # The same Gaussians with w the largest component of their rotation: the axis stream is
-    # then constant.
-    axis, rest = quaternion_to_smallest_three(canonical_rotations(scene.rotations))
+    # The same Gaussians with w the largest component of their rotation (the axis stream is
+    # then constant) and, if asked, their scales sorted (their order is then not coded).
+    if sort_axes:
+        rotations, scales = canonical_orientations(scene.rotations, scene.scales)
+    else:
+        rotations, scales = canonical_rotations(scene.rotations), scene.scales
+    streams["scale"] = scales.astype(np.float32)
+    axis, rest = quaternion_to_smallest_three(rotations)
     streams["rot"] = rest
     return SceneStreams(streams, axis, scene.sh_degree_stored)
 

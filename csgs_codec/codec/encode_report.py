@@ -30,6 +30,9 @@ class EncodeReport:
         allocation: the :class:`~csgs_codec.decisions.step_allocation.StepAllocation` the
             encoder chose for a quality encode, or None when it kept the preset's steps
             (allocation off, fast mode, a target or lambda search).
+        sorted_axes: whether every Gaussian's axes were coded largest scale first
+            (:mod:`csgs_codec.decisions.axis_order`); None for a tiled encode, where each
+            tile decides for itself.
     """
 
     data: bytes
@@ -43,3 +46,4 @@ class EncodeReport:
     rate_control: object | None = None
     tiles: int = 1
     allocation: object | None = None
+    sorted_axes: bool | None = None

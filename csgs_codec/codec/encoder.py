@@ -36,6 +36,7 @@ from csgs_codec.codec.encode_report import EncodeReport
 from csgs_codec.codec.encoder_checks import check_count, check_encodable, decodable_container
 from csgs_codec.codec.encoder_config import EncoderConfig
 from csgs_codec.codec.tiling import effective_tile_size
+from csgs_codec.decisions.axis_order import sorted_axes_pay
 from csgs_codec.decisions.color_prior_choice import (
     PriorChoice,
     choose_prior,
@@ -65,11 +66,13 @@ MIN_PRUNED_SCENE = 1024
 class CodedScene:
     """One scene or tile coded: its ``chunks`` (tile 0, in layer order), the
     ``reconstruction`` the decoder will output and ``order`` (N,) int64, the index of each
-    decoded Gaussian in the coded scene."""
+    decoded Gaussian in the coded scene; ``sorted_axes``: its axes coded largest scale
+    first."""
 
     chunks: list[Chunk]
     reconstruction: GaussianScene
     order: np.ndarray
+    sorted_axes: bool = False
 
 
 #: The stages whose steps :attr:`Encoder.progress` is told of (the others only start).
@@ -363,7 +366,8 @@ class Encoder:
             data = decodable_container(coded.chunks, len(scene))
             result = EncodeReport(data=data, reconstruction=coded.reconstruction,
                                   order=coded.order,
-                                  stream_bytes={c.type: len(c.payload) for c in coded.chunks})
+                                  stream_bytes={c.type: len(c.payload) for c in coded.chunks},
+                                  sorted_axes=coded.sorted_axes)
         result.seconds = time.perf_counter() - start
         return result
 
@@ -385,7 +389,8 @@ class Encoder:
         far_count = len(far.order)
         ordered = scene.subset(order)
 
-        streams = split_streams(ordered)
+        sorted_axes = sorted_axes_pay(ordered, self.preset)
+        streams = split_streams(ordered, sorted_axes)
         header = SceneHeader(
             count=len(ordered), sh_degree_stored=streams.sh_degree_stored,
             sh_degree_coded=sum(1 for k in streams.float_streams if k.startswith("rest")),
@@ -416,7 +421,7 @@ class Encoder:
                                         ordered.labels is not None):
             self._stage("semantic")
             self._semantic_chunks(ordered, reconstruction, chunks, settings)
-        return CodedScene(chunks, reconstruction, order)
+        return CodedScene(chunks, reconstruction, order, sorted_axes)
 
     # ------------------------------------------------------------------ layers
     def _plan_color(self, values: dict[str, np.ndarray], p: Preset,

@@ -12,8 +12,10 @@ encode used (the preset's; a rate-controlled encoder's plan where its report has
 - opacity logits are compared with the input clamped to +-10 (the encoder's clamp, §12.13);
 - grid positions err by at most ``PositionGrid.max_error`` per axis; far outliers are exact;
 - rotations are compared as unit quaternions up to sign, zero quaternions as the identity;
-  each of the three stored components errs by at most q / 2 / sqrt(2) and the dropped
-  (largest, >= 1/2) one by at most 3 (sqrt(2) e + e^2) for a component error e.
+  each of the three stored components errs by at most e = q / 2 / sqrt(2) and the dropped
+  (largest, >= 1/2) one by what those errors can move sqrt(1 - sum of their squares), from
+  about e^2 near the identity to about 3e near (1/2, 1/2, 1/2, 1/2)
+  (:func:`dropped_component_bound`).
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ import numpy as np
 from csgs_codec.attributes import sh_colour_transform as xf
 from csgs_codec.attributes.attribute_forms import (
     OPACITY_LOGIT_LIMIT,
+    canonical_orientations,
     canonical_rotations,
     normalize_quaternions,
     quaternion_to_smallest_three,
@@ -94,6 +97,29 @@ def rotation_component_error(step: float, class_offset: int = 0) -> float:
     return coarse * 2.0**-MAX_FRAC_BITS / 2 / np.sqrt(2.0) + 1e-6
 
 
+def dropped_component_bound(reference: np.ndarray, e: float) -> np.ndarray:
+    """(N,) largest error of the dropped (largest) component of each unit quaternion of
+    ``reference`` (N, 4) when each stored one errs by at most ``e``.
+
+    The decoder takes sqrt(max(0, 1 - sum of the stored squares)): with each stored
+    magnitude within [|c| - e, |c| + e], the sum lies in an interval and so does the decoded
+    component. Near (1/2, 1/2, 1/2, 1/2) that interval is widest (about 3e); near the identity
+    it is about e^2.
+    """
+    q = np.abs(reference.astype(np.float64))
+    dropped = np.argmax(q, axis=1)
+    rows = np.arange(len(q))
+    big = q[rows, dropped]
+    keep = np.ones_like(q, dtype=bool)
+    keep[rows, dropped] = False
+    stored = q[keep].reshape(-1, 3)
+    low = np.sum(np.maximum(stored - e, 0.0) ** 2, axis=1)
+    high = np.sum((stored + e) ** 2, axis=1)
+    largest = np.sqrt(np.maximum(1.0 - low, 0.0))
+    smallest = np.sqrt(np.maximum(1.0 - high, 0.0))
+    return np.maximum(largest - big, big - smallest) + 1e-5
+
+
 def assert_rotations_within(decoded: np.ndarray, reference: np.ndarray, step: float,
                             class_offset: int = 0) -> None:
     """Unit quaternions up to sign: within the bound of the module notes per component."""
@@ -108,9 +134,11 @@ def assert_rotations_within(decoded: np.ndarray, reference: np.ndarray, step: fl
     stored[rows, dropped] = False
     if len(ref):
         assert error[stored].max() <= e, f"rotation component error {error[stored].max():.4g}"
-        big = 3 * (np.sqrt(2.0) * e + e * e)
-        assert error[rows, dropped].max() <= big, (
-            f"largest rotation component error {error[rows, dropped].max():.4g} > {big:.4g}")
+        big = dropped_component_bound(ref, e)
+        worst = int(np.argmax(error[rows, dropped] - big))
+        assert error[worst, dropped[worst]] <= big[worst], (
+            f"largest rotation component error {error[worst, dropped[worst]]:.4g} > "
+            f"{big[worst]:.4g} (Gaussian {worst}, reference {ref[worst]})")
 
 
 @dataclass(frozen=True)
@@ -199,11 +227,13 @@ def assert_opponent_band_within(name: str, decoded: np.ndarray, reference: np.nd
 
 
 def assert_within_bounds(decoded: GaussianScene, reference: GaussianScene,
-                         coding: CodingSteps) -> None:
+                         coding: CodingSteps, *, sorted_axes: bool) -> None:
     """Every decoded attribute within the bounds of ``coding``'s steps of ``reference``.
 
-    Both scenes are in the decoder's order. Rotations are compared in the form the encoder
-    codes them (:func:`canonical_rotations`: the same Gaussians).
+    Both scenes are in the decoder's order. Scales and rotations are compared in the form the
+    encoder codes (the same Gaussians): rotations as :func:`canonical_rotations` gives them,
+    and, where the encoder sorted the axes (``sorted_axes``, the report's), axes in the order
+    of :func:`canonical_orientations`.
     """
     assert len(decoded) == len(reference)
     assert decoded.sh_rest.shape == reference.sh_rest.shape
@@ -222,9 +252,9 @@ def assert_within_bounds(decoded: GaussianScene, reference: GaussianScene,
                   step[f"rest{band}"])
     clamped = np.clip(reference.opacity, -OPACITY_LOGIT_LIMIT, OPACITY_LOGIT_LIMIT)
     assert_values_within("opacity", decoded.opacity, clamped, step["opacity"])
-    assert_values_within("scales", decoded.scales, reference.scales, step["scale"])
-    assert_rotations_within(decoded.rotations, canonical_rotations(reference.rotations),
-                            step["rot"],
+    rotations, scales = coded_orientations(reference, sorted_axes)
+    assert_values_within("scales", decoded.scales, scales, step["scale"])
+    assert_rotations_within(decoded.rotations, rotations, step["rot"],
                             coding.rotation_class_offset)
     assert (decoded.semantic is None) == (reference.semantic is None)
     if reference.semantic is not None:
@@ -233,6 +263,15 @@ def assert_within_bounds(decoded: GaussianScene, reference: GaussianScene,
                              step["semantic"])
     if reference.labels is not None:
         assert np.array_equal(decoded.labels, reference.labels), "labels"
+
+
+def coded_orientations(scene: GaussianScene, sorted_axes: bool
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """(rotations (N, 4), log-scales (N, 3)) of ``scene`` in the form the encoder codes them
+    (``sorted_axes``: the report's decision)."""
+    if sorted_axes:
+        return canonical_orientations(scene.rotations, scene.scales)
+    return canonical_rotations(scene.rotations), scene.scales.astype(np.float32)
 
 
 def assert_all_finite(scene: GaussianScene) -> None:

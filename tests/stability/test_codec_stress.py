@@ -12,12 +12,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from csgs_codec.attributes.attribute_forms import canonical_rotations
+from csgs_codec.attributes.attribute_forms import canonical_orientations
 from csgs_codec.attributes.float_stream import MAX_FRAC_BITS
 from csgs_codec.decisions.presets import PRESETS, preset
 from tests.stability.bounds import (
     assert_all_finite,
     assert_within_bounds,
+    coded_orientations,
     result_steps,
     rotation_component_error,
     snapped_step,
@@ -48,7 +49,8 @@ def test_decoded_scene_holds_no_nan_or_inf(name, quality):
 @pytest.mark.parametrize(("name", "quality"), CASES)
 def test_decoded_scene_stays_within_the_bounds_of_its_steps(name, quality):
     trip = stress_round_trip(name, quality)
-    assert_within_bounds(trip.decoded, trip.reference, result_steps(trip.result, preset(quality)))
+    assert_within_bounds(trip.decoded, trip.reference, result_steps(trip.result, preset(quality)),
+                         sorted_axes=trip.result.sorted_axes)
 
 
 @pytest.mark.parametrize("quality", [1, 9])
@@ -66,10 +68,11 @@ def test_opacity_logits_beyond_ten_decode_near_the_clamp(quality):
 def test_identical_gaussians_decode_exactly():
     trip = stress_round_trip("identical_gaussians", 1)
     ref, dec = trip.reference, trip.decoded
-    for name in ("positions", "sh_dc", "sh_rest", "opacity", "scales"):
+    for name in ("positions", "sh_dc", "sh_rest", "opacity"):
         np.testing.assert_array_equal(getattr(dec, name), getattr(ref, name), err_msg=name)
-    # The encoder codes the rotation in canonical form (the same Gaussian).
-    np.testing.assert_allclose(dec.rotations, canonical_rotations(ref.rotations), atol=1e-6)
+    rotations, scales = coded_orientations(ref, trip.result.sorted_axes)
+    np.testing.assert_array_equal(dec.scales, scales)
+    np.testing.assert_allclose(dec.rotations, rotations, atol=1e-6)
     assert np.all(dec.rotations == dec.rotations[:1])
 
 
@@ -89,10 +92,11 @@ def test_empty_scene_decodes_empty_with_its_sh_degree():
 def test_single_gaussian_decodes_exactly_but_its_rotation_normalised():
     trip = stress_round_trip("n1", 5)
     ref, dec = trip.reference, trip.decoded
-    for name in ("positions", "sh_dc", "sh_rest", "opacity", "scales"):
+    for name in ("positions", "sh_dc", "sh_rest", "opacity"):
         np.testing.assert_array_equal(getattr(dec, name), getattr(ref, name), err_msg=name)
-    # The encoder codes the rotation in canonical form (the same Gaussian).
-    np.testing.assert_allclose(dec.rotations, canonical_rotations(ref.rotations), atol=1e-6)
+    rotations, scales = coded_orientations(ref, trip.result.sorted_axes)
+    np.testing.assert_array_equal(dec.scales, scales)
+    np.testing.assert_allclose(dec.rotations, rotations, atol=1e-6)
 
 
 def test_zero_quaternions_decode_as_the_identity():
@@ -102,9 +106,11 @@ def test_zero_quaternions_decode_as_the_identity():
     assert zero.sum() >= 10
     step = result_steps(trip.result, preset(quality)).steps["rot"]
     tolerance = 3 * rotation_component_error(step)
-    np.testing.assert_allclose(trip.decoded.rotations[zero],
-                               np.tile([1.0, 0.0, 0.0, 0.0], (int(zero.sum()), 1)),
-                               rtol=0, atol=tolerance)
+    # The identity, in the form the encoder codes it (axes sorted by scale: the same Gaussian).
+    identity = np.tile(np.float32([1.0, 0.0, 0.0, 0.0]), (int(zero.sum()), 1))
+    expected, _ = (canonical_orientations(identity, trip.reference.scales[zero])
+                   if trip.result.sorted_axes else (identity, None))
+    np.testing.assert_allclose(trip.decoded.rotations[zero], expected, rtol=0, atol=tolerance)
 
 
 def test_unnormalised_quaternions_decode_to_unit_length():
