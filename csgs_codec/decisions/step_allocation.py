@@ -10,10 +10,11 @@ in whole grid bits) to minimise the Lagrangian cost
     J = D + lambda * R,
 
 D the foreground mean squared error of probe renders of the coded scene against the original
-(squared 8-bit levels, :class:`csgs_codec.decisions.rate_control.RenderProbe`'s measure, on a few
-small views of the viewing distribution), R the planned bits of every stream (each stream's
-own plan, before the hyperprior: :func:`csgs_codec.attributes.float_stream.plan_float_stream`, and
-the octree's bytes for positions), and lambda the slope of the preset's own ladder at the
+(squared 8-bit levels, :class:`csgs_codec.decisions.rate_control.RenderProbe`'s measure, on
+12 small views of the viewing distribution, :func:`probe_cameras`), R the planned bits of
+every stream (each stream's own plan, before the hyperprior:
+:func:`csgs_codec.attributes.float_stream.plan_float_stream`, and the octree's bytes for
+positions), and lambda the slope of the preset's own ladder at the
 preset (:func:`ladder_slope`: every step moved together up to an octave either way). The
 descent sets the ratio between the steps; every step then moves together back to the
 preset's probe error (:func:`_recentre`), so a quality keeps its level with fewer bits.
@@ -50,10 +51,11 @@ MAX_BIT_OFFSET = 6
 #: Coordinate-descent passes over the groups.
 PASSES = 2
 #: The allocation is kept only when it plans at least this share fewer bits than the preset
-#: at the preset's probe error: on fruit_drops and leica_sofort_top8192 (qualities 4-9),
-#: the five allocations estimated to save 8-15% came out at 0.82-0.95x the preset's bytes at
-#: equal held-out PSNR, the seven estimated under 8% (or at a cost) at 0.88-1.06x, three of
-#: them above 1: the probe does not resolve smaller savings.
+#: at the preset's probe error (:func:`_rate_at_error`): on fruit_drops and
+#: leica_sofort_top8192 (qualities 4-9, window probe), the five allocations estimated to save
+#: 8-15% came out at 0.82-0.95x the preset's bytes at equal held-out PSNR, the seven
+#: estimated under 8% (or at a cost) at 0.88-1.06x, three of them above 1: the probe does
+#: not resolve smaller savings.
 MIN_SAVING = 0.08
 #: At most this many half-octave shifts of every step together bring the probe error back
 #: to the preset's (:func:`_recentre`).
@@ -63,14 +65,23 @@ MIN_GAUSSIANS = 1024
 #: Scenes above this count are probed on a fixed random subset of this many Gaussians.
 SAMPLE = 32_768
 #: Probe views: 12 directions on the viewing distribution's sphere at its framing distance,
-#: each seen through a window of a sixth of its width and height (so a probe costs a 36th
-#: of a full view while errors of position, scale and rotation show at the views' own pixel
-#: size, where a downscaled view would shrink them against colour errors). Many directions
-#: matter more than many pixels: 2 directions at 3 distances (6 windows of a quarter) chose
-#: allocations that coded leica_sofort_top8192 at quality 3 below quality 2's held-out PSNR;
-#: 12 directions kept the ladder's order at 0.80-0.88x the preset's bytes.
+#: each the whole view at a quarter of its width and height (a 16th of its pixels). Whole
+#: views see what the held-out views see: with windows of a sixth of each view around its
+#: centre at full size (the probe until 2026-11-28) the allocation saw a rotation step
+#: halved on leica_sofort_top8192 at quality 7 as +0.8-1.2 dB where 28 held-out 800x600
+#: views saw +2.5 dB (whole views at 200x150: +1.8 dB), kept few allocations, and coded
+#: the three SH-3 captures at 0.95x the presets' bytes at equal held-out PSNR (mean of
+#: q1-11); whole views 0.84-0.88x. Scenes whose median Gaussian would span under
+#: :data:`PROBE_MIN_SIGMA` probe pixels are probed at a finer scale, cropped to the same
+#: number of pixels (:func:`probe_scale`): at 200x150 a probe did not see Gaussians a
+#: tenth of a view pixel wide and coarsened their steps by 3 octaves (-3.5 dB held out).
+#: Scenes over :data:`SAMPLE` Gaussians keep the windows: whole views of a 13% sample of
+#: playbot (248k Gaussians, holes between them) chose allocations that coded it at 0.96x
+#: the bytes 1.0 dB lower at quality 3 and 1.05x 0.3 dB lower at quality 5.
 PROBE_DIRECTIONS = 12
 PROBE_DISTANCES = (1.0,)
+PROBE_SCALE = 4
+PROBE_MIN_SIGMA = 0.2
 PROBE_WINDOW = 6
 PROBE_VIEWS = 12
 #: Each probe window renders only the Gaussians that can reach it: those whose footprint, a
@@ -298,12 +309,18 @@ def ladder_slope(points: list[tuple[float, float]]) -> float | None:
     return float(lam) if np.isfinite(lam) and lam > 0.0 else None
 
 
-def probe_cameras(scene: GaussianScene, cameras: list | None = None) -> list:
+def probe_cameras(scene: GaussianScene, cameras: list | None = None, *,
+                  whole: bool = True) -> list:
     """The allocation's probe views: :data:`PROBE_VIEWS` of ``cameras`` (evenly spread;
     None: :data:`PROBE_DIRECTIONS` directions of the default viewing distribution at
-    :data:`PROBE_DISTANCES`), each cropped to a window of 1/:data:`PROBE_WINDOW` of its
-    width and height, the windows taking turns over the four quarters around the image
-    centre."""
+    :data:`PROBE_DISTANCES`).
+
+    ``whole``: each view with 1/:data:`PROBE_SCALE` of its width and height in pixels, the
+    whole view scaled down by :func:`probe_scale` and, where that is less than
+    :data:`PROBE_SCALE`, cropped around its centre. Otherwise a window of
+    1/:data:`PROBE_WINDOW` of its width and height at its own pixel size, the windows taking
+    turns over the four quarters around the image centre (for a sample of a larger scene,
+    see :data:`PROBE_SCALE`)."""
     if cameras is None:
         from csgs_codec.render.view_distribution import default_distribution
 
@@ -311,15 +328,53 @@ def probe_cameras(scene: GaussianScene, cameras: list | None = None) -> list:
                                        distances=PROBE_DISTANCES).cameras
     spread = np.unique(np.linspace(0, len(cameras) - 1, PROBE_VIEWS).astype(int))
     picked = [cameras[i] for i in spread]
-    windows = []
-    for i, cam in enumerate(picked):
-        width = max(cam.width // PROBE_WINDOW, 1)
-        height = max(cam.height // PROBE_WINDOW, 1)
-        x0 = cam.width // 2 - width * (1 - i % 2)
-        y0 = cam.height // 2 - height * (1 - (i // 2) % 2)
-        windows.append(replace(cam, width=width, height=height, cx=cam.cx - x0,
-                               cy=cam.cy - y0))
-    return windows
+    if not whole:
+        return [_centre_window(cam, i) for i, cam in enumerate(picked)]
+    scale = probe_scale(scene, picked)
+    views = []
+    for cam in picked:
+        width = max(round(cam.width / scale), 1)
+        height = max(round(cam.height / scale), 1)
+        sx, sy = width / cam.width, height / cam.height
+        x0 = (width - max(round(cam.width / PROBE_SCALE), 1)) // 2
+        y0 = (height - max(round(cam.height / PROBE_SCALE), 1)) // 2
+        views.append(replace(cam, width=width - 2 * x0, height=height - 2 * y0,
+                             fx=cam.fx * sx, fy=cam.fy * sy, cx=cam.cx * sx - x0,
+                             cy=cam.cy * sy - y0))
+    return views
+
+
+def _centre_window(cam, i: int):
+    """Window ``i`` of a view: 1/:data:`PROBE_WINDOW` of its width and height at its own
+    pixel size, in quarter ``i % 4`` around the image centre."""
+    width = max(cam.width // PROBE_WINDOW, 1)
+    height = max(cam.height // PROBE_WINDOW, 1)
+    x0 = cam.width // 2 - width * (1 - i % 2)
+    y0 = cam.height // 2 - height * (1 - (i // 2) % 2)
+    return replace(cam, width=width, height=height, cx=cam.cx - x0, cy=cam.cy - y0)
+
+
+def probe_scale(scene: GaussianScene, cameras: list) -> int:
+    """How many of a view's pixels, across and down, one probe pixel takes: the largest of
+    :data:`PROBE_SCALE`, ..., 2, 1 at which the median Gaussian in front of ``cameras``
+    still spans :data:`PROBE_MIN_SIGMA` probe pixels (its largest axis's standard
+    deviation; 1 for a scene that shows in none of them)."""
+    positions = np.asarray(scene.positions, np.float64)
+    longest = np.exp(np.clip(np.asarray(scene.scales, np.float64).max(axis=1), -80.0, 80.0))
+    sigmas = []
+    for cam in cameras:
+        world_to_camera = np.asarray(cam.world_to_camera, np.float64)
+        depth = positions @ world_to_camera[2, :3] + world_to_camera[2, 3]
+        front = depth > cam.near_plane
+        sigmas.append(longest[front] * cam.fy / depth[front])
+    sigma = np.concatenate(sigmas) if sigmas else np.zeros(0)
+    if not len(sigma):
+        return 1
+    typical = float(np.median(sigma))
+    scale = PROBE_SCALE
+    while scale > 1 and typical / scale < PROBE_MIN_SIGMA:
+        scale //= 2
+    return scale
 
 
 def allocate_steps(scene: GaussianScene, preset: Preset, *, rotation_rule: str = "footprint",
@@ -332,7 +387,7 @@ def allocate_steps(scene: GaussianScene, preset: Preset, *, rotation_rule: str =
         preset: the quality preset the allocation starts from.
         rotation_rule: how rotation steps follow decoded attributes (the encoder's
             ``rotation_steps``).
-        cameras: the views the scene will be seen from (the probe windows are cut from
+        cameras: the views the scene will be seen from (the probe views are made from
             them, :func:`probe_cameras`); None: the default sphere of views around it.
         progress: ``progress(done, total)`` told of probe renders (total is an upper bound).
 
@@ -344,12 +399,13 @@ def allocate_steps(scene: GaussianScene, preset: Preset, *, rotation_rule: str =
     """
     if len(scene) < MIN_GAUSSIANS:
         return StepAllocation()
-    if len(scene) > SAMPLE:
+    whole = len(scene) <= SAMPLE
+    if not whole:
         keep = np.sort(np.random.default_rng(0).choice(len(scene), SAMPLE, replace=False))
         scene = scene.subset(keep)
     if len(np.unique(scene.positions, axis=0)) < MIN_GAUSSIANS:
         return StepAllocation()
-    probe = _Probe(scene, preset, rotation_rule, probe_cameras(scene, cameras))
+    probe = _Probe(scene, preset, rotation_rule, probe_cameras(scene, cameras, whole=whole))
     groups = probe.groups()
     float_groups = [g for g in groups if g != "position"]
     budget = 5 + PASSES * 2 * len(groups) * 2 + RECENTRE_STEPS
@@ -392,7 +448,8 @@ def allocate_steps(scene: GaussianScene, preset: Preset, *, rotation_rule: str =
             break
     offsets, current = _recentre(offsets, current, d0, float_groups, evaluate)
     report(budget, budget)
-    rate_ratio = float(current[0] / r0) if r0 > 0 else 1.0
+    rate = _rate_at_error(offsets, current, d0, float_groups, evaluate)
+    rate_ratio = float(rate / r0) if r0 > 0 else 1.0
     if rate_ratio > 1.0 - MIN_SAVING:
         # A saving the probe cannot resolve: the preset's steps, but perhaps a coarser grid.
         offsets, current = _coarser_grid(r0, d0, cost, evaluate)
@@ -423,6 +480,28 @@ def _coarser_grid(r0: float, d0: float, cost, evaluate
             break
         best, current, offsets = cost(rd), rd, {"position": -bits}
     return offsets, current
+
+
+def _rate_at_error(offsets: dict[str, int], current: tuple[float, float], target: float,
+                   float_groups: list[str], evaluate) -> float:
+    """The planned bits of ``offsets``' step ratios at exactly the probe error ``target``:
+    interpolated (log error against bits) between ``current`` and its neighbour half an
+    octave coarser (or finer, when ``current`` errs more than ``target``).
+
+    :func:`_recentre` moves in half octaves, so the allocation it keeps may err well below
+    the preset and cost as many bits: a higher quality, not a saving the plain bits ratio
+    would show. The ratio at equal error is what :data:`MIN_SAVING` judges."""
+    rate, error = current
+    if error <= 0.0 or target <= 0.0 or error == target:
+        return rate
+    k = 1 if error < target else -1
+    other_rate, other_error = evaluate(
+        {**offsets, **{g: int(np.clip(offsets[g] + k, -MAX_OFFSET, MAX_OFFSET))
+                       for g in float_groups}})
+    if other_error <= 0.0 or other_error == error:
+        return rate
+    t = (np.log(target) - np.log(error)) / (np.log(other_error) - np.log(error))
+    return float(rate + np.clip(t, 0.0, 1.0) * (other_rate - rate))
 
 
 def _recentre(offsets: dict[str, int], current: tuple[float, float], target: float,
