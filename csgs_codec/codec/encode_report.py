@@ -30,9 +30,10 @@ class EncodeReport:
         allocation: the :class:`~csgs_codec.decisions.step_allocation.StepAllocation` the
             encoder chose for a quality encode, or None when it kept the preset's steps
             (allocation off, fast mode, a target or lambda search).
-        sorted_axes: whether every Gaussian's axes were coded largest scale first
-            (:mod:`csgs_codec.decisions.axis_order`); None for a tiled encode, where each
-            tile decides for itself.
+        sorted_axes: whether the Gaussians' axes were coded largest scale first
+            (:mod:`csgs_codec.decisions.axis_order`; all but the few whose rotation the
+            guard of :func:`~csgs_codec.attributes.attribute_forms.canonical_orientations`
+            keeps); None for a tiled encode, where each tile decides for itself.
     """
 
     data: bytes

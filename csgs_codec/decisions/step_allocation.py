@@ -70,7 +70,7 @@ SAMPLE = 32_768
 #: centre at full size (the probe until 2026-11-28) the allocation saw a rotation step
 #: halved on leica_sofort_top8192 at quality 7 as +0.8-1.2 dB where 28 held-out 800x600
 #: views saw +2.5 dB (whole views at 200x150: +1.8 dB), kept few allocations, and coded
-#: the three SH-3 captures at 0.95x the presets' bytes at equal held-out PSNR (mean of
+#: the three SH-3 captures at 0.89-0.95x the presets' bytes at equal held-out PSNR (mean of
 #: q1-11); whole views 0.84-0.88x. Scenes whose median Gaussian would span under
 #: :data:`PROBE_MIN_SIGMA` probe pixels are probed at a finer scale, cropped to the same
 #: number of pixels (:func:`probe_scale`): at 200x150 a probe did not see Gaussians a
