@@ -56,6 +56,7 @@ from bench_common import FULL_PRECISION, SCENES, document, emit, held_out_views 
 
 from csgs_codec.codec.decoder import Decoder  # noqa: E402
 from csgs_codec.codec.encoder import Encoder  # noqa: E402
+from csgs_codec.decisions.presets import QUALITIES  # noqa: E402
 from csgs_codec.interchange.ply_io import read_ply  # noqa: E402
 from csgs_codec.metrics.comparison import render_references, score_view  # noqa: E402
 from csgs_codec.scene.orbit import orbit_cameras  # noqa: E402
@@ -239,7 +240,7 @@ def main() -> int:
     parser.add_argument("--scenes", nargs="*", default=None,
                         help="scene names in ../shared/data/scenes or paths to .ply files "
                              "(default: every scene there)")
-    parser.add_argument("--qualities", nargs="*", type=int, default=list(range(1, 12)))
+    parser.add_argument("--qualities", nargs="*", type=int, default=list(QUALITIES))
     parser.add_argument("--variants", nargs="+", default=["plain"], choices=sorted(VARIANTS))
     parser.add_argument("--stacked-qualities", nargs="*", type=int, default=[5, 7, 8, 9])
     parser.add_argument("--refine-steps", type=int, default=20)

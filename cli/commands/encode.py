@@ -34,7 +34,7 @@ def add_arguments(parser) -> None:
                                       "folder / anchor .ply (coded as an anchor scene)")
     parser.add_argument("-o", "--output", required=True, help="output .csgs file")
     parser.add_argument("--quality", type=int, default=None, choices=QUALITIES,
-                        metavar="1-11", help=f"1 smallest .. 9 high; 10 and 11 near-lossless "
+                        metavar="1-12", help=f"1 smallest .. 9 high; 10-12 near-lossless "
                                              f"(3DGS scenes; anchor scenes take 1-9) "
                                              f"(default {DEFAULT_QUALITY})")
     parser.add_argument("--target-psnr", type=float, default=None, metavar="DB",

@@ -88,7 +88,7 @@ class Encoder:
     config either way. The fields:
 
     Args:
-        quality: preset 1 (smallest) .. 11 (near-lossless); see
+        quality: preset 1 (smallest) .. 12 (near-lossless); see
             csgs_codec/decisions/presets.py. Default 5.
         target_psnr: instead of the preset, the smallest encode whose renders reach this
             foreground PSNR (dB) on the rate control's probe views

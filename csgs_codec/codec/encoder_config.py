@@ -34,7 +34,7 @@ class EncoderConfig:
     meaning, units and measured effect).
 
     Rate target (at most one of the three; none: quality 5):
-        quality: preset 1 (smallest) .. 11 (near-lossless).
+        quality: preset 1 (smallest) .. 12 (near-lossless).
         target_psnr: the smallest encode reaching this foreground PSNR (dB) on probe views.
         lambda_: the encode minimising J = D + lambda * R.
         fast: shorter searches and no hyperprior fit.

@@ -1,4 +1,4 @@
-"""Qualities 10 and 11: the near-lossless end of the presets (standard scenes only)."""
+"""Qualities 10-12: the near-lossless end of the presets (standard scenes only)."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from tests.render.test_raster_common import orbit_view
 
 
 def test_the_ladder_goes_on_past_nine_with_finer_steps_and_more_position_bits():
-    assert tuple(range(1, 12)) == QUALITIES and tuple(range(1, 10)) == ANCHOR_QUALITIES
+    assert tuple(range(1, 13)) == QUALITIES and tuple(range(1, 10)) == ANCHOR_QUALITIES
     for finer, coarser in zip(QUALITIES[1:], QUALITIES):
         assert PRESETS[finer].rest_step < PRESETS[coarser].rest_step
         assert PRESETS[finer].position_bits >= PRESETS[coarser].position_bits
