@@ -78,7 +78,7 @@ def test_bad_layers_argument():
         Decoder().decode(DATA, layers="colour")
 
 
-@pytest.mark.parametrize("kwargs", [{"quality": 0}, {"quality": 12}, {"semantic": "all"},
+@pytest.mark.parametrize("kwargs", [{"quality": 0}, {"quality": 13}, {"semantic": "all"},
                                     {"prune_opacity": 1.5}])
 def test_bad_encoder_arguments(kwargs):
     with pytest.raises(InputError):
