@@ -35,7 +35,7 @@ def test_near_lossless_qualities_decode_exactly_and_keep_raising_fidelity(donut_
                for a in (0.0, 120.0, 240.0)]
     references = [render(donut_head, c).image for c in cameras]
     scores, sizes = [], []
-    for quality in (9, 10, 11):
+    for quality in (9, 10, 11, 12):
         result = Encoder(quality=quality, hyperprior=False).encode_with_report(donut_head)
         decoded = Decoder().decode(result.data)
         assert decoded.equals(result.reconstruction), quality
@@ -43,7 +43,8 @@ def test_near_lossless_qualities_decode_exactly_and_keep_raising_fidelity(donut_
                                for c, ref in zip(cameras, references)]))
         sizes.append(len(result.data))
     assert scores[0] + 5 < scores[1] and scores[1] + 4 < scores[2], scores
-    assert sizes[0] < sizes[1] < sizes[2]
+    assert scores[2] + 2 < scores[3], scores
+    assert sizes[0] < sizes[1] < sizes[2] < sizes[3]
 
 
 def test_anchor_scenes_refuse_the_near_lossless_qualities():
