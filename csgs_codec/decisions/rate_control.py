@@ -31,9 +31,9 @@ from csgs_codec.scene.gaussian_scene import GaussianScene
 #: Probe views: few and small, so a search step costs about one encode.
 PROBE_VIEWS = 4
 PROBE_SIZE = (256, 192)
-#: The multiplier is searched in [2^LOG2_LO, 2^LOG2_HI] (finer than quality 9 .. coarser
+#: The multiplier is searched in [2^LOG2_LO, 2^LOG2_HI] (about quality 12's steps .. coarser
 #: than quality 1).
-LOG2_LO = -4.0
+LOG2_LO = -5.0
 LOG2_HI = 5.0
 SEARCH_STEPS = 6
 #: The search stops once an encode meets the target by less than this, dB.

@@ -8,7 +8,7 @@ import pytest
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.codec.encoder import Encoder
 from csgs_codec.decisions.presets import PRESETS, scaled_preset
-from csgs_codec.decisions.rate_control import RenderProbe
+from csgs_codec.decisions.rate_control import LOG2_LO, RenderProbe
 from csgs_codec.errors import CsgsWarning, InputError
 from csgs_codec.interchange.ply_io import read_ply
 from tests.codec.helpers import steps_of
@@ -60,7 +60,7 @@ def test_an_unreachable_target_warns_and_keeps_the_finest_encode(small_scene, pr
     monkeypatch.setattr("csgs_codec.decisions.rate_control.RenderProbe", lambda scene: probe)
     with pytest.warns(CsgsWarning, match="not reached"):
         result = Encoder(target_psnr=89.0).encode_with_report(small_scene)
-    assert result.rate_control.multiplier == pytest.approx(2.0 ** -4)
+    assert result.rate_control.multiplier == pytest.approx(2.0 ** LOG2_LO)
 
 
 @pytest.mark.parametrize("target", [float("nan"), 3.0, 200.0])
