@@ -1,9 +1,10 @@
-"""The JavaScript receiver decodes real scenes, encoded by today's encoder at qualities 1, 5
-and 9 with its default settings, to the Python decoder's arrays (issue #18's acceptance).
+"""The JavaScript receiver decodes real scenes, encoded by today's encoder at qualities 1, 5,
+9 and 12 (the near-lossless end) with its default settings, to the Python decoder's arrays
+(issue #18's acceptance).
 
 The default suite runs the two small SH-3 captures (real_sh3/, 4.7k and 8.2k Gaussians:
 every SH band, per-scene steps, the color hyperprior on the larger one) at the default
-quality; ``-m slow`` runs both at all three and adds the five shared scenes (up to 248k
+quality; ``-m slow`` runs both at all four and adds the five shared scenes (up to 248k
 Gaussians) and the SH-3 capture kept in benchmarks/data. Skipped when node or ../shared is
 absent.
 """
@@ -24,7 +25,7 @@ pytestmark = pytest.mark.skipif(node_executable() is None,
 
 SMALL = ["real_sh3/fruit_drops.ply", "real_sh3/leica_sofort_top8192.ply"]
 LARGE = [f"scenes/{name}.ply" for name in ("donut", "biker", "guitar", "plant", "playbot")]
-QUALITIES = (1, 5, 9)
+QUALITIES = (1, 5, 9, 12)
 
 
 #: The SH-3 capture the repository keeps (benchmarks/data, CC0): run where ../shared is absent.
