@@ -126,7 +126,9 @@ def default_encode(tmp_path_factory, default_encoding):
 #: machine), in the order they start: `make test` hands whole files to its workers in
 #: collection order (``--dist loadfile --no-loadscope-reorder``), so these go first and the
 #: short files fill the gaps, and the two workers finish together. Files that share default
-#: encodes (tests/conftest.py) are kept apart in the order, so one makes what the other reads.
+#: encodes (tests/conftest.py) are kept apart in the order, so one makes what the other reads
+#: (tests/js/test_js_shared_scenes.py, which reads the repository SH-3 capture's encode that
+#: tests/web/test_viewer_shared_scenes.py makes, is left to its place in collection order).
 LONGEST_FIRST = (
     "tests/codec/test_codec_roundtrip.py",
     "tests/web/test_viewer_default_encodes.py",
@@ -134,7 +136,6 @@ LONGEST_FIRST = (
     "tests/web/test_viewer_browser.py",
     "tests/fuzz/test_decoder_fuzz.py",
     "tests/web/test_viewer_shared_scenes.py",
-    "tests/js/test_js_shared_scenes.py",
     "tests/codec/test_accepted_scenes_decode.py",
     "tests/tiles/test_parallel_tiles.py",
     "tests/web/test_server.py",

@@ -18,7 +18,6 @@ import signal
 import threading
 import time
 import traceback
-import tracemalloc
 import warnings
 from collections import Counter
 from dataclasses import dataclass, field
@@ -28,6 +27,7 @@ from csgs_codec.errors import CsgsError
 from csgs_codec.interchange import read_interchange
 from tests.fuzz.reader_mutators import Mutant, mutant_at
 from tests.fuzz.reader_seeds import ReaderSeed
+from tests.heap_peak import heap_peak, heap_tracing
 
 #: The heap a reader may use: this many times the input's bytes, plus the allowance (the
 #: fixed cost of imports and small tables).
@@ -156,10 +156,9 @@ def run_one(mutant: Mutant, index: int, scratch: Path, time_limit: float = 10.0)
     folder.mkdir(parents=True)
     path = _write(mutant, folder)
     kind, detail = "ok", ""
-    tracemalloc.start()
     began = time.perf_counter()
     try:
-        with warnings.catch_warnings(), _time_limit(time_limit):
+        with heap_peak() as peak, warnings.catch_warnings(), _time_limit(time_limit):
             warnings.simplefilter("ignore")
             read_interchange(path)
     except CsgsError as err:
@@ -173,10 +172,8 @@ def run_one(mutant: Mutant, index: int, scratch: Path, time_limit: float = 10.0)
                   f"{frame.lineno}")
     finally:
         seconds = time.perf_counter() - began
-        _, peak = tracemalloc.get_traced_memory()
-        tracemalloc.stop()
         shutil.rmtree(folder, ignore_errors=True)
-    return Outcome(index, mutant.seed.name, mutant.seed.format, kind, detail, seconds, peak,
+    return Outcome(index, mutant.seed.name, mutant.seed.format, kind, detail, seconds, peak.bytes,
                    mutant.size, mutant.operators)
 
 
@@ -188,11 +185,12 @@ def run_range(seeds: list[ReaderSeed], start: int, count: int, campaign: int, sc
     when given, sees every input (to keep the crashes, say)."""
     tallies: dict[str, FormatTally] = {}
     operators: Counter = Counter()
-    for index in range(start, start + count):
-        mutant = mutant_at(seeds, index, campaign)
-        outcome = run_one(mutant, index, scratch, time_limit)
-        tallies.setdefault(outcome.format, tally()).add(outcome)
-        operators.update(op.split(":")[0] for op in mutant.operators)
-        if on_outcome is not None:
-            on_outcome(mutant, outcome)
+    with heap_tracing():
+        for index in range(start, start + count):
+            mutant = mutant_at(seeds, index, campaign)
+            outcome = run_one(mutant, index, scratch, time_limit)
+            tallies.setdefault(outcome.format, tally()).add(outcome)
+            operators.update(op.split(":")[0] for op in mutant.operators)
+            if on_outcome is not None:
+                on_outcome(mutant, outcome)
     return tallies, operators

@@ -16,9 +16,10 @@ from tests.fuzz.container_edit import build, repair_crcs, split_chunks
 from tests.fuzz.mutators import PAYLOAD_EDITS
 from tests.fuzz.oracle import error_stage, memory_bound, run_decoder
 from tests.fuzz.seeds import build_seeds
+from tests.heap_peak import heap_tracing
 
 #: Inputs of the default run; every second one has its heap peak traced.
-DEFAULT_INPUTS = 1500
+DEFAULT_INPUTS = 1000
 TRACE_EVERY = 2
 SLOW_INPUTS = 100_000
 OPERATORS = {"payload_bit_flip", "payload_byte_set", "payload_resize", "payload_varint",
@@ -162,8 +163,6 @@ def test_oracle_calls_a_non_finite_decoded_value_a_crash(seeds, monkeypatch):
 
 
 def test_oracle_calls_an_allocation_over_the_bound_a_crash(seeds, monkeypatch):
-    import tracemalloc
-
     data = _tiny_input(seeds)
     good = Decoder().decode(data, layers="color")
 
@@ -172,11 +171,8 @@ def test_oracle_calls_an_allocation_over_the_bound_a_crash(seeds, monkeypatch):
         return good if block.sum() else None
 
     monkeypatch.setattr(Decoder, "decode", hungry)
-    tracemalloc.start()
-    try:
+    with heap_tracing():
         outcome = run_decoder(data)
-    finally:
-        tracemalloc.stop()
     assert outcome.crashed and "heap peak" in outcome.detail
 
 

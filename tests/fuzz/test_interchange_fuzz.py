@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import gzip
 import tempfile
-import tracemalloc
 import warnings
 from pathlib import Path
 
@@ -24,6 +23,7 @@ from csgs_codec.interchange.ksplat import parse_ksplat
 from csgs_codec.interchange.sog import read_sog
 from csgs_codec.interchange.splat import parse_splat
 from csgs_codec.interchange.spz import parse_spz
+from tests.heap_peak import heap_peak, heap_tracing
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "formats"
 
@@ -75,17 +75,14 @@ def mutated(draw, base: bytes):
 
 
 def parse_bounded(parse, data: bytes) -> None:
-    tracemalloc.start()
     try:
-        with warnings.catch_warnings():
+        with heap_peak() as peak, warnings.catch_warnings():
             warnings.simplefilter("ignore")
             parse(data, "fuzz")
     except CsgsError:
         pass
-    finally:
-        _, peak = tracemalloc.get_traced_memory()
-        tracemalloc.stop()
-    assert peak <= 64 * len(data) + (4 << 20), f"peak {peak} bytes for {len(data)} bytes"
+    assert peak.bytes <= 64 * len(data) + (4 << 20), \
+        f"peak {peak.bytes} bytes for {len(data)} bytes"
 
 
 FAST = settings(max_examples=60, deadline=None,
@@ -105,4 +102,5 @@ def test_mutated_files_only_raise_csgs_errors(kind):
     def check(data):
         parse_bounded(parse, data)
 
-    check()
+    with heap_tracing():
+        check()

@@ -6,13 +6,13 @@ from __future__ import annotations
 
 import hashlib
 import json
-import tracemalloc
 
 import pytest
 
 from csgs_codec.errors import CsgsError
 from tests.fuzz.invalid_vectors import INVALID_DIR
 from tests.fuzz.oracle import decode, memory_bound
+from tests.heap_peak import heap_peak
 
 MANIFEST = json.loads((INVALID_DIR / "manifest.json").read_text())
 ENTRIES = MANIFEST["vectors"]
@@ -34,12 +34,7 @@ def test_manifest_lists_every_file_in_the_folder():
 def test_invalid_vector_is_refused_with_its_error_class(entry):
     data = (INVALID_DIR / entry["file"]).read_bytes()
     assert (len(data), hashlib.sha256(data).hexdigest()) == (entry["bytes"], entry["sha256"])
-    tracemalloc.start()
-    try:
-        with pytest.raises(CsgsError) as info:
-            decode(data)
-        peak = tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
+    with heap_peak() as peak, pytest.raises(CsgsError) as info:
+        decode(data)
     assert type(info.value).__name__ == entry["expected_error"]
-    assert peak <= memory_bound(len(data))
+    assert peak.bytes <= memory_bound(len(data))

@@ -9,13 +9,13 @@ import io
 import json
 import shutil
 import struct
-import tracemalloc
 import zipfile
 
 import pytest
 
 from csgs_codec.codec.files import read_scene_with_report
 from csgs_codec.errors import CsgsError, InputError
+from tests.heap_peak import heap_peak
 from tests.interchange.helpers import DATA
 
 FILES = ["brush_sh3.compressed.ply", "brush_sh3.sog", "brush_sh3.v2.spz", "brush_sh3.v3.spz",
@@ -27,16 +27,15 @@ def read_bounded(path):
     """read_scene_with_report(path); returns the CsgsError raised (None if it read), asserting
     the peak of traced allocations stays within 64 bytes per file byte plus 4 MiB."""
     size = path.stat().st_size if path.is_file() else 1 << 16
-    tracemalloc.start()
     try:
-        read_scene_with_report(path)
+        with heap_peak() as peak:
+            read_scene_with_report(path)
         return None
     except CsgsError as err:
         return err
     finally:
-        _, peak = tracemalloc.get_traced_memory()
-        tracemalloc.stop()
-        assert peak <= 64 * size + (4 << 20), f"peak {peak} bytes for a {size}-byte file"
+        assert peak.bytes <= 64 * size + (4 << 20), \
+            f"peak {peak.bytes} bytes for a {size}-byte file"
 
 
 def assert_located(err, path):

@@ -2,11 +2,11 @@
 9 and 12 (the near-lossless end) with its default settings, to the Python decoder's arrays
 (issue #18's acceptance).
 
-The default suite runs the two small SH-3 captures (real_sh3/, 4.7k and 8.2k Gaussians:
-every SH band, per-scene steps, the color hyperprior on the larger one) at the default
-quality; ``-m slow`` runs both at all four and adds the five shared scenes (up to 248k
-Gaussians) and the SH-3 capture kept in benchmarks/data. Skipped when node or ../shared is
-absent.
+The default suite runs the SH-3 capture kept in benchmarks/data (8.2k Gaussians: every SH
+band, per-scene steps, the color hyperprior) at the default quality, sharing its encode with
+the browser test; ``-m slow`` runs it at all four and adds the two small SH-3 captures of
+../shared (real_sh3/) and its five shared scenes (up to 248k Gaussians). Skipped when node
+(or, for those, ../shared) is absent.
 """
 
 from __future__ import annotations
@@ -56,10 +56,10 @@ def _check(relative: str, tmp_path, default_encoding, qualities=QUALITIES) -> No
             assert js["arrays"] == arrays, f"{what}: decoded arrays differ"
 
 
-@pytest.mark.parametrize("relative", SMALL)
-def test_small_real_scenes_decode_as_in_python(relative, tmp_path, default_encoding):
+def test_the_repository_sh3_capture_decodes_as_in_python_at_the_default_quality(
+        tmp_path, default_encoding):
     # Each encode probes its step allocation for seconds: the default quality only here.
-    _check(relative, tmp_path, default_encoding, (DEFAULT_QUALITY,))
+    _check("repo", tmp_path, default_encoding, (DEFAULT_QUALITY,))
 
 
 @pytest.mark.slow
@@ -70,7 +70,8 @@ def test_the_small_scenes_decode_as_in_python_at_every_quality(relative, tmp_pat
 
 
 @pytest.mark.slow
-def test_the_repository_sh3_capture_decodes_as_in_python(tmp_path, default_encoding):
+def test_the_repository_sh3_capture_decodes_as_in_python_at_every_quality(tmp_path,
+                                                                           default_encoding):
     _check("repo", tmp_path, default_encoding)
 
 

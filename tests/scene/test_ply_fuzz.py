@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import tracemalloc
 import warnings
 
 import pytest
@@ -11,6 +10,7 @@ from hypothesis import strategies as st
 
 from csgs_codec.errors import InputError
 from csgs_codec.interchange.ply_io import parse_ply_bytes
+from tests.heap_peak import heap_peak, heap_tracing
 from tests.scene.ply_samples import make_ply, property_names, random_values
 
 NAMES = property_names(9, extra=("sem_0",))
@@ -23,17 +23,21 @@ HEADER_WORDS = [b"ply", b"format", b"ascii", b"binary_big_endian", b"element", b
 
 def parse_bounded(data: bytes) -> None:
     """Parse ``data``; fail the test on anything but InputError or an over-large allocation."""
-    tracemalloc.start()
     try:
-        with warnings.catch_warnings():
+        with heap_peak() as peak, warnings.catch_warnings():
             warnings.simplefilter("ignore")
             parse_ply_bytes(data, source="fuzz.ply")
     except InputError:
         pass
-    finally:
-        _, peak = tracemalloc.get_traced_memory()
-        tracemalloc.stop()
-    assert peak <= 64 * len(data) + (1 << 20), f"peak {peak} bytes for {len(data)} input bytes"
+    assert peak.bytes <= 64 * len(data) + (1 << 20), \
+        f"peak {peak.bytes} bytes for {len(data)} input bytes"
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _trace_the_whole_module():
+    """Every test here parses hundreds of inputs under :func:`parse_bounded`."""
+    with heap_tracing():
+        yield
 
 
 @st.composite
