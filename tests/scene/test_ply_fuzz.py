@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from csgs_codec.errors import InputError
 from csgs_codec.interchange.ply_io import parse_ply_bytes
-from tests.heap_peak import heap_peak, heap_tracing
+from tests.heap_peak import heap_peak
 from tests.scene.ply_samples import make_ply, property_names, random_values
 
 NAMES = property_names(9, extra=("sem_0",))
@@ -31,14 +31,6 @@ def parse_bounded(data: bytes) -> None:
         pass
     assert peak.bytes <= 64 * len(data) + (1 << 20), \
         f"peak {peak.bytes} bytes for {len(data)} input bytes"
-
-
-@pytest.fixture(autouse=True, scope="module")
-def _trace_the_whole_module():
-    """Every test here parses hundreds of inputs under :func:`parse_bounded`."""
-    with heap_tracing():
-        yield
-
 
 @st.composite
 def mutated(draw, base: bytes):
