@@ -28,7 +28,9 @@ def donut_part():
 
 @pytest.fixture(scope="module")
 def pruned(donut_part):
-    """The default path once: the default sphere of views, at its full size."""
+    """The default path once: the default sphere of views, at its full size (16 s: its tests
+    run under -m slow; test_cli_view_prune_reports_what_it_left_out takes the same path
+    through the CLI in the default run)."""
     return Encoder(quality=5, hyperprior=False, view_pruning=True).encode_with_report(
         donut_part)
 
@@ -39,6 +41,7 @@ def small_views(donut_part):
     return default_distribution(donut_part, directions=6, size=(200, 150))
 
 
+@pytest.mark.slow
 def test_pruned_file_decodes_to_the_encoders_reconstruction(pruned, donut_part):
     decoded = Decoder().decode(pruned.data)
     assert decoded.equals(pruned.reconstruction)
@@ -47,6 +50,7 @@ def test_pruned_file_decodes_to_the_encoders_reconstruction(pruned, donut_part):
     assert pruned.views == "48 views on a sphere at 3 distances"
 
 
+@pytest.mark.slow
 def test_order_names_each_kept_gaussian_once(pruned, donut_part):
     order = pruned.order
     assert len(np.unique(order)) == len(order) == len(pruned.reconstruction)
@@ -98,6 +102,7 @@ def test_pruning_is_deterministic(donut_part, small_views):
 
     first, second = encode(), encode()
     assert first.data == second.data and first.view_pruned > 0
+    assert Decoder().decode(first.data).equals(first.reconstruction)
 
 
 def test_small_scenes_are_not_pruned(donut_part):
@@ -154,6 +159,7 @@ def test_cli_bad_cameras_file_is_a_clear_error(tmp_path, capsys, donut_part):
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_the_file_records_the_distribution_and_info_reports_it(tmp_path, capsys, pruned):
     from csgs_codec.codec.describe import describe_bitstream
 

@@ -99,6 +99,7 @@ def test_local_workers_run_numeric_libraries_on_one_thread(monkeypatch):
                                         for name in THREAD_VARIABLES)
 
 
+@pytest.mark.slow  # starting a local Ray cluster takes 7-10 s
 def test_ray_local_cluster_writes_the_same_bytes(ply, serial):
     pytest.importorskip("ray")
     encoder = Encoder(quality=5, hyperprior=False, tile_size=600, workers=2, ray="local")
