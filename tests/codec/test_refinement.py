@@ -100,7 +100,7 @@ def test_refinement_with_scored_steps_decodes_exactly_and_reports_its_steps(head
     assert Decoder().decode(result.data).equals(result.reconstruction)
 
 
-@pytest.mark.slow  # 9-11 s, most of it the held-out scoring
+@pytest.mark.slow  # 8-11 s, most of it the held-out scoring
 def test_refinement_keeps_the_opponent_colours_of_sh_bands():
     """Refinement moves the band values in the opponent colours they are coded in: the file
     keeps SHXF, decodes to the reconstruction, and renders closer to the original."""

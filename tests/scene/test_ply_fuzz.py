@@ -32,6 +32,7 @@ def parse_bounded(data: bytes) -> None:
     assert peak.bytes <= 64 * len(data) + (1 << 20), \
         f"peak {peak.bytes} bytes for {len(data)} input bytes"
 
+
 @st.composite
 def mutated(draw, base: bytes):
     data = bytearray(base)
