@@ -19,7 +19,8 @@ compared with what the same residuals would cost:
 
 Each channel keeps the smallest of its current coding and the context codings
 (``bits_context_real``), so the figure is an upper bound on what the change could save with
-the codec's own table sources; channels the color hyperprior codes keep their bits.
+the codec's own table sources; a channel the color hyperprior codes is counted at its
+planned cost without the hyperprior on both sides, so it adds nothing to the saving.
 ``saving_share_of_file`` is that saving over the file's bits.
 """
 
