@@ -14,6 +14,7 @@ is :mod:`csgs_codec.model.color_hyperprior`'s.
 
 from __future__ import annotations
 
+from concurrent.futures import Executor
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -132,10 +133,11 @@ def prior_cells(cells: np.ndarray, far_count: int) -> np.ndarray:
                            np.zeros((far_count, 3), np.int64)])
 
 
-def channel_priors(prior: ColorPrior, cells: np.ndarray, names: list[str]
-                   ) -> dict[str, dict[int, ChannelPrior]]:
-    """Run the network on ``cells`` (N, 3): stream -> channel -> :class:`ChannelPrior`."""
-    out = prior.net.forward(cells)
+def channel_priors(prior: ColorPrior, cells: np.ndarray, names: list[str],
+                   pool: Executor | None = None) -> dict[str, dict[int, ChannelPrior]]:
+    """Run the network on ``cells`` (N, 3): stream -> channel -> :class:`ChannelPrior`;
+    with ``pool``, half of the rows run there (:meth:`IntMLP.forward`)."""
+    out = prior.net.forward(cells, pool=pool)
     modelled = [lc for lc, on in zip(stream_layout(names), prior.mask) if on]
     m = len(modelled)
     # Round the means in place and hand out column views: at millions of Gaussians, copies

@@ -395,7 +395,8 @@ class Decoder:
                 if len(cells) and int(cells.max()) >= 1 << prior.net.pos_bits:
                     raise FormatError(f"the color hyperprior needs cells below "
                                       f"2^{prior.net.pos_bits}", chunk="CHYP")
-                priors = channel_priors(prior, prior_cells(cells, header.far_count), names)
+                priors = channel_priors(prior, prior_cells(cells, header.far_count), names,
+                                        pool)
             for name in names:
                 if name in later:
                     submit(name, priors.get(name))

@@ -16,6 +16,7 @@ network that breaks the bound (ModelError), so both paths always agree.
 
 from __future__ import annotations
 
+from concurrent.futures import Executor
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -168,29 +169,43 @@ class IntMLP:
         """(N, 3) integer positions -> (N, 6L) int64 embedding."""
         return positional_embedding(positions, self.pos_bits, self.num_freqs)
 
-    def forward(self, positions: np.ndarray, path: str = "float64") -> np.ndarray:
+    def forward(self, positions: np.ndarray, path: str = "float64",
+                pool: Executor | None = None) -> np.ndarray:
         """Evaluate the network: (N, 3) integer positions -> (N, O) int64 outputs.
 
         ``path`` is "float64" (BLAS, fast) or "int64" (reference); both give identical results.
+        With ``pool``, the second half of the rows is evaluated there while the calling
+        thread does the first (rows are independent, so the outputs are the same).
         """
         if path not in ("float64", "int64"):
             raise InputError(f"unknown inference path {path!r}")
         x = _checked_positions(positions, self.pos_bits)
         out = np.empty((x.shape[0], self.out_width), dtype=np.int64)
         pairs = _sine_pairs(path)
-        # Work arrays reused by every block of this call (per call, so threads never share).
         widths = sum(layer.weights.shape[0] for layer in self.layers) + self.in_width
         n = x.shape[0]
         block = min(max(_BASE_BLOCK_ROWS, n // 16), _MAX_BLOCK_ROWS,
                     max(_MIN_BLOCK_ROWS, _BLOCK_VALUES // widths), max(n, 1))
-        buffers = [np.empty((block, layer.weights.shape[0])) for layer in self.layers]
-        for start in range(0, x.shape[0], block):
-            emb = _embed(x[start:start + block], self.pos_bits, self.num_freqs, pairs)
-            rows = slice(start, start + emb.shape[0])
-            if path == "float64":
-                out[rows] = self._forward_float64(emb, buffers)
-            else:
-                out[rows] = self._forward_int64(emb)
+
+        def rows_from(first: int, end: int) -> None:
+            # Work arrays reused by every block of one task (never shared between threads).
+            buffers = [np.empty((block, layer.weights.shape[0])) for layer in self.layers]
+            for start in range(first, end, block):
+                emb = _embed(x[start:min(start + block, end)], self.pos_bits, self.num_freqs,
+                             pairs)
+                rows = slice(start, start + emb.shape[0])
+                if path == "float64":
+                    out[rows] = self._forward_float64(emb, buffers)
+                else:
+                    out[rows] = self._forward_int64(emb)
+
+        half = -(-(n // 2) // block) * block  # the first half, in whole blocks
+        if pool is None or n < 2 * block:
+            rows_from(0, n)
+        else:
+            second = pool.submit(rows_from, half, n)
+            rows_from(0, half)
+            second.result()
         return out
 
     def _forward_int64(self, h: np.ndarray) -> np.ndarray:

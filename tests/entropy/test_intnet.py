@@ -26,6 +26,26 @@ def test_float64_and_int64_paths_give_identical_outputs(seed, freqs, depth, wbit
     assert np.array_equal(net.forward(x, "float64"), net.forward(x, "int64"))
 
 
+@pytest.mark.parametrize("rows", [4095, 4096, 9001])
+def test_half_of_the_rows_on_a_pool_gives_the_same_outputs(rows):
+    """Blocks are 2,048 rows here: 4,095 rows run in one thread, 4,096 and 9,001 split."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    class CountingPool(ThreadPoolExecutor):
+        submitted = 0
+
+        def submit(self, *args, **kwargs):
+            self.submitted += 1
+            return super().submit(*args, **kwargs)
+
+    net = random_network(3, num_freqs=4, width=32, depth=3)
+    x = random_positions(rows, 5)
+    with CountingPool(1) as pool:
+        for path in ("float64", "int64"):
+            assert np.array_equal(net.forward(x, path, pool=pool), net.forward(x, path))
+    assert pool.submitted == (0 if rows < 4096 else 2)
+
+
 W23 = (1 << 23) - 1
 A30 = (1 << 30) - 1
 
