@@ -35,6 +35,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_common import document, emit  # noqa: E402
+from sh_band_skip import entropy_bits as bits_per_value  # noqa: E402
 
 import csgs_codec.chunks.color_streams as color_streams  # noqa: E402
 from csgs_codec.attributes.channel_coders import CODERS, TABLE_FROZEN  # noqa: E402
@@ -51,10 +52,7 @@ THRESHOLD_BITS = 16
 
 def entropy_bits(values: np.ndarray) -> float:
     """Order-0 entropy of ``values`` (1-D) times their count: ideal bits, 0 for fewer than 2."""
-    if values.size < 2:
-        return 0.0
-    _, counts = np.unique(values, return_counts=True)
-    return float(-(counts * np.log2(counts / counts.sum())).sum())
+    return values.size * bits_per_value(values)
 
 
 def captured_band_plans(scene, quality: int) -> tuple[int, list]:
