@@ -157,6 +157,26 @@ def test_ssim_numba_kernels_give_the_reference_value_and_gradient(shape):
     assert float((grad - ref_grad).norm() / ref_grad.norm()) < 1e-5
 
 
+@pytest.mark.parametrize("shape", [(96, 128, 3), (23, 40, 1), (11, 30, 3)])
+def test_ssim_written_out_gradient_gives_the_reference_value_and_gradient(shape, monkeypatch):
+    import csgs_codec.metrics.ssim as ssim_module
+
+    monkeypatch.setattr(ssim_module, "_numba_usable", lambda *args: False)  # as on a GPU
+    gen = torch.Generator().manual_seed(sum(shape))
+    target = torch.rand(shape, generator=gen, dtype=torch.float64)
+    image = (target + 0.1 * torch.randn(shape, generator=gen, dtype=torch.float64)).clamp(0, 1)
+    results = {}
+    for kernel in ("torch", "auto"):
+        rendered = image.clone().requires_grad_()
+        value = ssim(rendered, target, kernel=kernel)
+        assert (type(value.grad_fn).__name__ == "_AnalyticSSIMBackward") == (kernel == "auto")
+        value.backward()
+        results[kernel] = (float(value), rendered.grad)
+    (ref_value, ref_grad), (value, grad) = results["torch"], results["auto"]
+    assert value == pytest.approx(ref_value, abs=1e-12)
+    assert float((grad - ref_grad).norm() / ref_grad.norm()) < 1e-10
+
+
 def test_ssim_auto_kernel_leaves_a_target_that_needs_gradient_to_torch():
     gen = torch.Generator().manual_seed(2)
     a = torch.rand(20, 24, 3, generator=gen, requires_grad=True)
