@@ -5,8 +5,9 @@
 # and decode a synthetic scene with `csgs train --device cuda`. Wheels it needs beyond the
 # machine's own packages come from .whl/ (scripts/fetch_gpu_wheels.sh fills it; carry it).
 # Writes into $OUT (default /tmp/gpu_check): gpu.txt, gsplat_build.log, pytest_gpu.log,
-# train_speed_cuda*.json, gpu_util.csv, train_cli.log. Every step has its own time limit, so
-# the script ends within about 9 minutes whatever hangs. QUICK=1 leaves out the conformance
+# train_speed_cuda*.json (the 512x384 one with operators counted per step), gpu_util.csv,
+# train_cli.log. Every step has its own time limit, so the script ends within about 9
+# minutes whatever hangs. QUICK=1 leaves out the conformance
 # vectors and the `csgs train` run (a shorter check of speed and the training path).
 set -u
 cd "$(dirname "$0")/.."
@@ -43,7 +44,11 @@ smi=$!
 echo "-- stage 1, 512x384, ~20k slots, gsplat" >> "$OUT/gpu_util.csv"
 timeout 100 python3 benchmarks/train_speed.py --device cuda --rasterizer gsplat --steps 200 \
     --semantic-iterations 40 --profile-steps 20 --profile-out "$OUT/profile_512x384.txt" \
-    --out "$OUT/train_speed_cuda.json" 2>&1 | tail -1
+    --count-ops 5 --out "$OUT/train_speed_cuda.json" 2>&1 | tail -1
+echo "-- stage 1, 512x384, ~20k slots, gsplat, kept slots gathered" >> "$OUT/gpu_util.csv"
+timeout 60 python3 benchmarks/train_speed.py --device cuda --rasterizer gsplat --steps 100 \
+    --all-slots no --semantic-iterations 0 --out "$OUT/train_speed_cuda_kept.json" \
+    2>&1 | tail -1
 echo "-- stage 1, 1920x1080, ~500k slots, gsplat" >> "$OUT/gpu_util.csv"
 timeout 120 python3 benchmarks/train_speed.py --device cuda --rasterizer gsplat \
     --size 1920x1080 --anchors 50000 --offsets 10 --gaussians-per-object 20000 --views 8 \

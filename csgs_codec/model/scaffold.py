@@ -128,7 +128,7 @@ class ScaffoldMLPs(nn.Module):
         return table[index]
 
     def forward(self, features: torch.Tensor, view_dir: torch.Tensor, dist: torch.Tensor,
-                appearance_index: int | None = None
+                appearance_index: int | None = None, *, merge_first_layers: bool = False
                 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """Evaluate the heads for M anchors.
 
@@ -138,17 +138,37 @@ class ScaffoldMLPs(nn.Module):
             dist: [M, 1] anchor-camera distances, world units.
             appearance_index: training camera whose appearance vector the color head gets
                 (None: the mean vector); ignored without an appearance table.
+            merge_first_layers: where the three heads see the same input (the same distance
+                flag, no appearance table), run their first layers as one matrix product
+                (training on a GPU, bound by operator launches, takes this; the sums may
+                round differently, so decoding does not).
 
         Returns:
             opacity [M, K] in (-1, 1); cov [M, K, 7] (3 scale logits, 4 quaternion w,x,y,z);
             color [M, K, 3] RGB in (0, 1).
         """
         m, k = features.shape[0], self.n_offsets
-        with_dist = torch.cat([features, view_dir, dist], dim=1)
-        without = torch.cat([features, view_dir], dim=1)
-        opacity = self.opacity(with_dist if self.opacity_dist else without)
-        cov = self.cov(with_dist if self.cov_dist else without).reshape(m, k, 7)
-        color_in = with_dist if self.color_dist else without
+        inputs: dict[bool, torch.Tensor] = {}
+
+        def head_input(with_distance: bool) -> torch.Tensor:
+            if with_distance not in inputs:
+                parts = [features, view_dir, dist] if with_distance else [features, view_dir]
+                inputs[with_distance] = torch.cat(parts, dim=1)
+            return inputs[with_distance]
+
+        heads = (self.opacity, self.cov, self.color)
+        if (merge_first_layers and self.appearance is None
+                and self.opacity_dist == self.cov_dist == self.color_dist):
+            first = [head[0] for head in heads]
+            hidden = functional.relu(functional.linear(
+                head_input(self.opacity_dist), torch.cat([layer.weight for layer in first]),
+                torch.cat([layer.bias for layer in first])))
+            parts = hidden.split([layer.out_features for layer in first], dim=1)
+            opacity, cov, color = (head[2:](part) for head, part in zip(heads, parts))
+            return opacity, cov.reshape(m, k, 7), color.reshape(m, k, 3)
+        opacity = self.opacity(head_input(self.opacity_dist))
+        cov = self.cov(head_input(self.cov_dist)).reshape(m, k, 7)
+        color_in = head_input(self.color_dist)
         vector = self.appearance_vector(appearance_index)
         if vector is not None:
             color_in = torch.cat([color_in, vector.expand(m, -1)], dim=1)
@@ -163,56 +183,83 @@ class NeuralGaussians:
     Attributes:
         positions: [N, 3] world units.
         colors: [N, 3] RGB in (0, 1).
-        opacities: [N] in (0, 1).
-        scales: [N, 3] world units (activated).
+        opacities: [N] in [0, 1) (0 only for the hidden slots of an ``all_slots`` spawn).
         log_scales: [N, 3] natural-log scales.
-        rotations: [N, 4] unit quaternions (w, x, y, z).
+        rotations: [N, 4] quaternions (w, x, y, z), unit length except in an ``all_slots``
+            spawn, which leaves normalising to the rasterizer (both do it).
         anchor_index: [N] int64 anchor of each Gaussian.
         offset_index: [N] int64 offset slot k of each Gaussian.
         keep: [M * K] bool, which anchor-offset slots produced a Gaussian.
+        all_slots: True when N = M * K, every slot in order, those not kept with opacity 0
+            (see :func:`neural_gaussians`).
     """
 
     positions: torch.Tensor
     colors: torch.Tensor
     opacities: torch.Tensor
-    scales: torch.Tensor
     log_scales: torch.Tensor
     rotations: torch.Tensor
     anchor_index: torch.Tensor
     offset_index: torch.Tensor
     keep: torch.Tensor
+    all_slots: bool = False
+
+    @property
+    def scales(self) -> torch.Tensor:
+        """[N, 3] scales, world units (exp of ``log_scales``)."""
+        return torch.exp(self.log_scales)
 
 
 def neural_gaussians(mlps: ScaffoldMLPs, positions: torch.Tensor, features: torch.Tensor,
                      offsets: torch.Tensor, scaling: torch.Tensor, offset_mask: torch.Tensor,
-                     camera_center: torch.Tensor, appearance_index: int | None = None
-                     ) -> NeuralGaussians:
+                     camera_center: torch.Tensor, appearance_index: int | None = None, *,
+                     all_slots: bool = False) -> NeuralGaussians:
     """Spawn the neural Gaussians of M anchors seen from ``camera_center`` (Scaffold's rule).
 
     Args:
         positions [M, 3], features [M, F], offsets [M, K, 3], scaling [M, 6] (log),
         offset_mask [M, K] bool, camera_center [3]: world units.
+        all_slots: return every one of the M * K slots, those not kept with opacity 0 (a
+            rasterizer draws nothing of them and gives them no gradient), instead of
+            gathering the kept ones. The same image and gradients with neither a host
+            synchronisation (the count of kept slots) nor gathers and their scatters in the
+            backward pass: the form for a GPU, where a training step is bound by how many
+            operators it launches; the gathered form suits a CPU, whose rasterizer pays for
+            every Gaussian. Its rotations are not normalised (the rasterizers normalise) and
+            its heads run with ``merge_first_layers``.
 
     Returns:
-        the kept Gaussians (opacity > 0 and unmasked), anchor-major, offsets in order.
+        the kept Gaussians (opacity > 0 and unmasked), anchor-major, offsets in order (or
+        every slot, see ``all_slots``).
     """
     m, k = offsets.shape[0], offsets.shape[1]
     delta = positions - camera_center.reshape(1, 3)
     dist = delta.norm(dim=1, keepdim=True)
     view_dir = delta / dist.clamp_min(torch.finfo(delta.dtype).tiny)
-    opacity, cov, color = mlps(features, view_dir, dist, appearance_index)
+    opacity, cov, color = mlps(features, view_dir, dist, appearance_index,
+                               merge_first_layers=all_slots)
     opacity = opacity * offset_mask.to(opacity.dtype)
     keep = (opacity > 0).reshape(-1)
+    if all_slots:
+        slot = torch.arange(m * k, device=positions.device)
+        step = torch.exp(scaling[:, :3])
+        centers = positions[:, None, :] + offsets * step[:, None, :]
+        scale_logits, rotations = cov.split([3, 4], dim=-1)
+        log_scales = scaling[:, None, 3:] + functional.logsigmoid(scale_logits)
+        return NeuralGaussians(
+            positions=centers.reshape(m * k, 3), colors=color.reshape(m * k, 3),
+            opacities=opacity.clamp_min(0.0).reshape(-1),
+            log_scales=log_scales.reshape(m * k, 3), rotations=rotations.reshape(m * k, 4),
+            anchor_index=slot // k, offset_index=slot % k, keep=keep, all_slots=True)
     slots = torch.nonzero(keep).reshape(-1)
     anchor_index, offset_index = slots // k, slots % k
     cov = cov.reshape(m * k, 7)[slots]
-    step = torch.exp(scaling)[anchor_index]  # exp per anchor, then gathered per Gaussian
+    step = torch.exp(scaling[:, :3])[anchor_index]  # exp per anchor, gathered per Gaussian
     log_scales = scaling[anchor_index, 3:] + functional.logsigmoid(cov[:, :3])
-    centers = positions[anchor_index] + offsets.reshape(m * k, 3)[slots] * step[:, :3]
+    centers = positions[anchor_index] + offsets.reshape(m * k, 3)[slots] * step
     return NeuralGaussians(
         positions=centers, colors=color.reshape(m * k, 3)[slots],
-        opacities=opacity.reshape(-1)[slots], scales=step[:, 3:] * torch.sigmoid(cov[:, :3]),
-        log_scales=log_scales,
+        opacities=opacity.reshape(-1)[slots], log_scales=log_scales,
         rotations=functional.normalize(cov[:, 3:7], dim=1), anchor_index=anchor_index,
         offset_index=offset_index, keep=keep)
 

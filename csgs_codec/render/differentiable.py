@@ -19,6 +19,9 @@ from csgs_codec.scene.camera import Camera
 
 #: Names :func:`resolve_training_rasterizer` accepts.
 TRAINING_RASTERIZERS = ("auto", "torch", "gsplat")
+#: Opacities given as such are clamped into [eps, 1 - eps] before the logit the torch
+#: reference takes.
+OPACITY_EPS = 1e-6
 
 
 def resolve_training_rasterizer(requested: str, device: torch.device | str) -> str:
@@ -41,21 +44,32 @@ def resolve_training_rasterizer(requested: str, device: torch.device | str) -> s
 
 
 def rasterize_for_training(means: torch.Tensor, log_scales: torch.Tensor, quats: torch.Tensor,
-                           opacity_logits: torch.Tensor, camera: Camera, *,
-                           colors: torch.Tensor, rasterizer: str = "auto",
+                           opacity_logits: torch.Tensor | None, camera: Camera, *,
+                           colors: torch.Tensor, opacities: torch.Tensor | None = None,
+                           rasterizer: str = "auto",
                            background: tuple[float, float, float] | None = None,
                            near_plane: float = DEFAULT_NEAR_PLANE) -> RasterTensors:
     """Render [N] Gaussians with per-Gaussian ``colors`` [N, 3] through the rasterizer
     ``rasterizer`` names for their device (see :func:`resolve_training_rasterizer`).
 
+    Opacity comes as ``opacity_logits`` [N] (before the sigmoid) or as ``opacities`` [N] in
+    [0, 1] (then ``opacity_logits`` is None); gsplat takes the second as it is, the torch
+    reference takes the logit of it clamped into [:data:`OPACITY_EPS`, 1 - OPACITY_EPS].
+
     Returns:
         :class:`RasterTensors` (image [H, W, 3], alpha [H, W], depth [H, W]), differentiable
         with respect to every tensor argument, on the inputs' device.
     """
+    if (opacity_logits is None) == (opacities is None):
+        raise InputError("give exactly one of opacity_logits and opacities",
+                         property="opacities")
     if resolve_training_rasterizer(rasterizer, means.device) == "gsplat":
         return rasterize_gaussians_gsplat(means, log_scales, quats, opacity_logits, camera,
-                                          colors=colors, background=background,
-                                          near_plane=near_plane)
+                                          opacities=opacities, colors=colors,
+                                          background=background, near_plane=near_plane)
+    if opacity_logits is None:
+        clamped = opacities.clamp(OPACITY_EPS, 1.0 - OPACITY_EPS)
+        opacity_logits = torch.log(clamped) - torch.log1p(-clamped)
     # "auto": the numba compositor on CPU float32 (same images and gradients as the torch
     # reference to float32 rounding, several times faster), torch elsewhere.
     return rasterize_gaussians(means, log_scales, quats, opacity_logits, camera, colors=colors,

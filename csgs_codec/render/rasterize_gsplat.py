@@ -15,6 +15,7 @@ from __future__ import annotations
 import torch
 
 from csgs_codec.errors import InputError, UnsupportedError
+from csgs_codec.render.device_constants import background_tensor, camera_tensors
 from csgs_codec.render.projection import DEFAULT_NEAR_PLANE, LOW_PASS_VARIANCE
 from csgs_codec.render.rasterize_torch import RasterTensors
 from csgs_codec.render.render_output import RenderOutput
@@ -34,8 +35,9 @@ def gsplat_available() -> bool:
 
 
 def rasterize_gaussians_gsplat(means: torch.Tensor, log_scales: torch.Tensor,
-                               quats: torch.Tensor, opacity_logits: torch.Tensor,
-                               camera: Camera, *, sh: torch.Tensor | None = None,
+                               quats: torch.Tensor, opacity_logits: torch.Tensor | None,
+                               camera: Camera, *, opacities: torch.Tensor | None = None,
+                               sh: torch.Tensor | None = None,
                                colors: torch.Tensor | None = None,
                                features: torch.Tensor | None = None,
                                background: torch.Tensor | tuple[float, float, float] | None
@@ -62,20 +64,26 @@ def rasterize_gaussians_gsplat(means: torch.Tensor, log_scales: torch.Tensor,
 
     Raises:
         UnsupportedError: gsplat missing or the inputs not on a CUDA device.
-        InputError: both or neither of ``sh`` and ``colors``, or mis-shaped features.
+        InputError: both or neither of ``sh`` and ``colors`` (or of the two opacity forms),
+            or mis-shaped features.
     """
     if not means.is_cuda or not gsplat_available():
         raise UnsupportedError("the gsplat rasterizer needs CUDA tensors and gsplat installed")
     if (sh is None) == (colors is None):
         raise InputError("give exactly one of sh and colors", property="sh")
+    if (opacity_logits is None) == (opacities is None):
+        raise InputError("give exactly one of opacity_logits and opacities",
+                         property="opacities")
+    if opacities is None:
+        opacities = torch.sigmoid(opacity_logits.to(torch.float32))
     from gsplat import rasterization
 
     device, n = means.device, means.shape[0]
     means = means.to(torch.float32)
-    w2c = torch.as_tensor(camera.world_to_camera, dtype=torch.float32, device=device)
+    matrices = camera_tensors(camera, device)
+    w2c, intrinsics = matrices.world_to_camera, matrices.intrinsics
     if sh is not None:
-        centre = -w2c[:3, :3].T @ w2c[:3, 3]
-        colors = sh_to_color(sh.to(torch.float32), means - centre)
+        colors = sh_to_color(sh.to(torch.float32), means - matrices.position)
     channels = [colors.to(torch.float32)]
     if features is not None:
         if features.ndim != 2 or features.shape[0] != n:
@@ -83,16 +91,13 @@ def rasterize_gaussians_gsplat(means: torch.Tensor, log_scales: torch.Tensor,
                              property="features")
         channels.append(features.to(torch.float32))
     values = torch.cat(channels, dim=1) if len(channels) > 1 else channels[0]
-    intrinsics = torch.tensor([[camera.fx, 0.0, camera.cx], [0.0, camera.fy, camera.cy],
-                               [0.0, 0.0, 1.0]], dtype=torch.float32, device=device)
     rendered, alphas, _ = rasterization(
         means, quats.to(torch.float32), torch.exp(log_scales.to(torch.float32)),
-        torch.sigmoid(opacity_logits.to(torch.float32)), values, w2c[None], intrinsics[None],
+        opacities.to(torch.float32), values, w2c[None], intrinsics[None],
         camera.width, camera.height, near_plane=near_plane, eps2d=LOW_PASS_VARIANCE,
         sh_degree=None, render_mode="RGB+ED", rasterize_mode="classic", packed=False)
     rendered, alpha = rendered[0], alphas[0, ..., 0]
-    bg = (torch.zeros(3, dtype=torch.float32, device=device) if background is None
-          else torch.as_tensor(background, dtype=torch.float32, device=device))
+    bg = background_tensor(background, device)
     image = rendered[..., :3] + (1.0 - alpha)[..., None] * bg
     depth = torch.where(alpha > 0, rendered[..., -1], torch.zeros_like(alpha))
     feats = rendered[..., 3:-1] if features is not None else None

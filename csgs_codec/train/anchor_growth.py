@@ -83,13 +83,16 @@ class GrowthStats:
     def record(self, gaussians: NeuralGaussians, camera: Camera, n_offsets: int,
                seen: np.ndarray) -> None:
         """Add one view: ``gaussians.positions.grad`` must hold dL/d(centre) (N, 3);
-        ``seen`` (M,) bool anchors inside the view."""
+        ``seen`` (M,) bool anchors inside the view. Spawned with every slot or only the kept
+        ones, the same view adds the same statistics."""
         with torch.no_grad():
             device = self.visits.device
             grad = gaussians.positions.grad
             anchors = gaussians.anchor_index.to(device)
             slots = anchors * n_offsets + gaussians.offset_index.to(device)
             visible = torch.as_tensor(np.asarray(seen, bool), device=device)[anchors]
+            if gaussians.all_slots:  # only the slots that produced a Gaussian count
+                visible &= gaussians.keep.to(device)
             if grad is not None and bool(visible.any()):
                 positions = gaussians.positions.detach().to(device).double()
                 w2c = torch.as_tensor(camera.world_to_camera, device=device)

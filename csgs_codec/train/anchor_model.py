@@ -20,7 +20,11 @@ from torch import nn
 
 from csgs_codec.errors import InputError
 from csgs_codec.model.scaffold import NeuralGaussians, ScaffoldMLPs, neural_gaussians
-from csgs_codec.render.differentiable import rasterize_for_training
+from csgs_codec.render.device_constants import camera_tensors
+from csgs_codec.render.differentiable import (
+    rasterize_for_training,
+    resolve_training_rasterizer,
+)
 from csgs_codec.render.rasterize_torch import RasterTensors
 from csgs_codec.scene.anchor_scene import AnchorScene
 from csgs_codec.scene.camera import Camera
@@ -31,8 +35,6 @@ MASK_THRESHOLD = 0.01
 INITIAL_MASK_LOGIT = 1.0
 #: Initial offsets are uniform in +-this (units of exp(scaling[:3]), i.e. voxels).
 INITIAL_OFFSET_SPREAD = 0.5
-#: Opacities are clamped into [eps, 1 - eps] before the logit the rasterizer takes.
-OPACITY_EPS = 1e-6
 #: Seeded initial values (MLP weights, offsets) are drawn here, then moved to the model's
 #: device: a seed gives the same starting anchors on every device, and the offset generator's
 #: state, which checkpoints keep, carries over between devices.
@@ -144,38 +146,47 @@ class AnchorModel(nn.Module):
         return {"features": self.features, "offsets": self.offsets, "scaling": self.scaling,
                 "mask_logits": self.mask_logits}
 
-    def mask(self) -> torch.Tensor:
-        """(M, K) float {0, 1} kept slots, straight-through gradient to the probabilities."""
-        soft = torch.sigmoid(self.mask_logits)
+    def mask(self, probabilities: torch.Tensor | None = None) -> torch.Tensor:
+        """(M, K) float {0, 1} kept slots, straight-through gradient to the probabilities
+        (``sigmoid(mask_logits)``, computed here unless given)."""
+        soft = torch.sigmoid(self.mask_logits) if probabilities is None else probabilities
         hard = (soft > MASK_THRESHOLD).to(soft.dtype)
         return hard + soft - soft.detach()
 
-    def spawn(self, camera: Camera, values: dict[str, torch.Tensor] | None = None
-              ) -> NeuralGaussians:
+    def spawn(self, camera: Camera, values: dict[str, torch.Tensor] | None = None, *,
+              mask: torch.Tensor | None = None, all_slots: bool = False) -> NeuralGaussians:
         """The neural Gaussians ``camera`` sees, from ``values`` (default: the parameters;
-        stage 1 passes noisy copies of features, offsets and scaling)."""
+        stage 1 passes noisy copies of features, offsets and scaling) and ``mask`` (default
+        :meth:`mask`); ``all_slots``: see :func:`csgs_codec.model.scaffold.neural_gaussians`."""
         v = values or {}
-        centre = torch.as_tensor(camera.position, dtype=self.positions.dtype,
-                                 device=self.positions.device)
+        centre = camera_tensors(camera, self.positions.device).position.to(
+            self.positions.dtype)
         return neural_gaussians(self.mlps, self.positions, v.get("features", self.features),
                                 v.get("offsets", self.offsets), v.get("scaling", self.scaling),
-                                self.mask(), centre)
+                                self.mask() if mask is None else mask, centre,
+                                all_slots=all_slots)
 
     def render(self, camera: Camera, values: dict[str, torch.Tensor] | None = None,
                background: tuple[float, float, float] | None = None,
-               rasterizer: str = "auto") -> tuple[RasterTensors, NeuralGaussians]:
+               rasterizer: str = "auto", *, mask: torch.Tensor | None = None,
+               all_slots: bool | None = None) -> tuple[RasterTensors, NeuralGaussians]:
         """Render ``camera``'s view differentiably through ``rasterizer`` (see
         :func:`csgs_codec.render.differentiable.resolve_training_rasterizer`).
+
+        ``mask``: as for :meth:`spawn`. ``all_slots``: spawn every slot (see
+        :func:`csgs_codec.model.scaffold.neural_gaussians`); None: when the rasterizer is
+        gsplat, whose step is bound by operator launches, not by Gaussians.
 
         Returns:
             (maps: image [H, W, 3], alpha [H, W], depth [H, W]; the N neural Gaussians).
         """
-        g = self.spawn(camera, values)
-        opacity = g.opacities.clamp(OPACITY_EPS, 1.0 - OPACITY_EPS)
-        logits = torch.log(opacity) - torch.log1p(-opacity)
-        out = rasterize_for_training(g.positions, g.log_scales, g.rotations, logits, camera,
-                                     colors=g.colors, background=background,
-                                     rasterizer=rasterizer)
+        if all_slots is None:
+            all_slots = resolve_training_rasterizer(rasterizer,
+                                                    self.positions.device) == "gsplat"
+        g = self.spawn(camera, values, mask=mask, all_slots=all_slots)
+        out = rasterize_for_training(g.positions, g.log_scales, g.rotations, None, camera,
+                                     opacities=g.opacities, colors=g.colors,
+                                     background=background, rasterizer=rasterizer)
         return out, g
 
     def slot_positions(self) -> torch.Tensor:

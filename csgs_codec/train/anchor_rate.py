@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 from torch import nn
+from torch.nn import functional
 
 from csgs_codec.entropy.anchor_attributes import group_bounds
 from csgs_codec.model.intnet_export import float_embedding
@@ -34,17 +35,22 @@ class RateEstimate:
     """Estimated bits of one step.
 
     Attributes:
-        bits: attribute name -> scalar tensor, summed bits over all anchors.
+        by_attribute: (3,) summed bits over all anchors of each of :data:`ATTRIBUTES`.
         parameters: number of coded values the bits are spread over (masked offsets count 0).
     """
 
-    bits: dict[str, torch.Tensor]
+    by_attribute: torch.Tensor
     parameters: torch.Tensor
+
+    @property
+    def bits(self) -> dict[str, torch.Tensor]:
+        """Attribute name -> its summed bits (scalar tensor)."""
+        return dict(zip(ATTRIBUTES, self.by_attribute.unbind()))
 
     @property
     def total(self) -> torch.Tensor:
         """Summed bits of every attribute."""
-        return sum(self.bits.values())
+        return self.by_attribute.sum()
 
     @property
     def bits_per_parameter(self) -> torch.Tensor:
@@ -65,6 +71,15 @@ def cell_embedding(cells: torch.Tensor) -> torch.Tensor:
 class AnchorRateModel(nn.Module):
     """The INR hyperprior and CARM of stage 1 (module notes).
 
+    The hyperprior's output is [mean of every coded column | log sigma of every column],
+    columns in :data:`ATTRIBUTES` order (F features, 3K offsets, 6 scaling: W in all). The
+    CARM's G - 1 networks (one per feature group g >= 1: Linear(start_g, hidden // 2), ReLU,
+    Linear(hidden // 2, 2 width_g)) are held as one masked network over all F features whose
+    output adds to that row, so a step runs two matrix products for them instead of two per
+    group: block g of the first layer sees only the features before group g, and its outputs
+    reach only group g's columns (the masks keep the other weights at zero and without
+    gradient). Training on a GPU is bound by how many operators a step launches.
+
     Args:
         feat_dim: F; n_offsets: K; groups: CARM feature groups (1: none).
         steps: attribute name -> quantization step, value units.
@@ -78,16 +93,41 @@ class AnchorRateModel(nn.Module):
         super().__init__()
         self.widths = {"features": feat_dim, "offsets": 3 * n_offsets, "scaling": 6}
         self.steps = {name: float(steps[name]) for name in ATTRIBUTES}
+        width = sum(self.widths.values())
         in_width = 6 * EMBEDDING_OCTAVES
-        out = 2 * sum(self.widths.values())
         self.hyper = nn.Sequential(nn.Linear(in_width, hidden, device=device), nn.ReLU(),
                                    nn.Linear(hidden, hidden, device=device), nn.ReLU(),
-                                   nn.Linear(hidden, out, device=device))
+                                   nn.Linear(hidden, 2 * width, device=device))
         self.bounds = group_bounds(feat_dim, max(1, min(groups, feat_dim)))
-        self.carm = nn.ModuleList(
-            nn.Sequential(nn.Linear(start, hidden // 2, device=device), nn.ReLU(),
-                          nn.Linear(hidden // 2, 2 * (end - start), device=device))
-            for start, end in self.bounds[1:])
+        # Drawn as separate per-group layers (the initial values of a network per group),
+        # then laid out as blocks of the masked network.
+        nets = [(nn.Linear(start, hidden // 2, device=device),
+                 nn.Linear(hidden // 2, 2 * (end - start), device=device))
+                for start, end in self.bounds[1:]]
+        blocks, half = len(nets), hidden // 2
+        first = torch.zeros(blocks * half, feat_dim, device=device)
+        first_bias = torch.zeros(blocks * half, device=device)
+        second = torch.zeros(2 * width, blocks * half, device=device)
+        second_bias = torch.zeros(2 * width, device=device)
+        with torch.no_grad():
+            for g, ((start, end), (inner, outer)) in enumerate(zip(self.bounds[1:], nets)):
+                rows, group = slice(g * half, (g + 1) * half), end - start
+                first[rows, :start] = inner.weight
+                first_bias[rows] = inner.bias
+                for part, at in ((slice(0, group), start), (slice(group, 2 * group),
+                                                            width + start)):
+                    second[at:at + group, rows] = outer.weight[part]
+                    second_bias[at:at + group] = outer.bias[part]
+        self.carm_first = nn.Parameter(first)
+        self.carm_first_bias = nn.Parameter(first_bias)
+        self.carm_second = nn.Parameter(second)
+        self.carm_second_bias = nn.Parameter(second_bias)
+        second_mask = _block_mask(second, self.bounds, half, width)
+        self.register_buffer("carm_first_mask", _first_mask(first, self.bounds, half),
+                             persistent=False)
+        self.register_buffer("carm_second_mask", second_mask, persistent=False)
+        self.register_buffer("carm_second_bias_mask", second_mask.sum(dim=1).clamp(max=1.0),
+                             persistent=False)
 
     def _embedding(self, cells: torch.Tensor) -> torch.Tensor:
         cached = getattr(self, "_cached", None)
@@ -99,6 +139,21 @@ class AnchorRateModel(nn.Module):
                                                  - emb.shape[1])], dim=1)
         self._cached = (cells, emb)
         return emb
+
+    def entropy_parameters(self, cells: torch.Tensor, features: torch.Tensor
+                           ) -> tuple[torch.Tensor, torch.Tensor]:
+        """(mean, log sigma), each (M, W) over the coded columns (class notes): the
+        hyperprior's prediction from ``cells`` ((M, 3) int64) refined by the CARM over the
+        (noisy) ``features`` (M, F)."""
+        params = self.hyper(self._embedding(cells).to(features.device, features.dtype))
+        if len(self.bounds) > 1:
+            hidden = functional.relu(functional.linear(
+                features, self.carm_first * self.carm_first_mask, self.carm_first_bias))
+            params = params + functional.linear(
+                hidden, self.carm_second * self.carm_second_mask,
+                self.carm_second_bias * self.carm_second_bias_mask)
+        mean, log_sigma = params.unflatten(1, (2, -1)).unbind(1)
+        return mean, log_sigma
 
     def estimate(self, cells: torch.Tensor, noisy: dict[str, torch.Tensor],
                  mask: torch.Tensor) -> RateEstimate:
@@ -115,55 +170,68 @@ class AnchorRateModel(nn.Module):
         """
         m = cells.shape[0]
         features = noisy["features"]
-        params = self.hyper(self._embedding(cells).to(features.device, features.dtype))
-        # One bin-probability pass over every attribute's columns side by side: a third of
-        # the kernels (and of the backward's) of one pass per attribute.
-        values, means, log_sigmas, at = [], [], [], 0
-        for name in ATTRIBUTES:
-            width = self.widths[name]
-            mean = params[:, at:at + width]
-            log_sigma = params[:, at + width:at + 2 * width]
-            at += 2 * width
-            value = noisy[name].reshape(m, width)
-            if name == "features":
-                mean, log_sigma = self._carm(value, mean, log_sigma)
-            values.append(value)
-            means.append(mean)
-            log_sigmas.append(log_sigma)
-        step = self._step_row(features)
-        per_value = gaussian_rate_bits(torch.cat(values, dim=1), torch.cat(means, dim=1),
-                                       torch.exp(torch.cat(log_sigmas, dim=1)) * step, step)
-        bits, at = {}, 0
-        for name in ATTRIBUTES:
-            width = self.widths[name]
-            columns = per_value[:, at:at + width]
-            if name == "offsets":
-                columns = columns * mask.repeat_interleave(3, dim=1)
-            bits[name] = columns.sum()
-            at += width
+        mean, log_sigma = self.entropy_parameters(cells, features)
+        values = torch.cat([noisy[name].reshape(m, self.widths[name]) for name in ATTRIBUTES],
+                           dim=1)
+        step, selector = self._column_constants(features)
+        per_value = gaussian_rate_bits(values, mean, torch.exp(log_sigma) * step, step)
+        # Offsets of masked slots cost nothing: every column weighted (1 for features and
+        # scaling, the slot's mask for its three offsets), summed per column, then per
+        # attribute by the 0/1 selector (W, 3).
+        ones = self._ones(features, m)
+        weights = torch.cat([ones[:, :self.widths["features"]],
+                             mask[:, :, None].expand(-1, -1, 3).reshape(m, -1),
+                             ones[:, self.widths["features"]:]], dim=1)
+        bits = (per_value * weights).sum(dim=0) @ selector
         # The count is a normaliser, not a target: a gradient through the straight-through
         # mask here would push cheap slots on.
         coded = (m * (self.widths["features"] + self.widths["scaling"])
-                 + 3 * mask.sum()).detach()
+                 + 3 * mask.detach().sum())
         return RateEstimate(bits, coded)
 
-    def _step_row(self, like: torch.Tensor) -> torch.Tensor:
-        """(1, F + 3K + 6) quantization step of every coded column, on ``like``'s device and
-        dtype (made once per device and dtype)."""
-        cached = getattr(self, "_steps_cached", None)
-        if cached is None or cached.device != like.device or cached.dtype != like.dtype:
-            cached = torch.cat([torch.full((self.widths[name],), self.steps[name],
-                                           dtype=like.dtype, device=like.device)
-                                for name in ATTRIBUTES])[None, :]
-            self._steps_cached = cached
+    def _ones(self, like: torch.Tensor, m: int) -> torch.Tensor:
+        """(m, F + 6) ones on ``like``'s device and dtype (made once per shape)."""
+        cached = getattr(self, "_ones_cached", None)
+        width = self.widths["features"] + self.widths["scaling"]
+        if (cached is None or cached.shape != (m, width) or cached.device != like.device
+                or cached.dtype != like.dtype):
+            cached = torch.ones((m, width), dtype=like.dtype, device=like.device)
+            self._ones_cached = cached
         return cached
 
-    def _carm(self, values: torch.Tensor, mean: torch.Tensor, log_sigma: torch.Tensor
-              ) -> tuple[torch.Tensor, torch.Tensor]:
-        means, sigmas = [mean[:, :self.bounds[0][1]]], [log_sigma[:, :self.bounds[0][1]]]
-        for net, (start, end) in zip(self.carm, self.bounds[1:]):
-            delta = net(values[:, :start])
-            width = end - start
-            means.append(mean[:, start:end] + delta[:, :width])
-            sigmas.append(log_sigma[:, start:end] + delta[:, width:])
-        return torch.cat(means, dim=1), torch.cat(sigmas, dim=1)
+    def _column_constants(self, like: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(1, W) quantization step of every coded column and the (W, 3) 0/1 matrix that
+        sums columns per attribute, on ``like``'s device and dtype (made once per device
+        and dtype)."""
+        cached = getattr(self, "_columns_cached", None)
+        if cached is None or cached[0].device != like.device or cached[0].dtype != like.dtype:
+            step = torch.cat([torch.full((self.widths[name],), self.steps[name],
+                                         dtype=like.dtype, device=like.device)
+                              for name in ATTRIBUTES])[None, :]
+            selector = torch.block_diag(*[torch.ones((self.widths[name], 1), dtype=like.dtype,
+                                                     device=like.device)
+                                          for name in ATTRIBUTES])
+            cached = (step, selector)
+            self._columns_cached = cached
+        return cached
+
+
+def _first_mask(first: torch.Tensor, bounds: list[tuple[int, int]], half: int
+                ) -> torch.Tensor:
+    """1 where the masked CARM's first layer may have weights: block g (rows g*half ..) sees
+    the features before group g + 1."""
+    mask = torch.zeros_like(first)
+    for g, (start, _end) in enumerate(bounds[1:]):
+        mask[g * half:(g + 1) * half, :start] = 1.0
+    return mask
+
+
+def _block_mask(second: torch.Tensor, bounds: list[tuple[int, int]], half: int, width: int
+                ) -> torch.Tensor:
+    """1 where the masked CARM's second layer may have weights: group g's mean and log-sigma
+    rows (columns start..end of each half of the output) see only hidden block g."""
+    mask = torch.zeros_like(second)
+    for g, (start, end) in enumerate(bounds[1:]):
+        for at in (start, width + start):
+            mask[at:at + end - start, g * half:(g + 1) * half] = 1.0
+    return mask

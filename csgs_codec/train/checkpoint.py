@@ -26,7 +26,10 @@ from csgs_codec.train.anchor_rate import AnchorRateModel
 from csgs_codec.train.color_stage import ColorStageSettings, ColorStageState, make_optimizers
 
 #: Format tag stored in every checkpoint.
-CHECKPOINT_FORMAT = "csgs-train-checkpoint/2"
+CHECKPOINT_FORMAT = "csgs-train-checkpoint/3"
+#: Earlier formats, named in the error that refuses them (/3 holds the rate model's CARM as
+#: one masked network).
+EARLIER_FORMATS = ("csgs-train-checkpoint/1", "csgs-train-checkpoint/2")
 
 
 def save_checkpoint(state: ColorStageState, path: str | Path) -> None:
@@ -81,6 +84,10 @@ def load_checkpoint(path: str | Path, device: str | None = None) -> ColorStageSt
     except Exception as error:  # torch raises many kinds for a damaged or foreign file
         raise InputError(f"not a readable checkpoint: {type(error).__name__}",
                          file=path) from None
+    if isinstance(document, dict) and document.get("format") in EARLIER_FORMATS:
+        raise InputError(f"a {document['format']} checkpoint from an earlier version; this "
+                         f"version continues {CHECKPOINT_FORMAT} only: start the stage again",
+                         file=path)
     if not isinstance(document, dict) or document.get("format") != CHECKPOINT_FORMAT:
         raise InputError(f"not a {CHECKPOINT_FORMAT} file", file=path)
     try:

@@ -88,6 +88,9 @@ class ColorStageSettings:
         background: RGB behind the scene, as in the training images.
         rasterizer: "auto" (gsplat on CUDA when installed, else the torch reference), "torch"
             or "gsplat" (see :mod:`csgs_codec.render.differentiable`).
+        all_slots: render every anchor slot, hidden ones at opacity 0, instead of gathering
+            the kept ones (see :func:`csgs_codec.model.scaffold.neural_gaussians`): the same
+            step in fewer operators and no host synchronisation. None: with gsplat.
     """
 
     iterations: int = defaults.ITERATIONS
@@ -116,6 +119,7 @@ class ColorStageSettings:
     background: tuple[float, float, float] = (0.0, 0.0, 0.0)
     threads: int = defaults.THREADS
     rasterizer: str = "auto"
+    all_slots: bool | None = None
 
     def validate(self) -> None:
         """Raise InputError naming the first setting out of range."""
@@ -142,6 +146,7 @@ class ColorStageSettings:
             ("seed", 0 <= self.seed < 2**63),
             ("device", self.device in ("cpu", "cuda") or self.device.startswith("cuda:")),
             ("rasterizer", self.rasterizer in TRAINING_RASTERIZERS),
+            ("all_slots", self.all_slots in (None, True, False)),
             ("learning_rates", set(self.learning_rates) == set(LEARNING_RATE_GROUPS)
              and all(math.isfinite(v) and v > 0 for v in self.learning_rates.values())),
         ]
@@ -302,11 +307,26 @@ def _next_view(state: ColorStageState, count: int) -> int:
     return state.order.pop()
 
 
+def _growth_window(settings: ColorStageSettings) -> tuple[int, int, int]:
+    """(start, end, every): growth rounds run after steps t with start < t <= end and
+    t % every == 0."""
+    every = settings.growth_every or max(settings.iterations // 10, 1)
+    return (int(settings.growth_start * settings.iterations),
+            int(settings.growth_end * settings.iterations), every)
+
+
 def _growth_due(state: ColorStageState) -> bool:
-    s = state.settings
-    every = s.growth_every or max(s.iterations // 10, 1)
-    start, end = int(s.growth_start * s.iterations), int(s.growth_end * s.iterations)
+    start, end, every = _growth_window(state.settings)
     return start < state.step <= end and state.step % every == 0
+
+
+def _growth_ahead(state: ColorStageState) -> bool:
+    """Whether a growth round follows the step ``state.step`` is about to count (after the
+    last round the growth statistics are not needed, and gathering them costs a step
+    several copies to the CPU)."""
+    start, end, every = _growth_window(state.settings)
+    last = end - end % every
+    return last > start and state.step + 1 <= last
 
 
 def train_color_stage(views: list[TrainingView], state: ColorStageState, *,
@@ -368,28 +388,37 @@ def _train_steps(views: list[TrainingView], state: ColorStageState,
             noisy = {name: add_quantization_noise(getattr(model, name), steps[name],
                                                   generator=state.noise_generator)
                      for name in steps}
-        out, gaussians = model.render(camera, noisy, s.background, s.rasterizer)
-        gaussians.positions.retain_grad()
+        probabilities = torch.sigmoid(model.mask_logits)
+        mask = model.mask(probabilities)
+        out, gaussians = model.render(camera, noisy, s.background, s.rasterizer, mask=mask,
+                                      all_slots=s.all_slots)
+        record = _growth_ahead(state)
+        if record:
+            gaussians.positions.retain_grad()
         loss = photometric_loss(out.image, targets[index], s.ssim_weight)
-        bits_per_parameter = torch.zeros((), dtype=torch.float64, device=loss.device)
+        bits_per_parameter = None
         if with_rate and s.rate_weight > 0:
-            estimate = rate_model.estimate(model.cells, noisy, model.mask())
-            mask_loss = torch.sigmoid(model.mask_logits).mean()
+            estimate = rate_model.estimate(model.cells, noisy, mask)
             loss = loss + s.rate_weight * (estimate.bits_per_parameter
-                                           + s.mask_weight * mask_loss)
+                                           + s.mask_weight * probabilities.mean())
             bits_per_parameter = estimate.bits_per_parameter.detach()
         if not loss.requires_grad:  # the view sees no Gaussian: nothing to learn from it
             state.step += 1
             continue
-        finite = bool(torch.isfinite(loss))
-        if finite:
-            loss.backward()
-            parameters = [p for g in state.anchor_optimizer.param_groups for p in g["params"]]
-            parameters += [p for g in state.shared_optimizer.param_groups
-                           for p in g["params"]]
-            norm = torch.nn.utils.clip_grad_norm_(parameters, s.grad_clip)
-            finite = bool(torch.isfinite(norm))
-        if not finite:  # skip the step: nothing is applied
+        loss.backward()
+        parameters = [p for g in state.anchor_optimizer.param_groups for p in g["params"]]
+        parameters += [p for g in state.shared_optimizer.param_groups for p in g["params"]]
+        norm = torch.nn.utils.clip_grad_norm_(parameters, s.grad_clip)
+        with torch.no_grad():  # on the device: the step's scalars cross to the host in one copy
+            error = (out.image.detach().clamp(0, 1) - targets[index]).square().mean()
+            scalars = [loss.detach(), norm.to(loss.dtype), error]
+            if bits_per_parameter is not None:
+                scalars.append(bits_per_parameter.to(loss.dtype))
+            scalars = torch.stack(scalars).double().tolist()
+        loss_value, norm_value, mse = scalars[:3]
+        bits_per_parameter = scalars[3] if len(scalars) > 3 else 0.0
+        if not (math.isfinite(loss_value) and math.isfinite(norm_value)):
+            # Skip the step: nothing is applied (the gradients are dropped next step).
             state.bad_run += 1
             state.skipped_steps += 1
             if state.bad_run >= MAX_BAD_STEPS:
@@ -401,16 +430,12 @@ def _train_steps(views: list[TrainingView], state: ColorStageState,
         state.bad_run = 0
         state.anchor_optimizer.step()
         state.shared_optimizer.step()
-        if index not in seen_cache:
-            seen_cache[index] = view_counts(model.positions.cpu().numpy(), [camera]) > 0
-        state.stats.record(gaussians, camera, model.n_offsets, seen_cache[index])
+        if record:
+            if index not in seen_cache:
+                seen_cache[index] = view_counts(model.positions.cpu().numpy(), [camera]) > 0
+            state.stats.record(gaussians, camera, model.n_offsets, seen_cache[index])
         state.step += 1
-        with torch.no_grad():  # on the device: three scalars cross to the host in one copy
-            error = (out.image.detach().clamp(0, 1).double() - targets[index].double()).square()
-            scalars = torch.stack([loss.detach().double(), error.mean(),
-                                   bits_per_parameter.double()]).tolist()
-        loss_value, bits_per_parameter = scalars[0], scalars[2]
-        quality = psnr_from_mse(scalars[1])
+        quality = psnr_from_mse(mse)
         for key, value in (("loss", loss_value), ("psnr", quality),
                            ("bits_per_parameter", bits_per_parameter),
                            ("anchors", float(model.count))):

@@ -52,11 +52,63 @@ def add_quantization_noise(values: torch.Tensor, step: float | torch.Tensor = 1.
     """
     noise = torch.rand(values.shape, generator=generator, dtype=values.dtype,
                        device=values.device) - 0.5
+    if isinstance(step, (int, float)):  # one fused multiply-add
+        return torch.add(values, noise, alpha=step)
     return values + noise * step
 
 
-def _normal_cdf(z: torch.Tensor) -> torch.Tensor:
-    return 0.5 * torch.special.erfc(-z / math.sqrt(2.0))
+def _clamped_bin_mass(values: torch.Tensor, mean: torch.Tensor, sigma: torch.Tensor,
+                      step: torch.Tensor) -> tuple[torch.Tensor, ...]:
+    """2 x the clamped bin mass, erfc(a) - erfc(b) with a, b = (|x - mu| -+ q/2) /
+    (sigma sqrt 2) (i.e. 2 (Phi((q/2 - d) / sigma) - Phi((-q/2 - d) / sigma))), and what
+    its gradient needs: (mass, clamped sigma, x - mu, a, b)."""
+    clamped = torch.clamp(sigma, SIGMA_MIN * step, SIGMA_MAX * step)
+    difference = values - mean
+    distance = torch.abs(difference)
+    half = 0.5 * step
+    inverse = torch.reciprocal(clamped * math.sqrt(2.0))
+    a = (distance - half) * inverse
+    b = (distance + half) * inverse
+    mass = torch.clamp(torch.special.erfc(a) - torch.special.erfc(b),
+                       min=2.0 * MIN_PROBABILITY)
+    return mass, clamped, difference, a, b
+
+
+class _RateBits(torch.autograd.Function):
+    """:func:`gaussian_rate_bits` with its gradient written out rather than recorded: a
+    third fewer operators a step, which is what a GPU's training step waits on. With
+    m = erfc(a) - erfc(b) and g = -dL/dbits * 2 / (sqrt(pi) ln 2 m) (0 where m is clamped):
+    dL/dx = g (e^-b^2 - e^-a^2) / (sigma sqrt 2) sign(x - mu), dL/dmu = -dL/dx,
+    dL/dsigma = g (a e^-a^2 - b e^-b^2) / sigma inside the sigma clamp, 0 outside."""
+
+    @staticmethod
+    def forward(ctx, values, mean, sigma, step):
+        mass, clamped, difference, a, b = _clamped_bin_mass(values, mean, sigma, step)
+        ctx.save_for_backward(mass, clamped, difference, a, b, sigma)
+        ctx.shapes = (values.shape, mean.shape, sigma.shape)
+        return 1.0 - torch.log2(mass)
+
+    @staticmethod
+    def backward(ctx, grad):
+        mass, clamped, difference, a, b, sigma = ctx.saved_tensors
+        scale = grad * (-2.0 / (math.sqrt(math.pi) * math.log(2.0))) / mass
+        g = torch.where(mass > 2.0 * MIN_PROBABILITY, scale, 0.0)
+        exp_a = torch.exp(-(a * a))
+        exp_b = torch.exp(-(b * b))
+        inverse = torch.reciprocal(clamped)
+        grad_values = grad_mean = grad_sigma = None
+        if ctx.needs_input_grad[0] or ctx.needs_input_grad[1]:
+            slope = g * (exp_b - exp_a) * inverse * (1.0 / math.sqrt(2.0))
+            slope = slope * torch.sign(difference)
+            if ctx.needs_input_grad[0]:
+                grad_values = slope.sum_to_size(ctx.shapes[0])
+            if ctx.needs_input_grad[1]:
+                grad_mean = -slope.sum_to_size(ctx.shapes[1])
+        if ctx.needs_input_grad[2]:
+            grad_sigma = torch.where(clamped == sigma,
+                                     g * (a * exp_a - b * exp_b) * inverse, 0.0)
+            grad_sigma = grad_sigma.sum_to_size(ctx.shapes[2])
+        return grad_values, grad_mean, grad_sigma, None
 
 
 def gaussian_bin_probability(values: torch.Tensor, mean: torch.Tensor, sigma: torch.Tensor,
@@ -71,18 +123,17 @@ def gaussian_bin_probability(values: torch.Tensor, mean: torch.Tensor, sigma: to
         the mean where the CDF has full relative precision (|x - mu| mirrored below the mean).
     """
     step = torch.as_tensor(step, dtype=values.dtype, device=values.device)
-    sigma = torch.minimum(torch.maximum(sigma, SIGMA_MIN * step), SIGMA_MAX * step)
-    distance = torch.abs(values - mean)
-    upper = _normal_cdf((0.5 * step - distance) / sigma)
-    lower = _normal_cdf((-0.5 * step - distance) / sigma)
-    return torch.clamp(upper - lower, min=MIN_PROBABILITY)
+    return 0.5 * _clamped_bin_mass(values, mean, sigma, step)[0]
 
 
 def gaussian_rate_bits(values: torch.Tensor, mean: torch.Tensor, sigma: torch.Tensor,
                        step: torch.Tensor | float) -> torch.Tensor:
     """Bits of each value under N(mean, sigma) quantized with ``step``: -log2 of
     :func:`gaussian_bin_probability`, the broadcast shape; differentiable in every input."""
-    return -torch.log2(gaussian_bin_probability(values, mean, sigma, step))
+    step = torch.as_tensor(step, dtype=values.dtype, device=values.device)
+    if step.requires_grad:  # the written-out gradient has none for the step
+        return 1.0 - torch.log2(_clamped_bin_mass(values, mean, sigma, step)[0])
+    return _RateBits.apply(values, mean, sigma, step)
 
 
 def quality_aware_weights(color_steps: torch.Tensor | np.ndarray,

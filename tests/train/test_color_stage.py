@@ -99,6 +99,14 @@ def test_damaged_or_foreign_checkpoints_are_refused_naming_the_file(tmp_path):
         assert path.name in str(error.value)
 
 
+def test_a_checkpoint_of_an_earlier_format_is_refused_saying_so(tmp_path):
+    old = tmp_path / "old.pt"
+    torch.save({"format": "csgs-train-checkpoint/2"}, old)
+    with pytest.raises(InputError, match="earlier version.*start the stage again") as error:
+        load_checkpoint(old)
+    assert "old.pt" in str(error.value)
+
+
 def test_a_diverging_loss_stops_the_stage_with_a_model_error(monkeypatch):
     data = tiny_dataset()
     state = initial_state(data.views, data.scene.positions, tiny_color_settings())

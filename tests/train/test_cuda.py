@@ -82,3 +82,35 @@ def test_segment_on_cuda_finds_the_cpu_instances():
         for label in np.unique(labels):
             ids, counts = np.unique(result.instances.ids[labels == label], return_counts=True)
             assert counts.max() >= 0.95 * counts.sum(), label
+
+
+def test_all_slot_spawn_through_gsplat_matches_the_kept_slots():
+    """The form stage 1 takes on a GPU (every slot, hidden ones at opacity 0, rotations
+    left to gsplat to normalise) renders and differentiates like the gathered form."""
+    from csgs_codec.render.rasterize_gsplat import gsplat_available
+    from csgs_codec.train.anchor_model import AnchorGrid, AnchorModel
+    from tests.train.stage1_data import tiny_dataset
+
+    if not gsplat_available():
+        pytest.skip("gsplat is not installed")
+    data = tiny_dataset()
+    cells = np.unique(np.floor(data.scene.positions / 0.25).astype(np.int64), axis=0)
+    model = AnchorModel(cells, AnchorGrid(np.zeros(3), 0.25), feat_dim=8, n_offsets=4,
+                        seed=3, device="cuda")
+    with torch.no_grad():
+        model.features.normal_(0.0, 0.5)
+        model.mask_logits.normal_(0.0, 6.0)
+    results = []
+    for all_slots in (False, True):
+        model.zero_grad(set_to_none=True)
+        out, _ = model.render(data.views[0].camera, rasterizer="gsplat", all_slots=all_slots)
+        (out.image.square().sum() + out.alpha.sum()).backward()
+        results.append((out.image.detach(), {n: p.grad.clone()
+                                             for n, p in model.named_parameters()
+                                             if p.grad is not None}))
+    (kept_image, kept_grads), (all_image, all_grads) = results
+    torch.testing.assert_close(all_image, kept_image, atol=1e-5, rtol=1e-4)
+    for name, grad in kept_grads.items():
+        scale = float(grad.abs().max()) + 1e-12
+        torch.testing.assert_close(all_grads[name] / scale, grad / scale, atol=1e-4,
+                                   rtol=1e-3, msg=name)
