@@ -70,13 +70,12 @@ def _spread_columns(planes: np.ndarray, taps: np.ndarray) -> np.ndarray:
     out = np.zeros((p_count, out_h, width), np.float32)
     for job in numba.prange(p_count * out_h):
         p, r = job // out_h, job % out_h
-        for t in range(k):
-            i = r - t
-            if i < 0 or i >= in_h:
-                continue
+        # Taps t with 0 <= r - t < in_h, in increasing order (no test in the loop, which
+        # kept the inner loop from vectorising: 3.7x the time of _filter_columns per plane).
+        for t in range(max(0, r - in_h + 1), min(k, r + 1)):
             w = taps[t]
             for j in range(width):
-                out[p, r, j] += w * planes[p, i, j]
+                out[p, r, j] += w * planes[p, r - t, j]
     return out
 
 
