@@ -48,13 +48,16 @@ def rasterize_for_training(means: torch.Tensor, log_scales: torch.Tensor, quats:
                            colors: torch.Tensor, opacities: torch.Tensor | None = None,
                            rasterizer: str = "auto",
                            background: tuple[float, float, float] | None = None,
-                           near_plane: float = DEFAULT_NEAR_PLANE) -> RasterTensors:
+                           near_plane: float = DEFAULT_NEAR_PLANE,
+                           with_depth: bool = True) -> RasterTensors:
     """Render [N] Gaussians with per-Gaussian ``colors`` [N, 3] through the rasterizer
     ``rasterizer`` names for their device (see :func:`resolve_training_rasterizer`).
 
     Opacity comes as ``opacity_logits`` [N] (before the sigmoid) or as ``opacities`` [N] in
     [0, 1] (then ``opacity_logits`` is None); gsplat takes the second as it is, the torch
     reference takes the logit of it clamped into [:data:`OPACITY_EPS`, 1 - OPACITY_EPS].
+    ``with_depth=False`` lets gsplat skip the depth map (then None; the reference makes it
+    anyway).
 
     Returns:
         :class:`RasterTensors` (image [H, W, 3], alpha [H, W], depth [H, W]), differentiable
@@ -66,7 +69,8 @@ def rasterize_for_training(means: torch.Tensor, log_scales: torch.Tensor, quats:
     if resolve_training_rasterizer(rasterizer, means.device) == "gsplat":
         return rasterize_gaussians_gsplat(means, log_scales, quats, opacity_logits, camera,
                                           opacities=opacities, colors=colors,
-                                          background=background, near_plane=near_plane)
+                                          background=background, near_plane=near_plane,
+                                          with_depth=with_depth)
     if opacity_logits is None:
         clamped = opacities.clamp(OPACITY_EPS, 1.0 - OPACITY_EPS)
         opacity_logits = torch.log(clamped) - torch.log1p(-clamped)

@@ -42,7 +42,8 @@ def rasterize_gaussians_gsplat(means: torch.Tensor, log_scales: torch.Tensor,
                                features: torch.Tensor | None = None,
                                background: torch.Tensor | tuple[float, float, float] | None
                                = None,
-                               near_plane: float = DEFAULT_NEAR_PLANE) -> RasterTensors:
+                               near_plane: float = DEFAULT_NEAR_PLANE,
+                               with_depth: bool = True) -> RasterTensors:
     """Render one view with gsplat's ``rasterization``, differentiably, on the inputs' GPU.
 
     Args:
@@ -55,12 +56,14 @@ def rasterize_gaussians_gsplat(means: torch.Tensor, log_scales: torch.Tensor,
         features: optional [N, F] per-Gaussian features, accumulated like colors.
         background: RGB behind the scene, default black.
         near_plane: camera-space z (world units) below which Gaussians are culled.
+        with_depth: False (without ``features``): gsplat renders RGB only and composites
+            the background itself, and depth is None (training's form: fewer operators).
 
     Returns:
         :class:`RasterTensors` in float32 on the inputs' device: image [H, W, 3] with the
         background composited behind, alpha [H, W], depth [H, W] (expected z, 0 where alpha
-        is 0), features [H, W, F] or None; each differentiable with respect to every tensor
-        argument.
+        is 0) or None, features [H, W, F] or None; each differentiable with respect to every
+        tensor argument.
 
     Raises:
         UnsupportedError: gsplat missing or the inputs not on a CUDA device.
@@ -91,13 +94,20 @@ def rasterize_gaussians_gsplat(means: torch.Tensor, log_scales: torch.Tensor,
                              property="features")
         channels.append(features.to(torch.float32))
     values = torch.cat(channels, dim=1) if len(channels) > 1 else channels[0]
+    bg = background_tensor(background, device)
+    if not with_depth and features is None:
+        rendered, alphas, _ = rasterization(
+            means, quats.to(torch.float32), torch.exp(log_scales.to(torch.float32)),
+            opacities.to(torch.float32), values, w2c[None], intrinsics[None], camera.width,
+            camera.height, near_plane=near_plane, eps2d=LOW_PASS_VARIANCE, sh_degree=None,
+            backgrounds=bg[None], render_mode="RGB", rasterize_mode="classic", packed=False)
+        return RasterTensors(rendered[0], alphas[0, ..., 0], None, None)
     rendered, alphas, _ = rasterization(
         means, quats.to(torch.float32), torch.exp(log_scales.to(torch.float32)),
         opacities.to(torch.float32), values, w2c[None], intrinsics[None],
         camera.width, camera.height, near_plane=near_plane, eps2d=LOW_PASS_VARIANCE,
         sh_degree=None, render_mode="RGB+ED", rasterize_mode="classic", packed=False)
     rendered, alpha = rendered[0], alphas[0, ..., 0]
-    bg = background_tensor(background, device)
     image = rendered[..., :3] + (1.0 - alpha)[..., None] * bg
     depth = torch.where(alpha > 0, rendered[..., -1], torch.zeros_like(alpha))
     feats = rendered[..., 3:-1] if features is not None else None

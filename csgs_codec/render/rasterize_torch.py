@@ -34,13 +34,14 @@ class RasterTensors(NamedTuple):
         image: [H, W, 3] linear RGB, background composited behind.
         alpha: [H, W] accumulated opacity, 1 - final transmittance.
         depth: [H, W] expected camera-space z of what the pixel sees (accumulated weight * z
-            divided by alpha), 0 where alpha is 0.
+            divided by alpha), 0 where alpha is 0; None where the caller did not ask for it
+            and the rasterizer skips it (gsplat with ``with_depth=False``).
         features: [H, W, F] accumulated weight * feature (no background), or None.
     """
 
     image: torch.Tensor
     alpha: torch.Tensor
-    depth: torch.Tensor
+    depth: torch.Tensor | None
     features: torch.Tensor | None
 
 

@@ -178,7 +178,8 @@ class AnchorModel(nn.Module):
         gsplat, whose step is bound by operator launches, not by Gaussians.
 
         Returns:
-            (maps: image [H, W, 3], alpha [H, W], depth [H, W]; the N neural Gaussians).
+            (maps: image [H, W, 3], alpha [H, W], depth [H, W] or None (gsplat skips it);
+            the N neural Gaussians).
         """
         if all_slots is None:
             all_slots = resolve_training_rasterizer(rasterizer,
@@ -186,7 +187,8 @@ class AnchorModel(nn.Module):
         g = self.spawn(camera, values, mask=mask, all_slots=all_slots)
         out = rasterize_for_training(g.positions, g.log_scales, g.rotations, None, camera,
                                      opacities=g.opacities, colors=g.colors,
-                                     background=background, rasterizer=rasterizer)
+                                     background=background, rasterizer=rasterizer,
+                                     with_depth=False)
         return out, g
 
     def slot_positions(self) -> torch.Tensor:

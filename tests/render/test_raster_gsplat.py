@@ -91,3 +91,38 @@ def test_gsplat_training_path_runs_on_the_inputs_device():
     assert out.image.is_cuda and out.image.shape == (30, 40, 3)
     out.image.sum().backward()
     assert torch.isfinite(t["means"].grad).all() and t["means"].grad.abs().sum() > 0
+
+
+@pytest.mark.gpu
+def test_gsplat_without_depth_gives_the_same_image_alpha_and_gradients():
+    """Training's form (RGB only, gsplat compositing the background, opacities given as
+    such) renders and differentiates like the form with depth."""
+    import torch
+
+    from csgs_codec.render.rasterize_gsplat import rasterize_gaussians_gsplat
+
+    if not gsplat_available():
+        pytest.skip("gsplat is not installed")
+    scene = random_scene(1500, sh_degree=0, seed=9)
+    cam = look_at_camera(np.array([0.1, -0.5, -3.0]), np.zeros(3), np.array([0.0, -1.0, 0.0]),
+                         64, 48)
+    target = torch.rand(48, 64, 3, generator=torch.Generator().manual_seed(2)).cuda()
+    results = []
+    for with_depth in (True, False):
+        t = _tensors(scene, "cuda")
+        colors = torch.sigmoid(t["sh"][:, 0, :])
+        out = rasterize_gaussians_gsplat(t["means"], t["log_scales"], t["quats"], None, cam,
+                                         opacities=torch.sigmoid(t["opacity_logits"]),
+                                         colors=colors, background=(0.2, 0.3, 0.4),
+                                         with_depth=with_depth)
+        assert (out.depth is None) == (not with_depth)
+        (((out.image - target) ** 2).mean() + out.alpha.mean()).backward()
+        results.append((out.image.detach(), out.alpha.detach(),
+                        {k: v.grad.detach() for k, v in t.items()}))
+    (image, alpha, grads), (image2, alpha2, grads2) = results
+    torch.testing.assert_close(image2, image, atol=1e-5, rtol=1e-4)
+    torch.testing.assert_close(alpha2, alpha, atol=1e-5, rtol=1e-4)
+    for name, grad in grads.items():
+        scale = float(grad.abs().max()) + 1e-12
+        torch.testing.assert_close(grads2[name] / scale, grad / scale, atol=1e-4, rtol=1e-3,
+                                   msg=name)
