@@ -99,6 +99,7 @@ OP_PARTS = (("csgs_codec/render/", "rasterizer"), ("gsplat/", "rasterizer"),
             ("csgs_codec/metrics/", "loss"), ("csgs_codec/train/losses.py", "loss"),
             ("csgs_codec/train/anchor_growth.py", "growth_stats"),
             ("torch/optim/", "optimizer"), ("torch/nn/utils/clip_grad", "optimizer"),
+            ("csgs_codec/train/grouped_adam.py", "optimizer"),
             ("csgs_codec/train/color_stage.py", "step"))
 
 

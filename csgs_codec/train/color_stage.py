@@ -41,6 +41,7 @@ from csgs_codec.train.anchor_growth import (
 )
 from csgs_codec.train.anchor_model import INIT_DEVICE, AnchorGrid, AnchorModel, grid_for_points
 from csgs_codec.train.anchor_rate import AnchorRateModel
+from csgs_codec.train.grouped_adam import GroupedAdam, adam_step
 from csgs_codec.train.losses import photometric_loss
 from csgs_codec.train.quantization import add_quantization_noise
 from csgs_codec.train.views import TrainingView
@@ -200,8 +201,8 @@ class ColorStageState:
     rate_model: AnchorRateModel
     settings: ColorStageSettings
     step: int = 0
-    anchor_optimizer: torch.optim.Optimizer | None = None
-    shared_optimizer: torch.optim.Optimizer | None = None
+    anchor_optimizer: GroupedAdam | None = None
+    shared_optimizer: GroupedAdam | None = None
     view_generator: torch.Generator = field(default_factory=_order_generator)
     noise_generator: torch.Generator = field(default_factory=_order_generator)
     order: list[int] = field(default_factory=list)
@@ -254,17 +255,16 @@ def make_optimizers(state: ColorStageState, keep_shared: bool = False) -> None:
     changes their shapes) and one over the MLPs and the rate model (kept if ``keep_shared``)."""
     lrs = state.settings.learning_rates
     model = state.model
-    # On CUDA one fused kernel per optimiser step instead of a dozen per parameter group:
-    # training there is bound by kernel launches. The CPU keeps the default implementation.
-    fused = {"fused": True} if torch.device(state.settings.device).type == "cuda" else {}
-    state.anchor_optimizer = torch.optim.Adam(
+    # GroupedAdam: one update pass over every group of both optimisers (adam_step), not one
+    # per group; on a GPU the step is bound by such calls. Same rule as torch's Adam.
+    state.anchor_optimizer = GroupedAdam(
         [{"params": [t], "lr": lrs[name], "name": name}
-         for name, t in model.anchor_tensors().items()], eps=1e-15, **fused)
+         for name, t in model.anchor_tensors().items()], eps=1e-15)
     if not keep_shared or state.shared_optimizer is None:
-        state.shared_optimizer = torch.optim.Adam(
+        state.shared_optimizer = GroupedAdam(
             [{"params": list(model.mlps.parameters()), "lr": lrs["mlps"], "name": "mlps"},
              {"params": list(state.rate_model.parameters()), "lr": lrs["rate"],
-              "name": "rate"}], eps=1e-15, **fused)
+              "name": "rate"}], eps=1e-15)
 
 
 def _resize_anchor_optimizer(state: ColorStageState, old: dict[str, torch.Tensor],
@@ -428,8 +428,7 @@ def _train_steps(views: list[TrainingView], state: ColorStageState,
             state.step += 1
             continue
         state.bad_run = 0
-        state.anchor_optimizer.step()
-        state.shared_optimizer.step()
+        adam_step(state.anchor_optimizer, state.shared_optimizer)
         if record:
             if index not in seen_cache:
                 seen_cache[index] = view_counts(model.positions.cpu().numpy(), [camera]) > 0

@@ -295,7 +295,8 @@ def test_growth_carries_adam_moments_of_the_survivors_and_zeros_new_rows():
     data = tiny_dataset()
     train_color_stage(data.views, state, stop_at=3)
     old = dict(model.anchor_tensors())
-    before = {k: v.clone() for k, v in state.anchor_optimizer.state[old["features"]].items()}
+    before = {k: v.clone() if torch.is_tensor(v) else v
+              for k, v in state.anchor_optimizer.state[old["features"]].items()}
     keep = torch.ones(model.count, dtype=torch.bool)
     keep[1] = False
     model.resize(keep, model.cells.numpy().max(axis=0, keepdims=True) + 3,
