@@ -122,6 +122,10 @@ def count_step_ops(run, steps: int) -> dict:
     import torch
     from torch.utils._python_dispatch import TorchDispatchMode
 
+    aten = torch.ops.aten
+    no_kernel = {aten.detach.default, aten.lift_fresh.default, aten._local_scalar_dense.default,
+                 aten.empty.memory_format, aten.empty_strided.default, aten.empty_like.default}
+
     class Counting(TorchDispatchMode):
         def __init__(self) -> None:
             super().__init__()
@@ -129,7 +133,7 @@ def count_step_ops(run, steps: int) -> dict:
 
         def __torch_dispatch__(self, func, types, args=(), kwargs=None):
             out = func(*args, **(kwargs or {}))
-            if func.is_view or func in _NO_KERNEL:
+            if func.is_view or func in no_kernel:
                 return out
             node = torch._C._current_autograd_node()
             if node is not None:
@@ -141,10 +145,6 @@ def count_step_ops(run, steps: int) -> dict:
                 self.parts["forward:" + _part_of(frames)] += 1
             return out
 
-    import torch.ops as ops
-    _NO_KERNEL = {ops.aten.detach.default, ops.aten.lift_fresh.default,
-                  ops.aten._local_scalar_dense.default, ops.aten.empty.memory_format,
-                  ops.aten.empty_strided.default, ops.aten.empty_like.default}
     counting = Counting()
     try:
         with counting, torch.autograd.detect_anomaly(check_nan=False):

@@ -95,19 +95,17 @@ def rasterize_gaussians_gsplat(means: torch.Tensor, log_scales: torch.Tensor,
         channels.append(features.to(torch.float32))
     values = torch.cat(channels, dim=1) if len(channels) > 1 else channels[0]
     bg = background_tensor(background, device)
-    if not with_depth and features is None:
-        rendered, alphas, _ = rasterization(
-            means, quats.to(torch.float32), torch.exp(log_scales.to(torch.float32)),
-            opacities.to(torch.float32), values, w2c[None], intrinsics[None], camera.width,
-            camera.height, near_plane=near_plane, eps2d=LOW_PASS_VARIANCE, sh_degree=None,
-            backgrounds=bg[None], render_mode="RGB", rasterize_mode="classic", packed=False)
-        return RasterTensors(rendered[0], alphas[0, ..., 0], None, None)
+    # Training's form: RGB only, gsplat compositing the background in its kernel.
+    rgb_only = not with_depth and features is None
     rendered, alphas, _ = rasterization(
         means, quats.to(torch.float32), torch.exp(log_scales.to(torch.float32)),
         opacities.to(torch.float32), values, w2c[None], intrinsics[None],
         camera.width, camera.height, near_plane=near_plane, eps2d=LOW_PASS_VARIANCE,
-        sh_degree=None, render_mode="RGB+ED", rasterize_mode="classic", packed=False)
+        sh_degree=None, backgrounds=bg[None] if rgb_only else None,
+        render_mode="RGB" if rgb_only else "RGB+ED", rasterize_mode="classic", packed=False)
     rendered, alpha = rendered[0], alphas[0, ..., 0]
+    if rgb_only:
+        return RasterTensors(rendered, alpha, None, None)
     image = rendered[..., :3] + (1.0 - alpha)[..., None] * bg
     depth = torch.where(alpha > 0, rendered[..., -1], torch.zeros_like(alpha))
     feats = rendered[..., 3:-1] if features is not None else None
