@@ -48,9 +48,10 @@ class _TileComposite(torch.autograd.Function):
         tiles_y = math.ceil(height / TRAIN_TILE_SIZE)
         rects = tile_ranges(means2d.detach(), extents.detach(), width, height,
                             TRAIN_TILE_SIZE).numpy()
-        offsets, ids = kernels.bin_tiles(rects, _array(order).astype(np.int64),
-                                         tiles_x * tiles_y, tiles_x)
         arrays = (_array(means2d), _array(conics), _array(opacities), _array(values))
+        offsets, ids = kernels.bin_tiles(rects, _array(order).astype(np.int64),
+                                         tiles_x * tiles_y, tiles_x, TRAIN_TILE_SIZE, width,
+                                         height, *arrays[:3])
         out = np.zeros((height, width, values.shape[1]), np.float32)
         transmittance = np.ones((height, width), np.float32)
         walked = np.zeros((height, width), np.int32)

@@ -32,28 +32,117 @@ _T_STOP = np.float32(TRANSMITTANCE_STOP)
 _POWER_MARGIN = np.float32(1e-3)
 
 
+#: Relative slack of the tile test (:func:`_row_spans`) on the float32 exponent, about 170
+#: float32 ulps of the exponent's largest term: a Gaussian leaves a tile's list only when no
+#: pixel of the tile can reach the alpha threshold whatever the rounding of the per-pixel
+#: arithmetic.
+_CULL_SLACK = 1e-5
+
+
+@numba.njit(parallel=True, cache=True)
+def _row_spans(rects: np.ndarray, order: np.ndarray, row_start: np.ndarray, tile_size: int,
+               width: int, height: int, means2d: np.ndarray, conics: np.ndarray,
+               opacities: np.ndarray) -> np.ndarray:
+    """[row_start[-1], 2] int64: for the i-th Gaussian of ``order`` and each tile row of its
+    box (from ``row_start[i]``), the half-open range of tile columns where it can reach the
+    alpha threshold at some pixel centre (an empty range where it cannot).
+
+    Where a Gaussian reaches the threshold, -0.5 (a dx^2 + 2 b dx dy + c dy^2) >= T (T the
+    exponent below which :func:`_alpha_at` gives alpha 0, taken lower by
+    :data:`_CULL_SLACK` of the terms' size over the box), an ellipse: its points in a row of
+    tiles span an interval of x, which is found in float64 from where the ellipse's
+    leftmost and rightmost points lie, or the row's edges when those fall outside it. A
+    tile outside the interval changes no pixel if dropped: compositing skips the Gaussian
+    at every pixel there.
+    """
+    spans = np.empty((row_start[-1], 2), np.int64)
+    for i in numba.prange(order.shape[0]):
+        g = order[i]
+        tx0, tx1, ty0, ty1 = rects[g, 0], rects[g, 1], rects[g, 2], rects[g, 3]
+        a = np.float64(conics[g, 0])
+        b = np.float64(conics[g, 1])
+        c = np.float64(conics[g, 2])
+        det = a * c - b * b
+        mx = np.float64(means2d[g, 0])
+        my = np.float64(means2d[g, 1])
+        threshold = np.float64(np.log(_ALPHA_THRESHOLD / opacities[g]) - _POWER_MARGIN)
+        span_x = max(abs(tx0 * tile_size - mx), abs(tx1 * tile_size - mx)) + 1.0
+        span_y = max(abs(ty0 * tile_size - my), abs(ty1 * tile_size - my)) + 1.0
+        size = 0.5 * a * span_x * span_x + 0.5 * c * span_y * span_y + abs(b) * span_x * span_y
+        bound = -2.0 * (threshold - _CULL_SLACK * (size + abs(threshold) + 1.0))
+        exact = a > 0.0 and c > 0.0 and det > 0.0 and bound > 0.0 and np.isfinite(size)
+        if exact:
+            # The ellipse a x^2 + 2 b x y + c y^2 <= bound around the mean: x within
+            # +-x_far, reached at y = -+b x_far / c; y within +-y_far.
+            x_far = np.sqrt(bound * c / det)
+            y_far = np.sqrt(bound * a / det)
+            y_right = -b * x_far / c
+        for r in range(ty1 - ty0):
+            k = row_start[i] + r
+            if not exact:
+                spans[k, 0] = tx0
+                spans[k, 1] = tx1
+                continue
+            ty = ty0 + r
+            v0 = max(ty * tile_size + 0.5 - my, -y_far)
+            v1 = min(min(ty * tile_size + tile_size, height) - 0.5 - my, y_far)
+            if v0 > v1:
+                spans[k, 0] = tx0
+                spans[k, 1] = tx0
+                continue
+            y = min(max(y_right, v0), v1)
+            right = (-b * y + np.sqrt(max(a * bound - det * y * y, 0.0))) / a
+            y = min(max(-y_right, v0), v1)
+            left = (-b * y - np.sqrt(max(a * bound - det * y * y, 0.0))) / a
+            # Tile columns whose pixel centres (x + 0.5 - mean) can fall in [left, right].
+            lo = np.ceil((mx + left + 0.5) / tile_size) - 1.0
+            hi = np.floor((mx + right - 0.5) / tile_size) + 1.0
+            lo_tile = tx0 if not lo > tx0 else (tx1 if lo > tx1 else np.int64(lo))
+            hi_tile = tx1 if not hi < tx1 else (tx0 if hi < tx0 else np.int64(hi))
+            spans[k, 0] = lo_tile
+            spans[k, 1] = max(hi_tile, lo_tile)
+    return spans
+
+
 @numba.njit(cache=True)
-def bin_tiles(rects: np.ndarray, order: np.ndarray, n_tiles: int,
-              tiles_x: int) -> tuple[np.ndarray, np.ndarray]:
+def bin_tiles(rects: np.ndarray, order: np.ndarray, n_tiles: int, tiles_x: int,
+              tile_size: int, width: int, height: int, means2d: np.ndarray,
+              conics: np.ndarray, opacities: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Counting-sort binning: (offsets [T + 1] int64, gaussian ids [I] int64), near to far.
 
-    ``rects`` is [N, 4] int64 (tx0, tx1, ty0, ty1); ``order`` is [M] int64, near to far.
+    ``rects`` is [N, 4] int64 (tx0, tx1, ty0, ty1), each Gaussian's box of tiles; ``order``
+    is [M] int64, near to far. A tile of the box keeps the Gaussian only when it can reach
+    the alpha threshold at one of the tile's pixels (:func:`_row_spans`, from float32
+    ``means2d`` [N, 2], ``conics`` [N, 3], ``opacities`` [N] as compositing takes them):
+    the box of an ellipse also covers tiles its corners miss (30-60% of the box's tiles on
+    real captures), which every pixel there would test and skip.
     """
+    row_start = np.zeros(order.shape[0] + 1, np.int64)
+    for i in range(order.shape[0]):
+        g = order[i]
+        row_start[i + 1] = row_start[i] + (rects[g, 3] - rects[g, 2])
+    spans = _row_spans(rects, order, row_start, tile_size, width, height, means2d, conics,
+                       opacities)
     offsets = np.zeros(n_tiles + 1, np.int64)
-    for g in order:
-        for ty in range(rects[g, 2], rects[g, 3]):
-            for tx in range(rects[g, 0], rects[g, 1]):
-                offsets[ty * tiles_x + tx + 1] += 1
+    for i in range(order.shape[0]):
+        g = order[i]
+        for r in range(rects[g, 3] - rects[g, 2]):
+            row = (rects[g, 2] + r) * tiles_x + 1
+            k = row_start[i] + r
+            for tx in range(spans[k, 0], spans[k, 1]):
+                offsets[row + tx] += 1
     for t in range(n_tiles):
         offsets[t + 1] += offsets[t]
     cursor = offsets[:-1].copy()
     ids = np.empty(offsets[n_tiles], np.int64)
-    for g in order:
-        for ty in range(rects[g, 2], rects[g, 3]):
-            for tx in range(rects[g, 0], rects[g, 1]):
-                t = ty * tiles_x + tx
-                ids[cursor[t]] = g
-                cursor[t] += 1
+    for i in range(order.shape[0]):
+        g = order[i]
+        for r in range(rects[g, 3] - rects[g, 2]):
+            row = (rects[g, 2] + r) * tiles_x
+            k = row_start[i] + r
+            for tx in range(spans[k, 0], spans[k, 1]):
+                ids[cursor[row + tx]] = g
+                cursor[row + tx] += 1
     return offsets, ids
 
 

@@ -60,7 +60,8 @@ def rasterize_numba(prepared: PreparedGaussians, camera: Camera, *,
     if features is not None:
         parts.append(np.asarray(features, dtype=np.float32))
     values = np.ascontiguousarray(np.concatenate(parts, axis=1))
-    offsets, ids = kernels.bin_tiles(rects, order, tiles_x * tiles_y, tiles_x)
+    offsets, ids = kernels.bin_tiles(rects, order, tiles_x * tiles_y, tiles_x, tile_size,
+                                     width, height, means2d, conics, opacities)
     out = np.zeros((height, width, values.shape[1]), np.float32)
     transmittance = np.ones((height, width), np.float32)
     walked = np.zeros((height, width), np.int32)

@@ -94,7 +94,9 @@ def blend_sensitivity(scene: GaussianScene, cameras: list[Camera],
             means2d = np.ascontiguousarray(proj.means2d.to(torch.float32).numpy())
             conics = np.ascontiguousarray(proj.conics.to(torch.float32).numpy())
             opacities = np.ascontiguousarray(proj.opacities.to(torch.float32).numpy())
-        offsets, ids = kernels.bin_tiles(rects, order, tiles_x * tiles_y, tiles_x)
+        offsets, ids = kernels.bin_tiles(rects, order, tiles_x * tiles_y, tiles_x, TILE_SIZE,
+                                         camera.width, camera.height, means2d, conics,
+                                         opacities)
         slot_sq = np.zeros(len(ids), np.float64)
         slot_sum = np.zeros(len(ids), np.float64)
         kernels.blend_weight_slots(offsets, ids, means2d, conics, opacities, camera.width,
