@@ -353,3 +353,62 @@ def sum_slots(ids: np.ndarray, slot_grads: np.ndarray, n: int) -> np.ndarray:
         for j in range(slot_grads.shape[1]):
             total[g, j] += slot_grads[i, j]
     return total
+
+
+@numba.njit(parallel=True, cache=True)
+def record_blend(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
+                 conics: np.ndarray, opacities: np.ndarray, width: int, height: int,
+                 tile_size: int, tiles_x: int, starts: np.ndarray, blend_ids: np.ndarray,
+                 blend_weights: np.ndarray, counts: np.ndarray) -> None:
+    """The (Gaussian, weight) pairs :func:`composite_tiles` adds to each pixel, in its order.
+
+    Pixel p (row-major) gets its j-th pair at ``starts[p] + j`` of ``blend_ids`` (int32) and
+    ``blend_weights`` (float32, the w = alpha T the compositing multiplies each value by),
+    and ``counts[p]`` (int32) pairs; ``starts`` [H W + 1] int64 must leave at least as many
+    entries per pixel as its tile slots walked (``walked`` of :func:`composite_tiles`).
+    """
+    n_tiles = offsets.shape[0] - 1
+    for t in numba.prange(n_tiles):
+        start = offsets[t]
+        count = offsets[t + 1] - start
+        if count == 0:
+            continue
+        packed = _pack_tile(ids, start, count, means2d, conics, opacities)
+        x0 = (t % tiles_x) * tile_size
+        y0 = (t // tiles_x) * tile_size
+        for py in range(y0, min(y0 + tile_size, height)):
+            pyc = np.float32(py) + _HALF
+            for px in range(x0, min(x0 + tile_size, width)):
+                pxc = np.float32(px) + _HALF
+                p = py * width + px
+                at = starts[p]
+                trans = _ONE
+                for k in range(count):
+                    alpha, _, _, _ = _alpha_at(packed, k, pxc, pyc)
+                    if alpha == 0:
+                        continue
+                    after = trans * (_ONE - alpha)
+                    if after < _T_STOP:
+                        break
+                    blend_ids[at] = ids[start + k]
+                    blend_weights[at] = alpha * trans
+                    at += 1
+                    trans = after
+                counts[p] = at - starts[p]
+
+
+@numba.njit(parallel=True, cache=True)
+def replay_blend(starts: np.ndarray, counts: np.ndarray, blend_ids: np.ndarray,
+                 blend_weights: np.ndarray, values: np.ndarray, out: np.ndarray) -> None:
+    """Accumulate ``values`` [N, C] float32 into ``out`` [P, C] float32 (zeroed) with the
+    pairs :func:`record_blend` recorded, in their order: the same float32 sums
+    :func:`composite_tiles` forms, so a replay with the values it composited gives its
+    ``out`` bit for bit."""
+    channels = values.shape[1]
+    for p in numba.prange(out.shape[0]):
+        for j in range(counts[p]):
+            e = starts[p] + j
+            g = blend_ids[e]
+            weight = blend_weights[e]
+            for ch in range(channels):
+                out[p, ch] += weight * values[g, ch]

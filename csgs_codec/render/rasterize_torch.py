@@ -57,6 +57,14 @@ class PreparedGaussians(NamedTuple):
     colors: torch.Tensor
 
 
+def view_colors(means: torch.Tensor, sh: torch.Tensor, camera: Camera) -> torch.Tensor:
+    """[N, 3] RGB of Gaussians at ``means`` [N, 3] with SH coefficients ``sh`` [N, K, 3] seen
+    from ``camera``'s centre (0.5 + SH, clamped at 0), as every backend composites them."""
+    rot, trans = camera.world_to_camera[:3, :3], camera.world_to_camera[:3, 3]
+    centre = torch.as_tensor(-rot.T @ trans, dtype=means.dtype, device=means.device)
+    return sh_to_color(sh, means - centre)
+
+
 def prepare_gaussians(means: torch.Tensor, log_scales: torch.Tensor, quats: torch.Tensor,
                       opacity_logits: torch.Tensor, camera: Camera, *,
                       sh: torch.Tensor | None = None, colors: torch.Tensor | None = None,
@@ -88,9 +96,7 @@ def prepare_gaussians(means: torch.Tensor, log_scales: torch.Tensor, quats: torc
                                                                                      16):
             raise InputError(f"expected [N, K, 3] with K in 1, 4, 9, 16, got {tuple(sh.shape)}",
                              property="sh")
-        rot, trans = camera.world_to_camera[:3, :3], camera.world_to_camera[:3, 3]
-        centre = torch.as_tensor(-rot.T @ trans, dtype=means.dtype, device=means.device)
-        colors = sh_to_color(sh, means - centre)
+        colors = view_colors(means, sh, camera)
     elif tuple(colors.shape) != (n, 3):
         raise InputError(f"expected shape {(n, 3)}, got {tuple(colors.shape)}",
                          property="colors")

@@ -77,8 +77,11 @@ def resolve_backend(backend: str) -> str:
     return backend
 
 
-def _check_inputs(scene: GaussianScene, camera: Camera, features: np.ndarray | None,
-                  background: tuple[float, float, float]) -> None:
+def check_render_inputs(scene: GaussianScene, camera: Camera, features: np.ndarray | None,
+                        background: tuple[float, float, float]) -> None:
+    """Raise :class:`InputError` naming what is wrong with a render's inputs: camera size,
+    intrinsics, near plane and pose, the background, the scene's values, ``features``
+    ((N, F) finite, or None)."""
     if not (isinstance(camera.width, int | np.integer) and isinstance(camera.height,
                                                                       int | np.integer)):
         raise InputError("camera width and height must be integers", property="camera")
@@ -126,7 +129,7 @@ def render(scene: GaussianScene, camera: Camera, *,
     Raises:
         InputError: bad camera, background, features, backend name or scene values.
     """
-    _check_inputs(scene, camera, features, background)
+    check_render_inputs(scene, camera, features, background)
     chosen = resolve_backend(backend)
     tensors = scene_tensors(scene)
     feats = None if features is None else torch.as_tensor(np.asarray(features, np.float32),

@@ -239,3 +239,35 @@ def test_a_sample_of_a_larger_scene_is_probed_through_windows_of_its_views():
         x0, y0 = cam.cx - window.cx, cam.cy - window.cy
         assert x0 == cam.width // 2 - window.width * (1 - i % 2)
         assert y0 == cam.height // 2 - window.height * (1 - (i // 2) % 2)
+
+
+@pytest.mark.skipif(not __import__("csgs_codec.render.numba_loader", fromlist=["x"])
+                    .numba_available(), reason="numba not installed")
+def test_recoloured_candidates_score_exactly_as_rendered_ones(monkeypatch):
+    """Candidates that move colour steps only are scored from the recorded weights of an
+    earlier candidate with the same geometry: every (bits, error) equals the rendered one."""
+    from pathlib import Path
+
+    from csgs_codec.interchange.ply_io import read_ply
+    from csgs_codec.render.blend_record import BlendRecord
+
+    recoloured = []
+    recolour = BlendRecord.recolour
+    monkeypatch.setattr(BlendRecord, "recolour",
+                        lambda self, s: recoloured.append(1) or recolour(self, s))
+
+    scene = read_ply(Path(__file__).resolve().parents[2] / "benchmarks" / "data"
+                     / "yashica_t4_top8192.ply")
+    scene = scene.subset(np.arange(0, len(scene), 4))
+    cameras = sa.probe_cameras(scene)[:4]
+    candidates = [{}, {"opacity": 1}, {"dc": 1}, {"dc": 2, "rest1": -1}, {"opacity": 1, "dc": 3},
+                  {"opacity": 1, "rest2": 2, "rest3": -2}, {"position": -2, "dc": 1},
+                  {"dc": -1}, {"position": -2, "rest1": 3}]
+    fast = sa._Probe(scene, PRESETS[5], "footprint", cameras)
+    plain = sa._Probe(scene, PRESETS[5], "footprint", cameras)
+    plain._recolours = False
+    for offsets in candidates:
+        assert fast.rate_distortion(offsets) == plain.rate_distortion(offsets), offsets
+    assert fast._recorded is not None and plain._recorded is None
+    # {"dc": 2, "rest1": -1} and {"opacity": 1, "rest2": 2, "rest3": -2} replay a record.
+    assert len(recoloured) == 2 * len(cameras)
