@@ -58,13 +58,18 @@ def best_of(repeat: int, run) -> tuple[float, object]:
     return best, result
 
 
-def measure(path: Path, quality: int, repeat: int) -> dict:
-    """One row: encode and allocation times of the scene at ``path`` at ``quality``."""
+def measure(path: Path, quality: int, repeat: int, keep: int | None = None) -> dict:
+    """One row: encode and allocation times of the scene at ``path`` at ``quality`` (its
+    first ``keep`` Gaussians when given)."""
     import warnings
+
+    import numpy as np
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         scene = read_scene(path)
+    if keep is not None:
+        scene = scene.subset(np.arange(min(keep, len(scene))))
     encoder = Encoder(quality=quality)
     encode_s, data = best_of(repeat, lambda: encoder.encode(scene))
     allocation_s, allocation = best_of(repeat, lambda: allocate_steps(scene, preset(quality)))
@@ -85,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     warm = find_scene(args.scenes[0]) or REPO / "samples" / "donut.ply"
-    measure(warm, args.qualities[0], 1)  # compiles the numba kernels, loads torch
+    measure(warm, args.qualities[0], 1, keep=2048)  # compiles the numba kernels, loads torch
     rows = []
     for name in args.scenes:
         path = find_scene(name)

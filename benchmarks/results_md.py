@@ -143,6 +143,8 @@ VIEWS: dict[str, list[View]] = {
         View(["masks", "variant", "coding", "selection.cosine.miou_3d",
               "selection.cluster.miou_3d", "semantic_share_percent"],
              title="cosine and cluster selection", has=("selection.cosine",), max_rows=30)],
+    "encode_time": [View(["code", "scene", "gaussians", "quality", "encode_s", "allocation_s",
+                          "allocation_trials", "bytes", "sha256"], max_rows=40)],
     "train_speed": [View(["code", "device", "torch", "gpu", "stage1.size", "stage1.gaussian_slots",
                           "stage1.all_slots", "stage1.steps_per_s", "stage1_ops.per_step",
                           "semantic_stage.seconds", "peak_gpu_bytes"])],
