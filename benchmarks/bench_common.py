@@ -6,6 +6,7 @@ import json
 import os
 import platform
 import sys
+import time
 from pathlib import Path
 
 SCHEMA = "csgs-bench/1"
@@ -24,6 +25,16 @@ def held_out_views(scene, width: int, height: int) -> list:
 
     return (orbit_cameras(scene, 16, width=width, height=height, elevation_deg=20)
             + orbit_cameras(scene, 12, width=width, height=height, elevation_deg=45))
+
+
+def best_of(repeat: int, run) -> tuple[float, object]:
+    """(fastest wall seconds of ``repeat`` calls of ``run``, the last call's result)."""
+    best, result = float("inf"), None
+    for _ in range(repeat):
+        start = time.perf_counter()
+        result = run()
+        best = min(best, time.perf_counter() - start)
+    return best, result
 
 
 def machine() -> dict:

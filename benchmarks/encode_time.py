@@ -22,11 +22,10 @@ import argparse
 import hashlib
 import os
 import sys
-import time
 from pathlib import Path
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_common import REPO, document, emit  # noqa: E402
+from bench_common import REPO, best_of, document, emit  # noqa: E402
 
 import csgs_codec  # noqa: E402
 from csgs_codec import read_scene  # noqa: E402
@@ -46,16 +45,6 @@ def find_scene(name: str) -> Path | None:
         if path.is_file():
             return path
     return None
-
-
-def best_of(repeat: int, run) -> tuple[float, object]:
-    """(shortest wall time in seconds, the last result) of ``repeat`` calls of ``run``."""
-    best, result = float("inf"), None
-    for _ in range(repeat):
-        start = time.perf_counter()
-        result = run()
-        best = min(best, time.perf_counter() - start)
-    return best, result
 
 
 def measure(path: Path, quality: int, repeat: int, keep: int | None = None) -> dict:

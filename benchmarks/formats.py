@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
-import time
 import warnings
 from pathlib import Path
 
@@ -21,7 +20,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks.bench_common import FULL_PRECISION, SCENES, document, emit  # noqa: E402
+from benchmarks.bench_common import FULL_PRECISION, SCENES, best_of, document, emit  # noqa: E402
 from csgs_codec.codec.files import read_scene_with_report  # noqa: E402
 from csgs_codec.errors import DataLossWarning  # noqa: E402
 from csgs_codec.interchange.writers import scene_bytes  # noqa: E402
@@ -29,16 +28,6 @@ from csgs_codec.interchange.writers import scene_bytes  # noqa: E402
 SAMPLE = Path(__file__).resolve().parents[1] / "samples" / "donut.ply"
 #: suffix -> largest position error the format allows for a scene within +-2048 units
 POSITION_TOLERANCE = {".ply": 0.0, ".splat": 0.0, ".spz": 2.0 ** -13 + 1e-6, ".glb": 0.0}
-
-
-def best_of(repeat: int, run) -> tuple[float, object]:
-    """(fastest wall seconds of ``repeat`` calls, the last result)."""
-    best, result = float("inf"), None
-    for _ in range(repeat):
-        start = time.perf_counter()
-        result = run()
-        best = min(best, time.perf_counter() - start)
-    return best, result
 
 
 def measure(path: Path, repeat: int) -> list[dict]:
