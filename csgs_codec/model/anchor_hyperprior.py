@@ -313,8 +313,10 @@ def _train(emb: torch.Tensor, targets: list[AttributeTarget], carm_groups: int,
             optimizer.lr = settings.learning_rate / 4
         rows = torch.randint(0, m, (min(settings.batch, m),), generator=gen, device=device)
         optimizer.zero_grad()
-        loss = prior.loss(emb[rows], [v[rows] for v in values], [w[rows] for w in weights],
-                          lams, gen)
+        # index_select: the rows of emb[rows], several times faster on the CPU
+        loss = prior.loss(torch.index_select(emb, 0, rows),
+                          [torch.index_select(v, 0, rows) for v in values],
+                          [torch.index_select(w, 0, rows) for w in weights], lams, gen)
         if not torch.isfinite(loss):
             raise _DivergedError(f"non-finite loss at step {step}")
         loss.backward()

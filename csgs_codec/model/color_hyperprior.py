@@ -127,9 +127,10 @@ class ColorPriorFit:
                 rows = torch.randint(0, n, (min(s.batch, n),), generator=self.gen,
                                      device=self.values.device)
                 self.optimizer.zero_grad()
-                out = self.net(self.emb[rows])
-                bits = gaussian_bin_bits(self.values[rows], out[:, :t],
-                                         out[:, t:] * INDEX_UNIT, 1.0, 0.0)
+                # index_select: the same rows as emb[rows], several times faster on the CPU
+                out = self.net(torch.index_select(self.emb, 0, rows))
+                bits = gaussian_bin_bits(torch.index_select(self.values, 0, rows),
+                                         out[:, :t], out[:, t:] * INDEX_UNIT, 1.0, 0.0)
                 loss = bits.sum(dim=1).mean()
                 if not torch.isfinite(loss):
                     raise ModelError(f"the color hyperprior fit diverged at step {step}")

@@ -56,7 +56,13 @@ def gaussian_bin_bits(values, mean, scale_idx, step, noise) -> torch.Tensor:
     relaxation of rounding, or 0 for values that are already integers on the step grid.
     """
     s = table_sigma(scale_idx)
-    y = (values - mean) / step + noise
+    y = values - mean
+    # A unit step and no noise leave y as it is (x / 1 and x + 0 are exact): skipping them
+    # spares the integer-valued fits four operators a step, forward and backward.
+    if not (isinstance(step, (int, float)) and step == 1):
+        y = y / step
+    if not (isinstance(noise, (int, float)) and noise == 0):
+        y = y + noise
     mass = torch.special.ndtr((y + 0.5) / s) - torch.special.ndtr((y - 0.5) / s)
     return -torch.log2(torch.clamp(mass, min=1e-9))
 
