@@ -157,6 +157,27 @@ def test_ssim_numba_kernels_give_the_reference_value_and_gradient(shape):
     assert float((grad - ref_grad).norm() / ref_grad.norm()) < 1e-5
 
 
+@pytest.mark.parametrize("shape", [(75, 90, 3), (11, 11, 1)])
+def test_ssim_numba_kernels_give_the_same_bits_on_one_and_two_threads(shape):
+    numba = pytest.importorskip("numba")
+    gen = torch.Generator().manual_seed(7)
+    target = torch.rand(shape, generator=gen)
+    image = (target + 0.1 * torch.randn(shape, generator=gen)).clamp(0, 1)
+    results = []
+    previous = numba.get_num_threads()
+    try:
+        for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+            numba.set_num_threads(threads)
+            rendered = image.clone().requires_grad_()
+            value = ssim(rendered, target, kernel="auto")
+            assert type(value.grad_fn).__name__ == "_NumbaSSIMBackward"
+            value.backward()
+            results.append((value.item(), rendered.grad.numpy().tobytes()))
+    finally:
+        numba.set_num_threads(previous)
+    assert results[0] == results[1]
+
+
 @pytest.mark.parametrize("shape", [(96, 128, 3), (23, 40, 1), (11, 30, 3)])
 def test_ssim_written_out_gradient_gives_the_reference_value_and_gradient(shape, monkeypatch):
     import csgs_codec.metrics.ssim as ssim_module
