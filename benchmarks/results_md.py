@@ -88,6 +88,10 @@ VIEWS: dict[str, list[View]] = {
     "formats": [View(["scene", "format", "bytes", "bits_per_gaussian", "write_s", "read_s"])],
     "fuzz_decoder": [View(["inputs", "complete", "crashes", "hang", "max_seconds_per_input",
                            "max_seconds_alone", "max_share_of_memory_bound", "elapsed_s"])],
+    "fuzz_js_receiver": [View(["seed_set", "inputs", "complete", "disagreements",
+                               "python_outcomes.ok", "python_outcomes.FormatError",
+                               "rejections_naming_the_same_place",
+                               "rejections_naming_another_place", "elapsed_s"])],
     "fuzz_readers": [
         View(["inputs", "complete", "crashes", "timeouts", "typed_errors", "parsed_ok",
               "max_seconds_per_input", "max_share_of_memory_bound"]),

@@ -1,0 +1,52 @@
+#!/usr/bin/env node
+/**
+ * The fuzz oracle's JavaScript side: decode each FILE with the receiver (csgs_codec/js/),
+ * both layers, on this thread, and print one JSON line per file, whatever happens:
+ *
+ *   {"ok": true, "count", "arrays": {name: {"shape", "sha256"}}, "semantic_names", "ms"}
+ *   {"ok": false, "error": "FormatError" | "UnsupportedError", "chunk", "offset", "message", "ms"}
+ *   {"ok": false, "error": "crash", "type", "message", "stack", "ms"}   (any other exception)
+ *
+ * Unlike decode_cli.mjs, an unexpected exception does not end the run: it is what a fuzz
+ * campaign hunts for, and the other files of the batch are still decoded. The last line is
+ * {"max_rss_bytes": ...}, the process's peak resident memory.
+ *
+ *   node tests/fuzz/js_oracle.mjs FILE...
+ */
+
+import { createHash } from 'node:crypto';
+import { readFileSync } from 'node:fs';
+import { performance } from 'node:perf_hooks';
+
+import { FormatError, UnsupportedError } from '../../csgs_codec/js/errors.mjs';
+import { decodeScene, sceneArrays } from '../../csgs_codec/js/scene.mjs';
+import { loadTables } from '../../csgs_codec/js/tables_node.mjs';
+
+function sha256(typed) {
+  return createHash('sha256').update(new Uint8Array(typed.buffer, typed.byteOffset, typed.byteLength)).digest('hex');
+}
+
+/** The outcome of decoding `data` (see the header), without its time. */
+async function outcome(data, tables) {
+  try {
+    const scene = await decodeScene(data, { layers: ['color', 'semantic'], tables });
+    const arrays = {};
+    for (const [name, [values, shape]] of Object.entries(sceneArrays(scene))) arrays[name] = { shape, sha256: sha256(values) };
+    return { ok: true, count: scene.count, arrays, semantic_names: scene.semanticNames };
+  } catch (err) {
+    if (err instanceof FormatError) return { ok: false, error: 'FormatError', chunk: err.chunk, offset: err.offset, message: err.message };
+    if (err instanceof UnsupportedError) return { ok: false, error: 'UnsupportedError', chunk: null, offset: null, message: err.message };
+    return {
+      ok: false, error: 'crash', type: err?.constructor?.name ?? typeof err, message: String(err?.message ?? err), stack: String(err?.stack ?? '').slice(0, 2000),
+    };
+  }
+}
+
+const tables = loadTables();
+for (const file of process.argv.slice(2)) {
+  const data = new Uint8Array(readFileSync(file));
+  const start = performance.now();
+  const result = await outcome(data, tables);
+  process.stdout.write(`${JSON.stringify({ file, ...result, ms: performance.now() - start })}\n`);
+}
+process.stdout.write(`${JSON.stringify({ max_rss_bytes: process.resourceUsage().maxRSS * 1024 })}\n`);

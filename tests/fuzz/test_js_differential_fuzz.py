@@ -1,0 +1,105 @@
+"""The JavaScript receiver on mutated files: it never throws anything but FormatError or
+UnsupportedError, never dies or hangs, and agrees with the Python decoder on every mutant
+(both decode it to the same arrays, or both refuse it with the same kind of error).
+
+The default run fuzzes the decoder campaign's seeds (tests/fuzz/seeds.py, standard scenes);
+the slow run many more of them, and mutants of what users make: the default encodes of the
+sample and of the repository's SH-3 capture. Skipped when ``node`` is not on PATH.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from benchmarks._js_receiver import node_executable
+from tests.conftest import SAMPLE
+from tests.fuzz.container_edit import split_chunks
+from tests.fuzz.js_differential import (
+    DifferentialSummary,
+    compare,
+    python_outcome,
+    receiver_outcomes,
+    run_differential,
+    standard_seeds,
+)
+from tests.fuzz.seeds import Seed, build_seeds
+
+pytestmark = pytest.mark.skipif(node_executable() is None,
+                                reason="node (Node.js >= 18) is not on PATH")
+
+REPO_SH3 = Path(__file__).resolve().parents[2] / "benchmarks" / "data" / "yashica_t4_top8192.ply"
+DEFAULT_INPUTS = 300
+SLOW_INPUTS = 5000
+SLOW_USER_INPUTS = 600
+
+
+@pytest.fixture(scope="module")
+def seeds() -> list[Seed]:
+    return standard_seeds(build_seeds())
+
+
+def _report(summary: DifferentialSummary) -> str:
+    return "\n".join(f"input {d.index} ({d.seed}, {' '.join(d.operators)}): {d.kind}: "
+                     f"{d.detail}" for d in summary.disagreements[:20])
+
+
+def _assert_agrees(summary: DifferentialSummary, inputs: int) -> None:
+    assert summary.inputs == inputs
+    assert not summary.disagreements, _report(summary)
+    # Not a trivial campaign: some mutants decode, most reach a named rejection.
+    assert summary.outcomes["ok"] > 0 and summary.outcomes["FormatError"] > inputs // 2
+
+
+def test_the_receiver_agrees_with_python_on_mutants_of_the_campaign_seeds(seeds):
+    summary = run_differential(seeds, 0, DEFAULT_INPUTS, campaign_seed=11)
+    _assert_agrees(summary, DEFAULT_INPUTS)
+
+
+def test_the_seeds_are_standard_scenes_of_every_kind(seeds):
+    names = {s.name for s in seeds}
+    assert {"donut300_q8", "semantic200_q8", "instances200_tiled", "outliers300_q2",
+            "vector:color_prior_q3", "vector:scored_steps_q5"} <= names
+    assert not any(c.type == b"ANCH" for s in seeds for c in s.chunks)
+
+
+def test_a_receiver_process_that_dies_is_pinned_on_its_input(seeds, tmp_path):
+    good = tmp_path / "good.csgs"
+    good.write_bytes(next(s for s in seeds if s.name == "donut300_q2").data)
+    missing = tmp_path / "missing.csgs"  # the oracle's read throws outside the decode
+    results, _ = receiver_outcomes([good, missing, good])
+    assert [r["ok"] for r in results] == [True, False, True]
+    assert results[1]["error"] == "died"
+    assert compare(python_outcome(good.read_bytes()), results[1])[0] == "died"
+
+
+def test_the_comparison_flags_each_kind_of_disagreement(seeds):
+    data = next(s for s in seeds if s.name == "semantic200_q8").data
+    python = python_outcome(data)
+    assert python["ok"]
+    refused = {"ok": False, "error": "FormatError", "chunk": "SEML", "offset": 9,
+               "message": "x"}
+    crashed = {"ok": False, "error": "crash", "type": "TypeError", "message": "x"}
+    other = {**python, "arrays": {**python["arrays"], "semantic": {"shape": [], "sha256": ""}}}
+    assert compare(python, python) is None
+    assert compare(python, refused)[0] == "accept"
+    assert compare(python, crashed)[0] == "crash"
+    assert compare(python, other) == ("arrays", "decoded arrays differ: ['semantic']")
+    unsupported = {**refused, "error": "UnsupportedError"}
+    assert compare(refused, unsupported)[0] == "error-kind"
+    assert compare(refused, {**refused, "chunk": "SEMF"}) is None  # reports are informative
+
+
+@pytest.mark.slow
+def test_the_receiver_agrees_with_python_on_many_mutants(seeds):
+    summary = run_differential(seeds, 0, SLOW_INPUTS, campaign_seed=12)
+    _assert_agrees(summary, SLOW_INPUTS)
+
+
+@pytest.mark.slow
+def test_the_receiver_agrees_with_python_on_mutants_of_default_encodes(default_encode):
+    user_made = [Seed(path.stem, path.read_bytes(), tuple(split_chunks(path.read_bytes())), 1.0)
+                 for path in (default_encode(SAMPLE), default_encode(REPO_SH3))]
+    summary = run_differential(user_made, 0, SLOW_USER_INPUTS, campaign_seed=13, batch=25)
+    _assert_agrees(summary, SLOW_USER_INPUTS)
