@@ -90,8 +90,7 @@ VIEWS: dict[str, list[View]] = {
                            "max_seconds_alone", "max_share_of_memory_bound", "elapsed_s"])],
     "fuzz_js_receiver": [View(["seed_set", "inputs", "complete", "disagreements",
                                "python_outcomes.ok", "python_outcomes.FormatError",
-                               "rejections_naming_the_same_place",
-                               "rejections_naming_another_place", "elapsed_s"])],
+                               "receiver_max_rss_bytes", "elapsed_s"])],
     "fuzz_readers": [
         View(["inputs", "complete", "crashes", "timeouts", "typed_errors", "parsed_ok",
               "max_seconds_per_input", "max_share_of_memory_bound"]),

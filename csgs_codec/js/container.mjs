@@ -73,7 +73,10 @@ export function readToc(data) {
     r.chunk = type;
     const layer = r.u8('layer');
     const tile = r.varint('tile', MAX_U32);
-    const offset = r.varint('offset');
+    // Any 64-bit value is a well-formed offset (§5.2 has no range, only the rule below): read
+    // it whole, so a huge one is refused by that rule, as in the Python decoder, not as a
+    // number above 2^53.
+    const offsetBig = r.varintBig('offset');
     const length = r.varint('length', MAX_U32);
     r.chunk = null;
     const where = { chunk: type, offset: entryOffset + 4 };
@@ -83,9 +86,10 @@ export function readToc(data) {
     if (known && CHUNK_LAYERS[type] !== null && CHUNK_LAYERS[type] !== layer) {
       throw new FormatError(`TOC entry ${index}: chunk type belongs to another layer`, where);
     }
-    if (offset !== expected) {
-      throw new FormatError(`TOC entry ${index}: offset ${offset} is not ${expected}`, { chunk: type, offset: entryOffset });
+    if (offsetBig !== BigInt(expected)) {
+      throw new FormatError(`TOC entry ${index}: offset ${offsetBig} is not ${expected}`, { chunk: type, offset: entryOffset });
     }
+    const offset = expected;
     entries.push({ index, type, layer, tile, offset, length, tocOffset: entryOffset, known,
       critical: !(code[0] & 0x20), end: offset + length + FRAME_OVERHEAD });
     expected += length + FRAME_OVERHEAD;
@@ -130,7 +134,15 @@ export function readFrame(data, entry) {
  * @returns {{toc: object, payloads: Map<number, Uint8Array>, size: number}}
  */
 export function readLayers(data, layers) {
-  const toc = readToc(data);
+  return readPayloads(data, readToc(data), layers);
+}
+
+/**
+ * readLayers after the TOC: the frames of the base layer and ``layers`` of ``toc`` (read by
+ * readToc from ``data``), in TOC order.
+ * @returns {{toc: object, payloads: Map<number, Uint8Array>, size: number}}
+ */
+export function readPayloads(data, toc, layers) {
   const wanted = new Set([0, ...[...layers].map((name) => LAYERS.indexOf(name))]);
   const needed = [];
   for (const entry of toc.entries) {

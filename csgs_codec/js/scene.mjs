@@ -8,7 +8,7 @@ import { readHeader } from './base_layer.mjs';
 import { single } from './chunks.mjs';
 import { BAND_CODES, readShTransforms } from './color_layer.mjs';
 import { modelledStreams, parseColorPrior } from './color_prior.mjs';
-import { readLayers } from './container.mjs';
+import { readLayers, readPayloads, readToc } from './container.mjs';
 import { planDecode, sceneOf } from './decode_plan.mjs';
 import { LocalLane, runPlan } from './decode_runner.mjs';
 import { FormatError, UnsupportedError } from './errors.mjs';
@@ -45,10 +45,12 @@ export function prepareContainer(container, size, layers, options) {
     prior = parseColorPrior(bytes, offset, codes, posBits, family);
   }
   const present = new Set(container.toc.entries.map((e) => e.type));
+  // SHXF comes before the band chunks in a file (and in the Python decoder's checks): its
+  // faults are reported before a band chunk the header does not expect.
+  const shTransforms = present.has('SHXF') ? readShTransforms(container, header.coded) : null;
   const extra = [...BAND_CODES, 'SHDC', 'OPAC', 'SCAL', 'ROTN'].filter((c) => present.has(c) && !codes.includes(c)).sort();
   if (extra.length) throw new FormatError(`unexpected color chunk(s) ${extra} for SH degree ${header.coded}`, { chunk: extra[0] });
   const modelled = prior ? modelledStreams(prior, codes) : new Set();
-  const shTransforms = present.has('SHXF') ? readShTransforms(container, header.coded) : null;
   return { layers, family, sine, container, header, codes, prior, modelled, shTransforms };
 }
 
@@ -138,9 +140,10 @@ async function decodePrepared(data, prep, lanes, onStage, onProgress) {
  */
 export function tiledScene(data, options) {
   const layers = new Set(['color', ...(options.layers || [])]);
-  const container = readLayers(data, layers);
-  if (!isTiled(container)) return null;
-  const tiles = readTileIndex(container, data.length, options.maxGaussiansPerByte ?? MAX_GAUSSIANS_PER_BYTE);
+  const toc = readToc(data);
+  if (!isTiled(toc)) return null;
+  const tiles = readTileIndex(data, toc, options.maxGaussiansPerByte ?? MAX_GAUSSIANS_PER_BYTE);
+  const container = readPayloads(data, toc, layers);
   const containers = tiles.map((_, number) => tileContainer(container, number));
   const prepare = (i) => prepareContainer(containers[i], data.length, layers, options);
   return { tiles, containers, layers, prepare };

@@ -124,10 +124,11 @@ export function decodeSemantic(container, header, scene, family) {
     const [data, offset] = single(container, 'SEML');
     const r = new ByteReader(data, offset, 'SEML');
     const base = r.svarintBig('label_base');
+    const at = r.offset;
     const table = r.u8('scale_index');
+    if (table >= 64) throw r.error(`scale index ${table} out of range`, at);
     const stream = r.byteString('label_stream');
     r.expectEnd('the label stream');
-    if (table >= 64) throw r.error(`scale index ${table} out of range`);
     const { values, big } = decodeSymbols(stream, table, header.count, family, 'SEML', r.offset - stream.length);
     const labels = new Int32Array(header.count);
     const exact = base >= -(2n ** 52n) && base <= 2n ** 52n;

@@ -4,28 +4,34 @@
  */
 
 import { ByteReader } from './bytes.mjs';
+import { readFrame } from './container.mjs';
 import { FormatError } from './errors.mjs';
 
 const MAX_TILES = 65535;
 const MAX_TILE_GAUSSIANS = 2 ** 24;
 const MIN_ENTRY_BYTES = 25;
 
-/** True when the container's TOC lists a TIDX chunk (a tiled scene). */
-export function isTiled(container) {
-  return container.toc.entries.some((e) => e.type === 'TIDX');
+/** True when ``toc`` (readToc's) lists a TIDX chunk (a tiled scene). */
+export function isTiled(toc) {
+  return toc.entries.some((e) => e.type === 'TIDX');
 }
 
 /**
- * The tile index of a tiled container, after the checks of §12.22: one TIDX, TOC entry 0 in
- * tile 0, every other chunk in a listed tile, the counts within ``maxPerByte`` x the file.
+ * The tile index of a tiled file, after the checks of §12.22: one TIDX, TOC entry 0 in tile
+ * 0, every other chunk in a listed tile, the counts within ``maxPerByte`` x the file. Reads
+ * the TIDX frame of ``data`` and no other (a decoder chooses the other frames from it), so
+ * its faults are found before any other frame's, as in the Python decoder.
+ * @param {Uint8Array} data the file (or the prefix at hand)
+ * @param {object} toc readToc's result for ``data``
  * @returns {{count: number, lower: number[], upper: number[]}[]} one entry per tile
  */
-export function readTileIndex(container, size, maxPerByte) {
-  const found = container.toc.entries.filter((e) => e.type === 'TIDX');
+export function readTileIndex(data, toc, maxPerByte) {
+  const size = data.length;
+  const found = toc.entries.filter((e) => e.type === 'TIDX');
   if (found.length > 1) throw new FormatError(`chunk TIDX appears ${found.length} times`, { chunk: 'TIDX', offset: found[1].tocOffset });
   const entry = found[0];
   if (entry.index !== 0 || entry.tile !== 0) throw new FormatError('the tile index must be the first chunk, in tile 0', { chunk: 'TIDX', offset: entry.tocOffset });
-  const r = new ByteReader(container.payloads.get(0), entry.offset + 8, 'TIDX');
+  const r = new ByteReader(readFrame(data, entry), entry.offset + 8, 'TIDX');
   const version = r.u8('version');
   if (version !== 1) throw r.error(`unknown tile index version ${version}`, r.offset - 1);
   let at = r.offset;
@@ -44,7 +50,7 @@ export function readTileIndex(container, size, maxPerByte) {
     total += n;
   }
   r.expectEnd('the tile index');
-  for (const e of container.toc.entries.slice(1)) {
+  for (const e of toc.entries.slice(1)) {
     if (e.tile >= count) throw new FormatError(`tile ${e.tile} is not in the tile index (${count} tiles)`, { chunk: e.type, offset: e.tocOffset });
   }
   const limit = maxPerByte * size;

@@ -2,10 +2,10 @@
 
 Every mutant of a campaign (tests/fuzz/campaign.py's reproducible sequence) is decoded by both
 (both layers). They must agree: both decode it, to the same arrays (SHA-256 of each), or both
-reject it with the same kind of error (FormatError, or UnsupportedError); the receiver must
-never throw anything else, die or hang. Where both reject, the chunk and byte offset they name
-are counted but not required to match: FORMAT §11 makes error reports informative, and a file
-with several faults may be refused for either of them first.
+reject it with the same kind of error (FormatError, or UnsupportedError) naming the same chunk
+and byte offset; the receiver must never throw anything else, die or hang. FORMAT §11 makes
+error reports informative, but both decoders follow its conventions and §8's order (frames in
+TOC order, fields in payload order), so a file with several faults is refused for the same one.
 
 Anchor scenes (FORMAT §17) are outside the receiver (it says "unsupported"): their files are
 left out of the seeds, and a mutant whose TOC comes to list an ANCH chunk is only checked for
@@ -45,7 +45,8 @@ class Disagreement:
     Attributes:
         kind: "crash" (an exception other than FormatError / UnsupportedError), "died" (the
             process ended or hung on this input alone), "accept" (one decoded it, the other
-            refused it), "arrays" (both decoded it, to different arrays) or "error-kind".
+            refused it), "arrays" (both decoded it, to different arrays), "error-kind" or
+            "place" (both refused it, naming different chunks or byte offsets).
     """
 
     index: int
@@ -63,8 +64,6 @@ class DifferentialSummary:
     Attributes:
         inputs: inputs decoded by both.
         outcomes: count per Python outcome ("ok", "FormatError", "UnsupportedError").
-        same_place, other_place: rejections where both named the same (chunk, offset), and
-            where they named different ones.
         slowest_ms: the :data:`SLOWEST_KEPT` slowest receiver decodes as (ms, index).
         max_rss_bytes: largest peak resident memory of a receiver process.
         disagreements: the inputs that failed the comparison.
@@ -72,8 +71,6 @@ class DifferentialSummary:
 
     inputs: int = 0
     outcomes: Counter = field(default_factory=Counter)
-    same_place: int = 0
-    other_place: int = 0
     slowest_ms: list[tuple[float, int]] = field(default_factory=list)
     max_rss_bytes: int = 0
     disagreements: list[Disagreement] = field(default_factory=list)
@@ -82,8 +79,6 @@ class DifferentialSummary:
         """Add ``other``'s totals to these."""
         self.inputs += other.inputs
         self.outcomes.update(other.outcomes)
-        self.same_place += other.same_place
-        self.other_place += other.other_place
         self.slowest_ms = heapq.nlargest(SLOWEST_KEPT, self.slowest_ms + other.slowest_ms)
         self.max_rss_bytes = max(self.max_rss_bytes, other.max_rss_bytes)
         self.disagreements.extend(other.disagreements)
@@ -162,6 +157,8 @@ def compare(python: dict, receiver: dict) -> tuple[str, str] | None:
     if python["error"] != receiver["error"]:
         return "error-kind", f"Python {python['error']} ({python['message']}), the receiver " \
                              f"{receiver['error']} ({receiver['message']})"
+    if (python["chunk"], python["offset"]) != (receiver["chunk"], receiver["offset"]):
+        return "place", f"Python: {python['message']}; the receiver: {receiver['message']}"
     return None
 
 
@@ -206,7 +203,3 @@ def _count(summary: DifferentialSummary, index: int, mutant, python: dict | None
     if differ is not None:
         summary.disagreements.append(Disagreement(index, mutant.seed, mutant.operators,
                                                   *differ, mutant.data))
-    elif not python["ok"]:
-        same = (python["chunk"], python["offset"]) == (receiver["chunk"], receiver["offset"])
-        summary.same_place += same
-        summary.other_place += not same

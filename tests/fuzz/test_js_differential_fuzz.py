@@ -1,6 +1,7 @@
 """The JavaScript receiver on mutated files: it never throws anything but FormatError or
 UnsupportedError, never dies or hangs, and agrees with the Python decoder on every mutant
-(both decode it to the same arrays, or both refuse it with the same kind of error).
+(both decode it to the same arrays, or both refuse it with the same kind of error, naming the
+same chunk and byte offset).
 
 The default run fuzzes the decoder campaign's seeds (tests/fuzz/seeds.py, standard scenes);
 the slow run many more of them, and mutants of what users make: the default encodes of the
@@ -86,9 +87,11 @@ def test_the_comparison_flags_each_kind_of_disagreement(seeds):
     assert compare(python, refused)[0] == "accept"
     assert compare(python, crashed)[0] == "crash"
     assert compare(python, other) == ("arrays", "decoded arrays differ: ['semantic']")
+    assert compare(refused, refused) is None
     unsupported = {**refused, "error": "UnsupportedError"}
     assert compare(refused, unsupported)[0] == "error-kind"
-    assert compare(refused, {**refused, "chunk": "SEMF"}) is None  # reports are informative
+    assert compare(refused, {**refused, "offset": 10})[0] == "place"
+    assert compare(refused, {**refused, "message": "y"}) is None
 
 
 @pytest.mark.slow
