@@ -64,3 +64,14 @@ def _plain(value):
     if hasattr(value, "tolist"):
         return value.tolist()
     return str(value)
+
+
+def save_failing_inputs(folder: Path | None, inputs) -> None:
+    """Write each ``(name, data, info)`` of ``inputs`` to ``folder`` as ``name.csgs`` with
+    ``info`` (a JSON-able dict) in ``name.json`` beside it; nothing when ``folder`` is None."""
+    if folder is None:
+        return
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, data, info in inputs:
+        (folder / f"{name}.csgs").write_bytes(data)
+        (folder / f"{name}.json").write_text(json.dumps(info, indent=2) + "\n")

@@ -23,7 +23,6 @@ follows that list, which the JSON records.
 from __future__ import annotations
 
 import argparse
-import json
 import multiprocessing
 import resource
 import sys
@@ -32,7 +31,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from bench_common import document, emit  # noqa: E402
+from bench_common import document, emit, save_failing_inputs  # noqa: E402
 
 from tests.fuzz.campaign import Summary, run_campaign, time_alone  # noqa: E402
 from tests.fuzz.oracle import MEMORY_ALLOWANCE, MEMORY_FACTOR  # noqa: E402
@@ -55,14 +54,10 @@ def _run_batch(bounds: tuple[int, int]) -> tuple[Summary, int]:
 
 
 def _save_crashes(summary: Summary, crash_dir: Path | None) -> None:
-    if crash_dir is None:
-        return
-    crash_dir.mkdir(parents=True, exist_ok=True)
-    for crash in summary.crashes:
-        (crash_dir / f"crash_{crash.index}.csgs").write_bytes(crash.data)
-        (crash_dir / f"crash_{crash.index}.json").write_text(json.dumps(
-            {"index": crash.index, "seed": crash.seed, "operators": list(crash.operators),
-             "detail": crash.detail}, indent=2) + "\n")
+    save_failing_inputs(crash_dir, [
+        (f"crash_{c.index}", c.data, {"index": c.index, "seed": c.seed,
+                                      "operators": list(c.operators), "detail": c.detail})
+        for c in summary.crashes])
 
 
 def _result(summary: Summary, args, seeds, elapsed: float, hang: str | None,

@@ -18,14 +18,13 @@ input disagreed.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from bench_common import REPO, document, emit  # noqa: E402
+from bench_common import REPO, document, emit, save_failing_inputs  # noqa: E402
 
 from tests.fuzz.container_edit import split_chunks  # noqa: E402
 from tests.fuzz.js_differential import (  # noqa: E402
@@ -74,14 +73,10 @@ def _result(summary: DifferentialSummary, args, seeds, elapsed: float) -> dict:
 
 
 def _save(summary: DifferentialSummary, crash_dir: Path | None) -> None:
-    if crash_dir is None:
-        return
-    crash_dir.mkdir(parents=True, exist_ok=True)
-    for d in summary.disagreements:
-        (crash_dir / f"{d.index}.csgs").write_bytes(d.data)
-        (crash_dir / f"{d.index}.json").write_text(json.dumps(
-            {"index": d.index, "seed": d.seed, "operators": list(d.operators),
-             "kind": d.kind, "detail": d.detail}, indent=2) + "\n")
+    save_failing_inputs(crash_dir, [
+        (str(d.index), d.data, {"index": d.index, "seed": d.seed, "operators": list(d.operators),
+                                "kind": d.kind, "detail": d.detail})
+        for d in summary.disagreements])
 
 
 def main() -> int:
