@@ -6,6 +6,7 @@ import fcntl
 import hashlib
 import os
 import pickle
+import subprocess
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -18,6 +19,10 @@ FIXTURES = SHARED_DATA / "fixtures"
 SAMPLE = REPO / "samples" / "donut.ply"
 #: Small fixtures copied into the repository (tests/data/fixtures/README.md).
 REPO_FIXTURES = REPO / "tests" / "data" / "fixtures"
+
+# A Python a test starts (the CLI, a benchmark, a training run) prints its stack when a
+# signal kills it; without this a crash in a subprocess reports only "returncode -11".
+os.environ.setdefault("PYTHONFAULTHANDLER", "1")
 
 
 def shared_path(*parts: str) -> Path:
@@ -171,3 +176,17 @@ def pytest_collection_modifyitems(config, items):
         if "gpu" in item.keywords:
             item.add_marker(skip)
 
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """Add what a failed ``subprocess.run(..., check=True)`` printed to the test's report
+    (CalledProcessError's message names only the exit status)."""
+    outcome = yield
+    error = call.excinfo.value if call.excinfo is not None else None
+    if isinstance(error, subprocess.CalledProcessError):
+        report = outcome.get_result()
+        for name, text in (("stdout", error.stdout), ("stderr", error.stderr)):
+            if text:
+                text = text.decode(errors="replace") if isinstance(text, bytes) else text
+                report.sections.append((f"subprocess {name}", text[-4000:]))
