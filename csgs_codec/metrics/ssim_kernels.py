@@ -12,7 +12,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from csgs_codec.render import numba_kernels  # noqa: F401  (selects the threading layer)
+from csgs_codec.render.numba_threads import one_launch_at_a_time
 
 #: Output rows a forward job filters: it row-filters _BAND + k - 1 input rows once and
 #: keeps them in a buffer of that many rows (about 84 KB at 512 pixels wide) for the column
@@ -52,6 +52,7 @@ def _filter_band(a: np.ndarray, b: np.ndarray, taps: np.ndarray, which: int, c: 
             out[which, c, i, j] = column[j]
 
 
+@one_launch_at_a_time
 @numba.njit(parallel=True, cache=True)
 def window_statistics(a: np.ndarray, b: np.ndarray, taps: np.ndarray) -> np.ndarray:
     """[5, C, H', W'] window means of a, b, a^2, b^2 and a*b for [C, H, W] float32 planes
@@ -73,6 +74,7 @@ def window_statistics(a: np.ndarray, b: np.ndarray, taps: np.ndarray) -> np.ndar
     return out
 
 
+@one_launch_at_a_time
 @numba.njit(parallel=True, cache=True)
 def score_and_slopes(stats: np.ndarray, c1: float, c2: float,
                      slopes: np.ndarray) -> float:
@@ -104,6 +106,7 @@ def score_and_slopes(stats: np.ndarray, c1: float, c2: float,
     return rows.sum()
 
 
+@one_launch_at_a_time
 @numba.njit(parallel=True, cache=True)
 def gradient_of_a(a: np.ndarray, b: np.ndarray, slopes: np.ndarray,
                   taps: np.ndarray) -> np.ndarray:

@@ -3,22 +3,17 @@
 The compositing rule is the one in :mod:`csgs_codec.render.composite_torch`, evaluated in
 float32 pixel by pixel with an early exit per pixel. Tiles run in parallel.
 
-Unless the user chose a numba threading layer (NUMBA_THREADING_LAYER), this module selects
-numba's own "workqueue" pool: the OpenMP layer's workers keep spinning after a kernel and
-measurably slow the torch operations that run next in the same process.
+The kernels Python calls take turns across threads and run on the threading layer that
+:mod:`csgs_codec.render.numba_threads` selects.
 """
 
 from __future__ import annotations
 
-import os
-
 import numba
 import numpy as np
 
-if "NUMBA_THREADING_LAYER" not in os.environ:
-    numba.config.THREADING_LAYER = "workqueue"
-
 from csgs_codec.render.composite_torch import MAX_ALPHA, TRANSMITTANCE_STOP
+from csgs_codec.render.numba_threads import one_launch_at_a_time
 from csgs_codec.render.projection import ALPHA_THRESHOLD
 
 # Typed constants keep the kernel arithmetic in float32, like the torch reference.
@@ -104,6 +99,7 @@ def _row_spans(rects: np.ndarray, order: np.ndarray, row_start: np.ndarray, tile
     return spans
 
 
+@one_launch_at_a_time
 @numba.njit(cache=True)
 def bin_tiles(rects: np.ndarray, order: np.ndarray, n_tiles: int, tiles_x: int,
               tile_size: int, width: int, height: int, means2d: np.ndarray,
@@ -184,6 +180,7 @@ def _alpha_at(packed: np.ndarray, k: int, pxc: np.float32,
     return alpha, falloff, dx, dy
 
 
+@one_launch_at_a_time
 @numba.njit(parallel=True, cache=True)
 def composite_tiles(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
                     conics: np.ndarray, opacities: np.ndarray, values: np.ndarray,
@@ -229,6 +226,7 @@ def composite_tiles(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
                 walked[py, px] = stop
 
 
+@one_launch_at_a_time
 @numba.njit(parallel=True, cache=True)
 def blend_weight_slots(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
                        conics: np.ndarray, opacities: np.ndarray, width: int, height: int,
@@ -268,6 +266,7 @@ def blend_weight_slots(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray
                     trans = after
 
 
+@one_launch_at_a_time
 @numba.njit(parallel=True, cache=True)
 def composite_tiles_backward(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
                              conics: np.ndarray, opacities: np.ndarray, values: np.ndarray,
@@ -343,6 +342,7 @@ def composite_tiles_backward(offsets: np.ndarray, ids: np.ndarray, means2d: np.n
                     trans = trans * keep
 
 
+@one_launch_at_a_time
 @numba.njit(cache=True)
 def sum_slots(ids: np.ndarray, slot_grads: np.ndarray, n: int) -> np.ndarray:
     """[n, K] float64 sums of the [I, K] slot rows per Gaussian ``ids`` [I], in slot order
@@ -355,6 +355,7 @@ def sum_slots(ids: np.ndarray, slot_grads: np.ndarray, n: int) -> np.ndarray:
     return total
 
 
+@one_launch_at_a_time
 @numba.njit(parallel=True, cache=True)
 def record_blend(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
                  conics: np.ndarray, opacities: np.ndarray, width: int, height: int,
@@ -397,6 +398,7 @@ def record_blend(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
                 counts[p] = at - starts[p]
 
 
+@one_launch_at_a_time
 @numba.njit(parallel=True, cache=True)
 def replay_blend(starts: np.ndarray, counts: np.ndarray, blend_ids: np.ndarray,
                  blend_weights: np.ndarray, values: np.ndarray, out: np.ndarray) -> None:
