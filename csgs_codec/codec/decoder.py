@@ -146,6 +146,8 @@ class Decoder:
             than this (files of this package's encoder always pass the defaults).
         threads: threads decoding the geometry and the color streams side by side (default
             2, or 1 on a one-core machine); the output is the same for any count.
+
+    One decoder may serve several threads at once; each call decodes as it would alone.
     """
 
     def __init__(self, *, max_gaussians: int = MAX_GAUSSIANS,

@@ -85,7 +85,8 @@ class Encoder:
 
     ``Encoder(config, progress=...)`` with an :class:`EncoderConfig`, or ``Encoder(**fields)``
     with its fields as keywords (``Encoder(7)`` is quality 7); ``encoder.config`` is the
-    config either way. The fields:
+    config either way. Encoders may run on several threads at once, each writing the bytes
+    it writes alone. The fields:
 
     Args:
         quality: preset 1 (smallest) .. 12 (near-lossless); see
