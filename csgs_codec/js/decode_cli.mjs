@@ -25,26 +25,20 @@
  * range decoder's and the integer network's; default) or plain JavaScript; same output.
  */
 
-import { createHash } from 'node:crypto';
 import { readFileSync, statSync } from 'node:fs';
 import { performance } from 'node:perf_hooks';
 
 import { LAYERS, readLayers } from './container.mjs';
+import { arrayDigests, sha256 } from './digests_node.mjs';
 import { FormatError, UnsupportedError } from './errors.mjs';
 import { setIntNetKernel } from './intnet.mjs';
 import { workerLanes } from './parallel_node.mjs';
 import { setRangeCoder } from './range_decoder.mjs';
-import { decodeScene, sceneArrays } from './scene.mjs';
+import { decodeScene } from './scene.mjs';
 import { loadTables } from './tables_node.mjs';
 
-function sha256(typed) {
-  const bytes = new Uint8Array(typed.buffer, typed.byteOffset, typed.byteLength);
-  return createHash('sha256').update(bytes).digest('hex');
-}
-
 function sceneSummary(scene) {
-  const out = {};
-  for (const [name, [values, shape]] of Object.entries(sceneArrays(scene))) out[name] = { shape, sha256: sha256(values) };
+  const out = arrayDigests(scene);
   const v = scene.metadata.views;
   const views = v && { source: v.source, count: v.count, left_out: v.leftOut, description: v.description };
   return { count: scene.count, arrays: out, semantic_names: scene.semanticNames, views };

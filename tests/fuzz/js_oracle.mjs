@@ -14,25 +14,19 @@
  *   node tests/fuzz/js_oracle.mjs FILE...
  */
 
-import { createHash } from 'node:crypto';
 import { readFileSync } from 'node:fs';
 import { performance } from 'node:perf_hooks';
 
+import { arrayDigests } from '../../csgs_codec/js/digests_node.mjs';
 import { FormatError, UnsupportedError } from '../../csgs_codec/js/errors.mjs';
-import { decodeScene, sceneArrays } from '../../csgs_codec/js/scene.mjs';
+import { decodeScene } from '../../csgs_codec/js/scene.mjs';
 import { loadTables } from '../../csgs_codec/js/tables_node.mjs';
-
-function sha256(typed) {
-  return createHash('sha256').update(new Uint8Array(typed.buffer, typed.byteOffset, typed.byteLength)).digest('hex');
-}
 
 /** The outcome of decoding `data` (see the header), without its time. */
 async function outcome(data, tables) {
   try {
     const scene = await decodeScene(data, { layers: ['color', 'semantic'], tables });
-    const arrays = {};
-    for (const [name, [values, shape]] of Object.entries(sceneArrays(scene))) arrays[name] = { shape, sha256: sha256(values) };
-    return { ok: true, count: scene.count, arrays, semantic_names: scene.semanticNames };
+    return { ok: true, count: scene.count, arrays: arrayDigests(scene), semantic_names: scene.semanticNames };
   } catch (err) {
     if (err instanceof FormatError) return { ok: false, error: 'FormatError', chunk: err.chunk, offset: err.offset, message: err.message };
     if (err instanceof UnsupportedError) return { ok: false, error: 'UnsupportedError', chunk: null, offset: null, message: err.message };
