@@ -12,7 +12,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from csgs_codec.render.numba_threads import one_launch_at_a_time
+from csgs_codec.render.numba_runtime import jit_kernel, one_launch_at_a_time
 
 #: Output rows a forward job filters: it row-filters _BAND + k - 1 input rows once and
 #: keeps them in a buffer of that many rows (about 84 KB at 512 pixels wide) for the column
@@ -21,7 +21,7 @@ from csgs_codec.render.numba_threads import one_launch_at_a_time
 _BAND = 32
 
 
-@numba.njit(cache=True)
+@jit_kernel()
 def _filter_band(a: np.ndarray, b: np.ndarray, taps: np.ndarray, which: int, c: int,
                  first: int, last: int, out: np.ndarray) -> None:
     """Output rows ``first``..``last`` - 1 of channel ``c`` of statistic ``which`` (a, b,
@@ -53,7 +53,7 @@ def _filter_band(a: np.ndarray, b: np.ndarray, taps: np.ndarray, which: int, c: 
 
 
 @one_launch_at_a_time
-@numba.njit(parallel=True, cache=True)
+@jit_kernel(parallel=True)
 def window_statistics(a: np.ndarray, b: np.ndarray, taps: np.ndarray) -> np.ndarray:
     """[5, C, H', W'] window means of a, b, a^2, b^2 and a*b for [C, H, W] float32 planes
     ('valid' filtering, H' = H - k + 1, W' = W - k + 1).
@@ -75,7 +75,7 @@ def window_statistics(a: np.ndarray, b: np.ndarray, taps: np.ndarray) -> np.ndar
 
 
 @one_launch_at_a_time
-@numba.njit(parallel=True, cache=True)
+@jit_kernel(parallel=True)
 def score_and_slopes(stats: np.ndarray, c1: float, c2: float,
                      slopes: np.ndarray) -> float:
     """Sum of the SSIM map over [C, H', W'] from ``stats`` (:func:`window_statistics`), in
@@ -107,7 +107,7 @@ def score_and_slopes(stats: np.ndarray, c1: float, c2: float,
 
 
 @one_launch_at_a_time
-@numba.njit(parallel=True, cache=True)
+@jit_kernel(parallel=True)
 def gradient_of_a(a: np.ndarray, b: np.ndarray, slopes: np.ndarray,
                   taps: np.ndarray) -> np.ndarray:
     """[C, H, W] derivative of the SSIM map's sum with respect to a (see module notes).

@@ -4,7 +4,7 @@ The compositing rule is the one in :mod:`csgs_codec.render.composite_torch`, eva
 float32 pixel by pixel with an early exit per pixel. Tiles run in parallel.
 
 The kernels Python calls take turns across threads and run on the threading layer that
-:mod:`csgs_codec.render.numba_threads` selects.
+:mod:`csgs_codec.render.numba_runtime` selects.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import numba
 import numpy as np
 
 from csgs_codec.render.composite_torch import MAX_ALPHA, TRANSMITTANCE_STOP
-from csgs_codec.render.numba_threads import one_launch_at_a_time
+from csgs_codec.render.numba_runtime import jit_kernel, one_launch_at_a_time
 from csgs_codec.render.projection import ALPHA_THRESHOLD
 
 # Typed constants keep the kernel arithmetic in float32, like the torch reference.
@@ -34,7 +34,7 @@ _POWER_MARGIN = np.float32(1e-3)
 _CULL_SLACK = 1e-5
 
 
-@numba.njit(parallel=True, cache=True)
+@jit_kernel(parallel=True)
 def _row_spans(rects: np.ndarray, order: np.ndarray, row_start: np.ndarray, tile_size: int,
                width: int, height: int, means2d: np.ndarray, conics: np.ndarray,
                opacities: np.ndarray) -> np.ndarray:
@@ -100,7 +100,7 @@ def _row_spans(rects: np.ndarray, order: np.ndarray, row_start: np.ndarray, tile
 
 
 @one_launch_at_a_time
-@numba.njit(cache=True)
+@jit_kernel()
 def bin_tiles(rects: np.ndarray, order: np.ndarray, n_tiles: int, tiles_x: int,
               tile_size: int, width: int, height: int, means2d: np.ndarray,
               conics: np.ndarray, opacities: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -142,7 +142,7 @@ def bin_tiles(rects: np.ndarray, order: np.ndarray, n_tiles: int, tiles_x: int,
     return offsets, ids
 
 
-@numba.njit(cache=True)
+@jit_kernel()
 def _pack_tile(ids: np.ndarray, start: int, count: int, means2d: np.ndarray,
                conics: np.ndarray, opacities: np.ndarray) -> np.ndarray:
     """[count, 7] float32 rows (mean x, mean y, conic a, b, c, opacity, the exponent below
@@ -161,7 +161,7 @@ def _pack_tile(ids: np.ndarray, start: int, count: int, means2d: np.ndarray,
     return packed
 
 
-@numba.njit(cache=True, inline="always")
+@jit_kernel(inline="always")
 def _alpha_at(packed: np.ndarray, k: int, pxc: np.float32,
               pyc: np.float32) -> tuple[np.float32, np.float32, np.float32, np.float32]:
     """(alpha, exp(power), dx, dy) of packed Gaussian ``k`` at the pixel centre (pxc, pyc),
@@ -181,7 +181,7 @@ def _alpha_at(packed: np.ndarray, k: int, pxc: np.float32,
 
 
 @one_launch_at_a_time
-@numba.njit(parallel=True, cache=True)
+@jit_kernel(parallel=True)
 def composite_tiles(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
                     conics: np.ndarray, opacities: np.ndarray, values: np.ndarray,
                     width: int, height: int, tile_size: int, tiles_x: int,
@@ -227,7 +227,7 @@ def composite_tiles(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
 
 
 @one_launch_at_a_time
-@numba.njit(parallel=True, cache=True)
+@jit_kernel(parallel=True)
 def blend_weight_slots(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
                        conics: np.ndarray, opacities: np.ndarray, width: int, height: int,
                        tile_size: int, tiles_x: int, weight_sq: np.ndarray,
@@ -267,7 +267,7 @@ def blend_weight_slots(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray
 
 
 @one_launch_at_a_time
-@numba.njit(parallel=True, cache=True)
+@jit_kernel(parallel=True)
 def composite_tiles_backward(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
                              conics: np.ndarray, opacities: np.ndarray, values: np.ndarray,
                              width: int, height: int, tile_size: int, tiles_x: int,
@@ -343,7 +343,7 @@ def composite_tiles_backward(offsets: np.ndarray, ids: np.ndarray, means2d: np.n
 
 
 @one_launch_at_a_time
-@numba.njit(cache=True)
+@jit_kernel()
 def sum_slots(ids: np.ndarray, slot_grads: np.ndarray, n: int) -> np.ndarray:
     """[n, K] float64 sums of the [I, K] slot rows per Gaussian ``ids`` [I], in slot order
     (one thread, so the sums are the same on every run)."""
@@ -356,7 +356,7 @@ def sum_slots(ids: np.ndarray, slot_grads: np.ndarray, n: int) -> np.ndarray:
 
 
 @one_launch_at_a_time
-@numba.njit(parallel=True, cache=True)
+@jit_kernel(parallel=True)
 def record_blend(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
                  conics: np.ndarray, opacities: np.ndarray, width: int, height: int,
                  tile_size: int, tiles_x: int, starts: np.ndarray, blend_ids: np.ndarray,
@@ -399,7 +399,7 @@ def record_blend(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
 
 
 @one_launch_at_a_time
-@numba.njit(parallel=True, cache=True)
+@jit_kernel(parallel=True)
 def replay_blend(starts: np.ndarray, counts: np.ndarray, blend_ids: np.ndarray,
                  blend_weights: np.ndarray, values: np.ndarray, out: np.ndarray) -> None:
     """Accumulate ``values`` [N, C] float32 into ``out`` [P, C] float32 (zeroed) with the
