@@ -55,6 +55,7 @@ from csgs_codec.model.fit_tools import (
     scaled_outputs,
 )
 from csgs_codec.model.intnet_export import float_embedding
+from csgs_codec.model.seeded_init import seeded_global_rng
 
 #: The step index may move this far from the base step's index (a factor 4 either way).
 STEP_RANGE = 16
@@ -258,7 +259,7 @@ def fit_prior(cells: np.ndarray, pos_bits: int, targets: list[AttributeTarget], 
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
-        with torch.random.fork_rng(devices=[]):
+        with seeded_global_rng():  # _train seeds it
             emb = float_embedding(cells, pos_bits, num_freqs)
             rows = slice(None, None, -(-len(cells) // settings.calibration_rows)
                          if settings.calibration_rows else 1)

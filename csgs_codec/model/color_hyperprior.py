@@ -39,6 +39,7 @@ from csgs_codec.model.fit_tools import (
     scaled_outputs,
 )
 from csgs_codec.model.intnet_export import float_embedding
+from csgs_codec.model.seeded_init import seeded_global_rng
 
 #: Signed weight bits per layer of the exported network.
 WEIGHT_BITS = (8, 8, 10)
@@ -93,8 +94,7 @@ class ColorPriorFit:
         self.out_lo = np.array([-mean_limit] * t + [0] * t)
         self.out_hi = np.array([mean_limit] * t + [SCALE_MAX] * t)
         device = self.emb.device
-        with torch.random.fork_rng(devices=[]):
-            torch.manual_seed(s.seed)
+        with seeded_global_rng(s.seed):
             # It starts as the factorized model: per-channel mean and scale in the output
             # biases, small output weights.
             self.net = mlp([self.emb.shape[1], s.hidden, s.hidden, 2 * t], device=device)

@@ -20,6 +20,7 @@ from torch import nn
 
 from csgs_codec.errors import InputError
 from csgs_codec.model.scaffold import NeuralGaussians, ScaffoldMLPs, neural_gaussians
+from csgs_codec.model.seeded_init import seeded_global_rng
 from csgs_codec.render.device_constants import camera_tensors
 from csgs_codec.render.differentiable import (
     rasterize_for_training,
@@ -116,8 +117,7 @@ class AnchorModel(nn.Module):
         generator = torch.Generator(device=INIT_DEVICE).manual_seed(seed)
         # nn.Linear initialisation draws from the global generator: seed it inside a fork so
         # the caller's random state is left alone.
-        with torch.random.fork_rng(devices=[]):
-            torch.manual_seed(seed)
+        with seeded_global_rng(seed):
             self.mlps = ScaffoldMLPs(feat_dim, n_offsets, device=INIT_DEVICE).to(device)
         m = len(cells)
         self.register_buffer("cells", torch.as_tensor(np.asarray(cells, np.int64),

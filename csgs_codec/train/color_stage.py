@@ -31,6 +31,7 @@ import torch
 from csgs_codec.decisions.presets import ANCHOR_BASE_STEPS, ANCHOR_QUALITIES, MULTIPLIERS
 from csgs_codec.errors import InputError, ModelError
 from csgs_codec.metrics.image import psnr_from_mse
+from csgs_codec.model.seeded_init import seeded_global_rng
 from csgs_codec.render.differentiable import TRAINING_RASTERIZERS
 from csgs_codec.train import defaults
 from csgs_codec.train.anchor_growth import (
@@ -236,8 +237,7 @@ def initial_state(views: list[TrainingView], points: np.ndarray,
     model = AnchorModel(cells[seen] * refine, grid, feat_dim=settings.feat_dim,
                         n_offsets=settings.n_offsets, seed=settings.seed,
                         initial_log_scale=math.log(coarse.voxel), device=settings.device)
-    with torch.random.fork_rng(devices=[]):  # seeded initial weights, caller's RNG untouched
-        torch.manual_seed(settings.seed + 3)
+    with seeded_global_rng(settings.seed + 3):  # seeded initial weights, caller's untouched
         # Drawn on INIT_DEVICE, then moved: the same initial weights on every device.
         rate_model = AnchorRateModel(settings.feat_dim, settings.n_offsets, settings.steps(),
                                      device=INIT_DEVICE)
