@@ -4,7 +4,6 @@ requests does): every result is what one thread alone gets, bit for bit."""
 from __future__ import annotations
 
 import hashlib
-import threading
 
 import numpy as np
 import pytest
@@ -13,30 +12,10 @@ from csgs_codec import Decoder, Encoder
 from csgs_codec.interchange.ply_io import ply_bytes, read_ply
 from tests.codec.helpers import SHORT_PRIOR_FIT
 from tests.conftest import REPO, SAMPLE
+from tests.threads import on_threads
 
 SCENE_VECTORS = REPO / "spec" / "vectors" / "scenes"
 SH3_CAPTURE = REPO / "benchmarks" / "data" / "yashica_t4_top8192.ply"
-
-
-def _on_threads(work, jobs: list, threads: int) -> list:
-    """``work(job)`` for every job, ``threads`` jobs at a time started together; an exception
-    in a thread is returned in the job's place."""
-    results: list = [None] * len(jobs)
-    start = threading.Barrier(threads)
-
-    def run(first: int) -> None:
-        start.wait()
-        for k in range(first, len(jobs), threads):
-            try:
-                results[k] = work(jobs[k])
-            except BaseException as exc:  # noqa: BLE001 - the test reports it
-                results[k] = exc
-    pool = [threading.Thread(target=run, args=(i,)) for i in range(threads)]
-    for thread in pool:
-        thread.start()
-    for thread in pool:
-        thread.join()
-    return results
 
 
 def test_one_decoder_shared_by_threads_decodes_every_vector_as_recorded():
@@ -53,7 +32,7 @@ def test_one_decoder_shared_by_threads_decodes_every_vector_as_recorded():
     def digest(case):
         return hashlib.sha256(ply_bytes(decoder.decode(case[0], layers=case[1]))).hexdigest()
 
-    results = _on_threads(digest, cases * 3, threads=6)
+    results = on_threads(digest, cases * 3, threads=6)
     assert results == [expected for _, _, expected in cases * 3]
 
 
@@ -73,17 +52,5 @@ def test_encoders_on_threads_write_the_bytes_of_one_thread(small_scenes):
         return hashlib.sha256(Encoder(prior_fit=SHORT_PRIOR_FIT).encode(scene)).hexdigest()
 
     alone = [encode(scene) for scene in small_scenes]
-    together = _on_threads(encode, small_scenes * 2, threads=4)
+    together = on_threads(encode, small_scenes * 2, threads=4)
     assert together == alone * 2
-
-
-def test_the_threads_helper_returns_exceptions_in_place():
-    def work(job):
-        if job == 2:
-            raise ValueError("two")
-        return job * 10
-
-    results = _on_threads(work, [0, 1, 2, 3], threads=2)
-    assert results[:2] == [0, 10] and results[3] == 30
-    assert isinstance(results[2], ValueError)
-

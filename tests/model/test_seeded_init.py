@@ -2,30 +2,11 @@
 
 from __future__ import annotations
 
-import threading
-
 import numpy as np
 import torch
 
 from csgs_codec.model.seeded_init import seeded_global_rng
-
-
-def _on_threads(work, threads: int, rounds: int) -> list:
-    """Every result of ``work()`` run ``rounds`` times on each of ``threads`` threads that
-    start together."""
-    results: list = []
-    start = threading.Barrier(threads)
-
-    def run() -> None:
-        start.wait()
-        mine = [work() for _ in range(rounds)]
-        results.extend(mine)
-    pool = [threading.Thread(target=run) for _ in range(threads)]
-    for thread in pool:
-        thread.start()
-    for thread in pool:
-        thread.join()
-    return results
+from tests.threads import on_threads
 
 
 def test_seeded_draws_on_threads_are_those_of_one_thread_and_leave_the_callers_state():
@@ -37,7 +18,7 @@ def test_seeded_draws_on_threads_are_those_of_one_thread_and_leave_the_callers_s
     torch.manual_seed(123)
     expected_next = torch.rand(4)
     torch.manual_seed(123)
-    results = _on_threads(init, threads=4, rounds=100)
+    results = on_threads(lambda _: init(), range(400), threads=4)
     assert len(results) == 400 and all(torch.equal(w, reference) for w in results)
     assert torch.equal(torch.rand(4), expected_next), "the caller's generator moved"
 
@@ -57,7 +38,7 @@ def test_color_prior_fits_built_on_threads_start_from_the_same_weights():
         return [p.detach().clone() for p in fit.net.parameters()]
 
     reference = initial_weights()
-    results = _on_threads(initial_weights, threads=4, rounds=25)
+    results = on_threads(lambda _: initial_weights(), range(100), threads=4)
     assert all(len(got) == len(reference) and all(torch.equal(a, b)
                                                   for a, b in zip(got, reference))
                for got in results)
