@@ -177,7 +177,6 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(skip)
 
 
-
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_makereport(item, call):
     """Add what a failed ``subprocess.run(..., check=True)`` printed to the test's report

@@ -5,9 +5,10 @@ Unless the user chose a threading layer (NUMBA_THREADING_LAYER), importing this 
 selects numba's own "workqueue" pool: the OpenMP layer's workers keep spinning after a
 kernel and measurably slow the torch operations that run next in the same process. The
 workqueue pool aborts the whole process when two Python threads launch parallel kernels at
-the same time, so every kernel Python calls goes through :func:`one_launch_at_a_time`:
-callers on several threads (a service rendering previews, a pool scoring views) take turns,
-and each kernel is parallel inside already.
+the same time, so the rasterizer's and SSIM's kernels that Python calls go through
+:func:`one_launch_at_a_time`: callers on several threads (a service rendering previews, a
+pool scoring views) take turns, and each kernel is parallel inside already. A child process
+forked while another thread held the turn starts with the turn free.
 
 Kernels are compiled by :func:`jit_kernel`, which caches the machine code beside the package
 (or where NUMBA_CACHE_DIR says) so that later processes skip the compile. On a read-only
@@ -35,6 +36,14 @@ if "NUMBA_THREADING_LAYER" not in os.environ:
 _LAUNCH = threading.Lock()
 _warned_no_cache = False
 Kernel = TypeVar("Kernel", bound=Callable)
+
+
+def _free_turn_in_child() -> None:
+    global _LAUNCH
+    _LAUNCH = threading.Lock()
+
+
+os.register_at_fork(after_in_child=_free_turn_in_child)
 
 
 def jit_kernel(**options) -> Callable[[Callable], Callable]:

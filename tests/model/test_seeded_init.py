@@ -42,3 +42,17 @@ def test_color_prior_fits_built_on_threads_start_from_the_same_weights():
     assert all(len(got) == len(reference) and all(torch.equal(a, b)
                                                   for a, b in zip(got, reference))
                for got in results)
+
+
+def _one_seeded_init() -> None:
+    with seeded_global_rng(3):
+        torch.nn.Linear(4, 4)
+
+
+def test_a_child_forked_while_a_thread_holds_the_lock_can_seed():
+    from csgs_codec.model import seeded_init
+    from tests.fork_while_held import child_finishes_while_a_thread_holds
+
+    code = child_finishes_while_a_thread_holds(lambda: seeded_init._GLOBAL_GENERATOR,
+                                               _one_seeded_init)
+    assert code == 0, "the child waited for a lock no thread of its own held"

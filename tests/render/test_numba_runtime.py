@@ -129,3 +129,22 @@ def test_encode_from_a_read_only_install_with_no_writable_home(tmp_path):
     assert "Traceback" not in done.stderr
     assert "NUMBA_CACHE_DIR" in done.stderr
     assert hashlib.sha256(out.read_bytes()).hexdigest() == expected
+
+
+def _one_kernel_launch() -> None:
+    from csgs_codec.render import numba_kernels
+
+    ids = np.array([0, 1, 1], np.int64)
+    total = numba_kernels.sum_slots(ids, np.ones((3, 2), np.float32), 2)
+    assert total.tolist() == [[1.0, 1.0], [2.0, 2.0]]
+
+
+@needs_numba
+def test_a_child_forked_while_a_thread_has_the_turn_can_launch_kernels():
+    from csgs_codec.render import numba_runtime
+    from tests.fork_while_held import child_finishes_while_a_thread_holds
+
+    _one_kernel_launch()  # compiled (or loaded) before the fork, as in a real service
+    code = child_finishes_while_a_thread_holds(lambda: numba_runtime._LAUNCH,
+                                               _one_kernel_launch)
+    assert code == 0, "the child waited for a turn no thread of its own held"
