@@ -164,8 +164,11 @@ def encode_ply_tiled(encoder, path: str) -> object:
     from csgs_codec.attributes.position_grid import PositionGrid
     from csgs_codec.codec.encoder_checks import check_count
     from csgs_codec.interchange.ply_mmap import MappedPly
+    from csgs_codec.interchange.ply_reader import warn_unknown_properties
 
     ply = MappedPly(path)
+    # Said here, once: the workers read their rows without it (as a whole read says it once).
+    warn_unknown_properties(ply.properties, ply.path, stacklevel=3)
     settings = encoder.preset
     encoder.progress("geometry", 0, 0)
     positions = ply.positions()

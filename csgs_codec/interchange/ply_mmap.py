@@ -10,12 +10,11 @@ the map is the same as one encoded from ``read_ply``. ASCII PLY cannot be mapped
 from __future__ import annotations
 
 import os
-import warnings
 from pathlib import Path
 
 import numpy as np
 
-from csgs_codec.errors import CsgsWarning, InputError
+from csgs_codec.errors import InputError
 from csgs_codec.interchange.ply_header import MAX_HEADER_BYTES, parse_header
 from csgs_codec.interchange.ply_reader import _columns_to_scene
 from csgs_codec.scene.gaussian_scene import GaussianScene
@@ -107,9 +106,10 @@ class MappedPly:
         rows = np.asarray(rows, np.int64)
         block = self._rows[rows] if self._rows is not None else None
         columns = {name: block[name] for name in self.properties}
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", CsgsWarning)  # unknown properties: said once
-            scene, _ = _columns_to_scene(columns, self._vertex, self._format, self.path)
+        # Unknown properties are not said per block of rows (the tiled encoder says them
+        # once). Not a catch_warnings block: that would silence other threads' warnings.
+        scene, _ = _columns_to_scene(columns, self._vertex, self._format, self.path,
+                                     warn_unknown=False)
         try:
             scene.validate(self.path)
         except InputError as err:

@@ -154,8 +154,27 @@ def _read_vertex_columns(data: bytes, header: PlyHeader, vertex: PlyElement,
 
 
 # --------------------------------------------------------------------------- mapping
+def unknown_properties(names: list[str]) -> list[str]:
+    """The vertex properties among ``names`` that a scene does not keep (the reader drops
+    them), in file order."""
+    n_rest = sum(1 for n in names if _F_REST.match(n))
+    known = set(REQUIRED) | set(IGNORED) | {LABEL} | {f"f_rest_{i}" for i in range(n_rest)}
+    return [n for n in names if n not in known and not n.startswith(SEMANTIC_PREFIXES)]
+
+
+def warn_unknown_properties(names: list[str], source: str | None, *,
+                            stacklevel: int = 2) -> None:
+    """One CsgsWarning naming the vertex properties of ``source`` that a scene does not keep
+    (:func:`unknown_properties`), when there are any."""
+    dropped = unknown_properties(names)
+    if dropped:
+        warnings.warn(f"{source}: ignoring unknown PLY properties: {', '.join(dropped)}",
+                      CsgsWarning, stacklevel=stacklevel)
+
+
 def _columns_to_scene(columns: dict[str, np.ndarray], vertex: PlyElement, fmt: str,
-                      source: str | None) -> tuple[GaussianScene, PlyReport]:
+                      source: str | None, *,
+                      warn_unknown: bool = True) -> tuple[GaussianScene, PlyReport]:
     names = [p.name for p in vertex.properties]
     for name in REQUIRED:
         if name not in columns:
@@ -170,12 +189,9 @@ def _columns_to_scene(columns: dict[str, np.ndarray], vertex: PlyElement, fmt: s
         raise InputError(f"f_rest properties are not numbered 0..{n_rest - 1}", file=source,
                          property=f"f_rest_{missing[0]}" if missing else "f_rest_*")
     semantic_names = tuple(n for n in names if n.startswith(SEMANTIC_PREFIXES))
-    known = set(REQUIRED) | set(IGNORED) | set(semantic_names) | {LABEL}
-    known |= {f"f_rest_{i}" for i in range(n_rest)}
-    dropped = [n for n in names if n not in known]
-    if dropped:
-        warnings.warn(f"{source}: ignoring unknown PLY properties: {', '.join(dropped)}",
-                      CsgsWarning, stacklevel=4)
+    dropped = unknown_properties(names)
+    if warn_unknown:
+        warn_unknown_properties(names, source, stacklevel=5)
 
     def stack(keys: list[str]) -> np.ndarray:
         count = len(columns[REQUIRED[0]])

@@ -54,6 +54,31 @@ def test_cli_streams_a_tiled_ply_to_the_same_bytes(ply, serial, tmp_path):
     assert len(Decoder().decode(out)) == 2400
 
 
+def test_a_tiled_ply_names_the_properties_it_drops_once(ply, serial, tmp_path):
+    """A property the scene does not keep (here 'foo') is said once, as a whole read says
+    it, not per tile and not never."""
+    import warnings
+
+    from plyfile import PlyData, PlyElement
+
+    from csgs_codec.errors import CsgsWarning
+
+    rows = PlyData.read(str(ply))["vertex"].data
+    extended = np.empty(len(rows), dtype=rows.dtype.descr + [("foo", "<f4")])
+    for name in rows.dtype.names:
+        extended[name] = rows[name]
+    extended["foo"] = 1.5
+    path = tmp_path / "foo.ply"
+    PlyData([PlyElement.describe(extended, "vertex")]).write(str(path))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = encode_ply_tiled(Encoder(quality=5, hyperprior=False, tile_size=600),
+                                  str(path))
+    said = [str(w.message) for w in caught if issubclass(w.category, CsgsWarning)]
+    assert said == [f"{path}: ignoring unknown PLY properties: foo"]
+    assert result.data == serial
+
+
 def test_mapped_ply_errors_name_the_file_row(tmp_path):
     scene = random_scene(300, seed=1)
     scene.scales[123, 1] = 200.0  # a log-scale the format refuses
