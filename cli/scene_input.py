@@ -9,8 +9,9 @@ from csgs_codec.errors import UnsupportedError
 from csgs_codec.interchange.open import READABLE
 
 ANCHOR_PROPERTY = b"f_anchor_feat_"
-#: Commands that also take anchor scenes (AnchorScene) from a .csgs.
-ANCHOR_COMMANDS = ("select",)
+#: Commands that also take anchor scenes (AnchorScene): from a .csgs, an anchor PLY or a
+#: Scaffold-GS checkpoint folder.
+ANCHOR_COMMANDS = ("select", "render", "compare", "view")
 HEADER_PEEK = 1 << 16
 
 
@@ -79,6 +80,12 @@ def load_scene(path: str | Path, *, command: str, layers: str = "color,semantic"
     from csgs_codec.interchange import detect_format
 
     path = Path(path)
+    if command in ANCHOR_COMMANDS and is_anchor_input(path):
+        scene = load_anchor_scene(path)
+        if scene.mlps is None:
+            raise UnsupportedError("the anchor scene has no Scaffold-GS MLPs beside it, so its "
+                                   "Gaussians cannot be made", file=path)
+        return scene
     try:
         kind = detect_format(path)
     except UnsupportedError:
@@ -91,7 +98,7 @@ def load_scene(path: str | Path, *, command: str, layers: str = "color,semantic"
         if is_anchor_file(path):
             if command not in ANCHOR_COMMANDS:
                 raise UnsupportedError(f"'csgs {command}' takes Gaussian scenes; this is an "
-                                       "anchor scene (csgs decode writes it as a Scaffold-GS "
-                                       "checkpoint)", file=path)
+                                       "anchor scene ('csgs decode' bakes it into a .ply, "
+                                       ".spz, .glb or .splat)", file=path)
             return AnchorDecoder().decode(path, layers=layers)
     return read_scene(path, layers=layers)

@@ -32,7 +32,9 @@ def run(args) -> int:
 
     reference = load_scene(args.reference, command=NAME)
     candidate = load_scene(args.candidate, command=NAME)
-    cameras = cameras_from_args(args, reference)
+    from csgs_codec.model.anchor_views import SceneViews
+
+    cameras = cameras_from_args(args, SceneViews(reference).framing())
     report = compare_scenes(reference, candidate, cameras, attributes=not args.no_attributes,
                             backend=args.backend,
                             progress=lambda views: progress(args, views, "comparing"))

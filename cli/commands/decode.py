@@ -14,9 +14,9 @@ def add_arguments(parser) -> None:
     """Arguments of ``csgs decode``."""
     parser.add_argument("bitstream", help="input .csgs")
     parser.add_argument("-o", "--output", required=True,
-                        help="output .ply, .splat, .spz or .glb, picked by extension (an anchor "
-                             "scene: an anchor .ply, or a Scaffold-GS checkpoint folder when the "
-                             "name has no .ply suffix)")
+                        help="output .ply, .splat, .spz or .glb, picked by extension; an "
+                             "anchor scene is baked into standard Gaussians for these, and "
+                             "written as a Scaffold-GS checkpoint folder for any other name")
     parser.add_argument("--layers", default="color", type=layers_option,
                         metavar="color|color,semantic",
                         help="layers to decode, comma-separated in any order (default color; "
@@ -28,6 +28,15 @@ def add_arguments(parser) -> None:
                              "--region=-1,... both work")
     parser.add_argument("--tiles", type=tiles_option, default=None, metavar="LIST",
                         help="decode only these tiles, e.g. 0,3,5")
+    anchors = parser.add_argument_group("anchor scenes")
+    anchors.add_argument("--sh-degree", type=int, default=None, choices=(0, 1, 2, 3),
+                         help="SH degree of the baked colour (default 3)")
+    anchors.add_argument("--cameras", metavar="FILE",
+                         help="bake over these cameras' centres (cameras.json, transforms.json, "
+                              "COLMAP, LLFF) instead of the training views the file stores")
+    anchors.add_argument("--checkpoint", metavar="DIR",
+                         help="also write the decoded anchors as a Scaffold-GS checkpoint "
+                              "folder")
 
 
 def region_option(text: str) -> tuple[float, ...]:
@@ -86,6 +95,11 @@ def run(args) -> int:
             raise InputError("--region and --tiles apply to 3DGS scenes, not anchor scenes",
                              file=args.bitstream)
         return _decode_anchors(args)
+    for option in ("sh_degree", "cameras", "checkpoint"):
+        if getattr(args, option) is not None:
+            raise InputError(f"--{option.replace('_', '-')} applies to anchor scenes; this "
+                             "file holds standard Gaussians", file=args.bitstream,
+                             property=f"--{option.replace('_', '-')}")
     check_output(args.output, [args.bitstream])
     writer_for(args.output)  # an unknown extension fails before the decode
     start = time.perf_counter()
@@ -165,22 +179,50 @@ def _tile_list(numbers: list[int]) -> str:
 
 
 def _decode_anchors(args) -> int:
-    """Decode an anchor-scene bitstream to an anchor PLY or a checkpoint folder."""
+    """Decode an anchor-scene bitstream: baked into a standard scene for an output with a
+    scene-file extension, a Scaffold-GS checkpoint folder for any other name (and also at
+    ``--checkpoint``)."""
     from pathlib import Path
 
+    from csgs_codec.atomic_write import check_output
     from csgs_codec.codec.anchor_decoder import AnchorDecoder
-    from csgs_codec.interchange.anchor_ply import write_anchor_ply
     from csgs_codec.interchange.scaffold_io import write_scaffold
+    from csgs_codec.interchange.writers import WRITERS, write_scene
 
+    bake = Path(args.output).suffix.lower() in WRITERS
+    if bake:
+        check_output(args.output, [args.bitstream])
     start = time.perf_counter()
     scene = AnchorDecoder().decode(args.bitstream, layers=args.layers)
     seconds = time.perf_counter() - start
-    if Path(args.output).suffix.lower() == ".ply":
-        write_anchor_ply(scene, args.output, [args.bitstream])
-        kind = "anchor PLY"
-    else:
-        write_scaffold(scene, args.output)
-        kind = "checkpoint folder"
     note_semantic_left_out(args)
-    print(f"{args.output}: {len(scene):,} anchors ({kind}; decoded in {seconds:.2f} s)")
+    if args.checkpoint or not bake:
+        folder = args.checkpoint or args.output
+        write_scaffold(scene, folder)
+        print(f"{folder}: {len(scene):,} anchors (Scaffold-GS checkpoint folder; decoded in "
+              f"{seconds:.2f} s)")
+    if bake:
+        baked, origin = bake_for_output(scene, args)
+        write_scene(baked, args.output, [args.bitstream])
+        print(f"{args.output}: {len(baked):,} Gaussians baked from {len(scene):,} anchors "
+              f"({scene.active_offsets():,} slots), SH degree {baked.sh_degree_stored}, over "
+              f"{origin} (decoded and baked in {time.perf_counter() - start:.2f} s)")
     return 0
+
+
+def bake_for_output(scene, args):
+    """(baked GaussianScene, where its view origins came from) for ``csgs decode``."""
+    from csgs_codec.model.anchor_bake import BakeSettings, bake_anchor_scene
+    from csgs_codec.scene.cameras_io import load_cameras
+
+    settings = BakeSettings(sh_degree=3 if args.sh_degree is None else args.sh_degree)
+    cameras = None
+    if args.cameras:
+        cameras = load_cameras(args.cameras)
+        origin = f"{len(cameras)} cameras of {args.cameras}"
+    elif scene.view_origins is not None:
+        origin = f"the file's {len(scene.view_origins)} training view origins"
+    else:
+        origin = (f"{settings.directions * len(settings.distances)} views on a sphere (the "
+                  "file stores no training views; --cameras gives them)")
+    return bake_anchor_scene(scene, cameras=cameras, settings=settings), origin

@@ -15,7 +15,8 @@ def add_arguments(parser) -> None:
     """Arguments of ``csgs render``."""
     from csgs_cli.view_options import add_view_arguments
 
-    parser.add_argument("scene", help="a 3DGS .ply scene")
+    parser.add_argument("scene", help="a scene file, a .csgs, or an anchor scene (rendered "
+                                      "exactly, per view)")
     add_view_arguments(parser)
     parser.add_argument("-o", "--output", required=True, metavar="DIR",
                         help="folder for the PNG images (created if missing)")
@@ -25,11 +26,12 @@ def run(args) -> int:
     """Render every requested view of ``args.scene`` into ``args.output``."""
     from csgs_cli.scene_input import load_scene
     from csgs_cli.view_options import cameras_from_args, progress
+    from csgs_codec.model.anchor_views import SceneViews
     from csgs_codec.render.image_io import save_png
     from csgs_codec.render.rasterizer import render
 
-    scene = load_scene(args.scene, command=NAME)
-    cameras = cameras_from_args(args, scene)
+    views = SceneViews(load_scene(args.scene, command=NAME))
+    cameras = cameras_from_args(args, views.framing())
     output = Path(args.output)
     if output.exists() and not output.is_dir():
         raise InputError("output exists and is not a folder", file=output)
@@ -40,7 +42,8 @@ def run(args) -> int:
                          file=output) from None
     names = image_file_names(cameras)
     for camera, name in progress(args, list(zip(cameras, names)), "rendering"):
-        save_png(render(scene, camera, backend=args.backend).image, output / name)
+        save_png(render(views.gaussians(camera), camera, backend=args.backend).image,
+                 output / name)
     if not args.quiet:
         print(f"wrote {len(cameras)} image(s) of {cameras[0].width}x{cameras[0].height} "
               f"to {output}")

@@ -72,11 +72,16 @@ def run(args) -> int:
     from csgs_cli.scene_input import load_scene
     from csgs_cli.view_options import parse_size
     from csgs_codec.render.preview import save_screenshot, show_window
+    from csgs_codec.scene.gaussian_scene import GaussianScene
 
     if args.max_gaussians < 1:
         raise InputError(f"--max-gaussians must be positive, got {args.max_gaussians}",
                          property="--max-gaussians")
     scene = load_scene(args.scene, command=NAME)
+    if not isinstance(scene, GaussianScene):  # an anchor scene: shown as its bake
+        from csgs_codec.model.anchor_bake import bake_anchor_scene
+
+        scene = bake_anchor_scene(scene)
     options = dict(mode="points" if args.points else "ellipsoids", color_by=args.color,
                    window_size=parse_size(args.size), up=args.up,
                    max_gaussians=args.max_gaussians, selection=selection_from_args(args, scene))

@@ -26,6 +26,7 @@ from csgs_codec.chunks.anchor_streams import (
     read_offset_masks,
 )
 from csgs_codec.chunks.semantic import read_labels
+from csgs_codec.chunks.view_origins import read_view_origins
 from csgs_codec.codec.decoder import check_layers
 from csgs_codec.entropy.anchor_attributes import hyper_params
 from csgs_codec.entropy.geometry import decode_positions
@@ -93,7 +94,8 @@ class AnchorDecoder:
         p_f, p_off, p_scl = hyper_params(hyper, cells, color_channels(f, k))
         scene = AnchorScene(positions, read_anchor_features(container, p_f, carm),
                             read_anchor_offsets(container, p_off, mask),
-                            read_anchor_scaling(container, p_scl), mask, mlps=mlps)
+                            read_anchor_scaling(container, p_scl), mask, mlps=mlps,
+                            view_origins=read_view_origins(container))
         if "semantic" in wanted:
             semantic = read_anchor_semantic(container, cells, pos_bits)
             if semantic is not None:

@@ -43,6 +43,7 @@ from csgs_codec.chunks.anchor_streams import (
 )
 from csgs_codec.chunks.semantic import label_payload
 from csgs_codec.chunks.semantic_names import MAX_SEMANTIC_CHANNELS
+from csgs_codec.chunks.view_origins import even_sample, view_origins_payload
 from csgs_codec.codec.encoder_checks import check_semantic_names
 from csgs_codec.codec.encoder_config import SEMANTIC_MODES
 from csgs_codec.decisions.presets import (
@@ -221,9 +222,13 @@ class AnchorEncoder:
         if s.mlps is not None:
             payload, mlps = mlps_to_bytes(s.mlps, self.step("f") / ANCHOR_BASE_STEPS["f"])
             chunks.append(Chunk("AMLP", "base", payload))
+        origins = None
+        if s.view_origins is not None:
+            origins = even_sample(s.view_origins)
+            chunks.append(Chunk("vorg", "base", view_origins_payload(origins)))
         chunks += [Chunk(name, "color", payload) for name, payload in best.layer.items()]
         recon = AnchorScene(grid.positions(cells), best.features, best.offsets, best.scaling,
-                            mask.copy(), mlps=mlps)
+                            mask.copy(), mlps=mlps, view_origins=origins)
         steps = dict(best.steps)
         if self.semantic == "auto" and (s.semantic is not None or s.labels is not None):
             fit_start = time.perf_counter()

@@ -91,6 +91,9 @@ _TABLE = (
     ChunkType("AMSK", Layer.BASE, "Offset masks: context-coded kept/masked bits."),
     ChunkType("AMLP", Layer.BASE,
               "Scaffold-GS MLP weights (float streams; float16 in version 1)."),
+    ChunkType("vorg", Layer.BASE,
+              "View origins: up to 32 points an anchor scene was trained to be seen from "
+              "(for bakes into standard scenes)."),
     ChunkType("AFEA", Layer.COLOR, "Anchor features f: one residual stream per CARM group."),
     ChunkType("AOFF", Layer.COLOR, "Kept anchor offsets: a residual stream."),
     ChunkType("ASCL", Layer.COLOR, "Anchor scaling (6 per anchor): a residual stream."),

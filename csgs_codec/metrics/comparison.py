@@ -71,33 +71,39 @@ class ComparisonReport:
         }
 
 
-def score_views(reference: GaussianScene, candidate: GaussianScene, cameras: Sequence[Camera],
-                *, backend: str = "auto",
+def score_views(reference, candidate, cameras: Sequence[Camera], *, backend: str = "auto",
                 progress: Callable[[Iterable], Iterable] | None = None) -> list[ViewScore]:
-    """Render both scenes from every camera (black background) and score each view."""
+    """Render both scenes from every camera (black background) and score each view.
+
+    Either scene may be a :class:`GaussianScene` or an anchor scene (``AnchorScene``, its
+    neural Gaussians decoded for each camera)."""
     from csgs_codec.render.rasterizer import render
 
+    reference, candidate = _views(reference), _views(candidate)
     scores = []
     for camera in (progress or iter)(list(cameras)):
-        ref = render(reference, camera, backend=backend)
+        ref = render(reference.gaussians(camera), camera, backend=backend)
         scores.append(score_view(ref, candidate, camera, backend=backend))
     return scores
 
 
-def render_references(reference: GaussianScene, cameras: Sequence[Camera], *,
-                      backend: str = "auto") -> list:
-    """The reference renders (RenderOutput) of every camera, to score many candidates."""
+def render_references(reference, cameras: Sequence[Camera], *, backend: str = "auto") -> list:
+    """The reference renders (RenderOutput) of every camera, to score many candidates
+    (``reference``: a GaussianScene or an AnchorScene)."""
     from csgs_codec.render.rasterizer import render
 
-    return [render(reference, camera, backend=backend) for camera in cameras]
+    reference = _views(reference)
+    return [render(reference.gaussians(camera), camera, backend=backend)
+            for camera in cameras]
 
 
-def score_view(reference_render, candidate: GaussianScene, camera: Camera, *,
+def score_view(reference_render, candidate, camera: Camera, *,
                backend: str = "auto") -> ViewScore:
-    """Score ``candidate`` rendered from ``camera`` against an existing reference render."""
+    """Score ``candidate`` (a GaussianScene or AnchorScene) rendered from ``camera`` against
+    an existing reference render."""
     from csgs_codec.render.rasterizer import render
 
-    cand = render(candidate, camera, backend=backend)
+    cand = render(_views(candidate).gaussians(camera), camera, backend=backend)
     ref_image, cand_image = to_unit_range(reference_render.image), to_unit_range(cand.image)
     mask = foreground_mask(reference_render.alpha)
     return ViewScore(
@@ -109,13 +115,21 @@ def score_view(reference_render, candidate: GaussianScene, camera: Camera, *,
     )
 
 
-def compare_scenes(reference: GaussianScene, candidate: GaussianScene,
-                   cameras: Sequence[Camera], *, attributes: bool = True, backend: str = "auto",
+def compare_scenes(reference, candidate, cameras: Sequence[Camera], *,
+                   attributes: bool = True, backend: str = "auto",
                    progress: Callable[[Iterable], Iterable] | None = None) -> ComparisonReport:
-    """Render scores over ``cameras`` plus, if ``attributes``, per-attribute errors."""
+    """Render scores over ``cameras`` plus, if ``attributes``, per-attribute errors.
+
+    Either scene may be a :class:`GaussianScene` or an anchor scene (rendered exactly, per
+    view); attribute errors need two Gaussian scenes, and a note says when they were left
+    out."""
     report = ComparisonReport(views=score_views(reference, candidate, cameras, backend=backend,
                                                 progress=progress))
-    if attributes:
+    if attributes and not (isinstance(reference, GaussianScene)
+                           and isinstance(candidate, GaussianScene)):
+        report.notes.append("attribute errors compare two Gaussian scenes; an anchor scene's "
+                            "Gaussians depend on the view, so only renders were scored")
+    elif attributes:
         from csgs_codec.metrics.attribute_errors import attribute_errors
 
         errors, matching = attribute_errors(reference, candidate)
@@ -129,6 +143,14 @@ def compare_scenes(reference: GaussianScene, candidate: GaussianScene,
                                 f"{len(candidate)}): attribute errors pair each reference "
                                 "Gaussian with its nearest candidate")
     return report
+
+
+def _views(scene):
+    """``scene`` as per-camera Gaussians (:class:`~csgs_codec.model.anchor_views.SceneViews`);
+    imported here so that comparing standard scenes never loads the anchor model."""
+    from csgs_codec.model.anchor_views import scene_views
+
+    return scene_views(scene)
 
 
 def to_unit_range(image: np.ndarray) -> np.ndarray:

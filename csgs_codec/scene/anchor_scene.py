@@ -180,6 +180,9 @@ class AnchorScene:
         semantic_names: names of the S semantic channels (PLY property names, ``sem_*``).
         labels: optional (M,) int32 object labels.
         mlps: the Scaffold-GS MLP weights, or None for anchors without a decoder.
+        view_origins: optional (V, 3) float32 points the scene was trained to be seen from
+            (the training cameras' centres, world units), used to bake it into a standard
+            scene; .csgs files carry up to 32 of them (``vorg``).
     """
 
     positions: np.ndarray
@@ -191,6 +194,7 @@ class AnchorScene:
     semantic_names: tuple[str, ...] = field(default_factory=tuple)
     labels: np.ndarray | None = None
     mlps: ScaffoldMLPWeights | None = None
+    view_origins: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.positions.shape[0])
@@ -227,14 +231,15 @@ class AnchorScene:
             offset_mask=self.offset_mask[keep],
             semantic=None if self.semantic is None else self.semantic[keep],
             semantic_names=self.semantic_names,
-            labels=None if self.labels is None else self.labels[keep], mlps=self.mlps)
+            labels=None if self.labels is None else self.labels[keep], mlps=self.mlps,
+            view_origins=self.view_origins)
 
     def equals(self, other: AnchorScene) -> bool:
         """True when every array, the semantic names and the MLP weights match bit for bit."""
         if not isinstance(other, AnchorScene) or self.semantic_names != other.semantic_names:
             return False
         for name in ("positions", "features", "offsets", "scaling", "offset_mask", "semantic",
-                     "labels"):
+                     "labels", "view_origins"):
             a, b = getattr(self, name), getattr(other, name)
             if (a is None) != (b is None):
                 return False
@@ -303,6 +308,14 @@ class AnchorScene:
             if bad.any():
                 raise InputError("non-finite value", file=source, property=name,
                                  index=int(np.flatnonzero(bad)[0]))
+        if self.view_origins is not None:
+            v = self.view_origins
+            if (not isinstance(v, np.ndarray) or v.ndim != 2 or v.shape[1:] != (3,)
+                    or v.dtype != np.float32 or len(v) == 0):
+                raise InputError("expected a non-empty (V, 3) float32 array", file=source,
+                                 property="view_origins")
+            if not np.all(np.isfinite(v)):
+                raise InputError("non-finite value", file=source, property="view_origins")
         if self.mlps is not None:
             self.mlps.validate(f, k, source)
 

@@ -165,6 +165,9 @@ def train_scene(views: list[TrainingView], points: np.ndarray, settings: TrainSe
 
     quality = state.settings.quality
     anchors = state.model.to_anchor_scene()
+    if views:
+        anchors.view_origins = np.stack([np.asarray(v.camera.position, np.float32)
+                                         for v in views])
     if len(anchors) == 0:
         raise ModelError("stage 1 masked every Gaussian slot, leaving no anchor to encode: "
                          "train with a smaller rate weight (--lambda)", property="lambda")

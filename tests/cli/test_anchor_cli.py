@@ -30,11 +30,10 @@ def test_a_checkpoint_folder_encodes_and_decodes_through_the_cli(tmp_path, capsy
     assert main(["encode", str(folder), "-o", str(out), "--quality", "6", "-q"]) == 0
     assert "120 anchors" in capsys.readouterr().out
     expected = AnchorDecoder().decode(out)
-    assert main(["decode", str(out), "-o", str(tmp_path / "back.ply"), "-q"]) == 0
-    back = read_anchor_ply(tmp_path / "back.ply")
+    assert main(["decode", str(out), "-o", str(tmp_path / "back_ckpt"), "-q"]) == 0
+    back = read_anchor_ply(tmp_path / "back_ckpt" / "point_cloud.ply")
     assert np.array_equal(back.positions, expected.positions)
     assert np.array_equal(back.features, expected.features)
-    assert main(["decode", str(out), "-o", str(tmp_path / "back_ckpt"), "-q"]) == 0
     again = read_scaffold(tmp_path / "back_ckpt")
     assert np.array_equal(again.scaling, expected.scaling)
     assert again.mlps is not None and len(again) == len(scene)
@@ -48,13 +47,75 @@ def test_gaussian_only_options_are_refused_for_anchor_scenes(tmp_path, capsys):
     assert not out.exists()
 
 
-def test_select_takes_an_anchor_bitstream_and_render_refuses_it(tmp_path, capsys):
+def test_every_command_takes_anchor_files_plys_and_checkpoints(tmp_path, capsys):
+    import json
+
+    from csgs_codec import read_scene
+    from csgs_codec.model.anchor_views import SceneViews
+    from csgs_codec.render.image_io import load_png
+    from csgs_codec.render.rasterizer import render
+    from csgs_codec.scene.orbit import orbit_cameras
+
     _, folder = _checkpoint(tmp_path)
     out = tmp_path / "a.csgs"
     assert main(["encode", str(folder), "-o", str(out), "-q"]) == 0
+    assert main(["decode", str(out), "--layers", "color,semantic", "-o",
+                 str(tmp_path / "back"), "-q"]) == 0
     capsys.readouterr()
-    assert main(["render", str(out), "--orbit", "1", "-o", str(tmp_path / "r"), "-q"]) == 2
-    assert "anchor scene" in capsys.readouterr().err
-    assert main(["select", str(out), "--view", "orbit:0", "--size", "64x48", "--click",
-                 "32,24", "-o", str(tmp_path / "sel.ply"), "-q"]) == 0
-    assert (tmp_path / "sel.ply").exists()
+    decoded = AnchorDecoder().decode(out)
+    views = SceneViews(decoded)
+    camera = orbit_cameras(views.framing(), 2, width=64, height=48)[1]
+    exact = np.clip(render(views.gaussians(camera), camera, backend="numba").image, 0, 1)
+    for source in (out, tmp_path / "back", tmp_path / "back" / "point_cloud.ply"):
+        target = tmp_path / f"r_{source.name}"
+        assert main(["render", str(source), "--orbit", "2", "--size", "64x48", "-o",
+                     str(target), "-q"]) == 0
+        image = load_png(target / "orbit_001.png")
+        assert np.abs(image - exact).max() <= 1 / 255 + 1e-6  # the exact per-view render
+        assert main(["info", str(source), "--json"]) == 0
+        facts = json.loads(capsys.readouterr().out)
+        if source.suffix == ".csgs":
+            assert "ANCH" in json.dumps(facts)
+        else:
+            assert facts["anchors"] == len(decoded)
+        assert main(["select", str(source), "--view", "orbit:0", "--size", "64x48",
+                     "--click", "32,24", "-o", str(tmp_path / "sel.ply"), "-q"]) == 0
+        assert len(read_scene(tmp_path / "sel.ply")) > 0
+        capsys.readouterr()
+    assert main(["compare", str(out), str(tmp_path / "back"), "--orbit", "2", "--size",
+                 "64x48", "--json"]) == 0
+    facts = json.loads(capsys.readouterr().out)
+    assert facts["mean"]["psnr"] == "inf"  # the same anchors rendered the same way
+    assert main(["decode", str(out), "-o", str(tmp_path / "baked.spz"), "-q"]) == 0
+    capsys.readouterr()
+    assert main(["compare", str(out), str(tmp_path / "baked.spz"), "--orbit", "2", "--size",
+                 "64x48", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["mean"]["foreground_psnr"] > 30
+
+
+def test_decode_bakes_anchor_files_into_every_scene_format(tmp_path, capsys):
+    from csgs_codec import read_scene
+
+    _, folder = _checkpoint(tmp_path)
+    out = tmp_path / "a.csgs"
+    assert main(["encode", str(folder), "-o", str(out), "-q"]) == 0
+    for name in ("a.ply", "a.spz", "a.glb", "a.splat"):
+        assert main(["decode", str(out), "-o", str(tmp_path / name), "--sh-degree", "1",
+                     "-q"]) == 0
+        assert (tmp_path / name).is_file()  # a scene file, never a checkpoint folder
+        assert len(read_scene(tmp_path / name)) > 0
+    assert read_scene(tmp_path / "a.ply").sh_degree_stored == 1
+    assert main(["decode", str(out), "-o", str(tmp_path / "b.spz"), "--checkpoint",
+                 str(tmp_path / "ckpt_too"), "-q"]) == 0
+    assert read_scaffold(tmp_path / "ckpt_too").mlps is not None
+    capsys.readouterr()
+    assert main(["decode", str(SAMPLE_CSGS(tmp_path)), "-o", str(tmp_path / "s.ply"),
+                 "--sh-degree", "1"]) == 2
+    assert "--sh-degree" in capsys.readouterr().err
+
+
+def SAMPLE_CSGS(tmp_path):  # noqa: N802
+    path = tmp_path / "sample.csgs"
+    if not path.exists():
+        assert main(["encode", str(SAMPLE), "-o", str(path), "--fast", "-q"]) == 0
+    return path
