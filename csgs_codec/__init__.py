@@ -28,6 +28,7 @@ from csgs_codec.errors import (
 )
 
 if TYPE_CHECKING:  # what the lazy names below resolve to, for IDEs and type checkers
+    from csgs_codec.bake.anchor_bake import bake_anchor_scene
     from csgs_codec.codec.anchor_decoder import AnchorDecoder
     from csgs_codec.codec.anchor_encoder import AnchorEncoder
     from csgs_codec.codec.decoder import Decoder
@@ -57,6 +58,7 @@ _LAZY = {
     "AnchorScene": "csgs_codec.scene.anchor_scene",
     "AnchorEncoder": "csgs_codec.codec.anchor_encoder",
     "AnchorDecoder": "csgs_codec.codec.anchor_decoder",
+    "bake_anchor_scene": "csgs_codec.bake.anchor_bake",
     "read_scaffold": "csgs_codec.interchange.scaffold_io",
     "write_scaffold": "csgs_codec.interchange.scaffold_io",
     "select_at_click": "csgs_codec.semantic.selection",
@@ -71,6 +73,7 @@ __all__ = [
     "decode_file",
     "GaussianScene", "read_ply", "write_ply",
     "AnchorScene", "AnchorEncoder", "AnchorDecoder", "read_scaffold", "write_scaffold",
+    "bake_anchor_scene",
     "select_at_click", "read_scene", "read_scene_with_report", "write_scene",
     "CsgsError", "InputError", "FormatError", "UnsupportedError", "ModelError",
     "CsgsWarning", "DataLossWarning", "CompoundedLossWarning",

@@ -212,7 +212,7 @@ def _decode_anchors(args) -> int:
 
 def bake_for_output(scene, args):
     """(baked GaussianScene, where its view origins came from) for ``csgs decode``."""
-    from csgs_codec.model.anchor_bake import BakeSettings, bake_anchor_scene
+    from csgs_codec.bake.anchor_bake import BakeSettings, bake_anchor_scene
     from csgs_codec.scene.cameras_io import load_cameras
 
     settings = BakeSettings(sh_degree=3 if args.sh_degree is None else args.sh_degree)

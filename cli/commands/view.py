@@ -79,7 +79,7 @@ def run(args) -> int:
                          property="--max-gaussians")
     scene = load_scene(args.scene, command=NAME)
     if not isinstance(scene, GaussianScene):  # an anchor scene: shown as its bake
-        from csgs_codec.model.anchor_bake import bake_anchor_scene
+        from csgs_codec.bake.anchor_bake import bake_anchor_scene
 
         scene = bake_anchor_scene(scene)
     options = dict(mode="points" if args.points else "ellipsoids", color_by=args.color,

@@ -1,7 +1,7 @@
 """The ``vorg`` chunk: where an anchor scene was trained to be seen from (FORMAT §17.12).
 
 Optional, base layer. An anchor's neural Gaussians depend on the view; a receiver that bakes
-them into a standard scene (:mod:`csgs_codec.model.anchor_bake`) fits them over view origins,
+them into a standard scene (:mod:`csgs_codec.bake.anchor_bake`) fits them over view origins,
 and the origins the scene was trained from give a far better bake than a generic sphere (the
 heads extrapolate badly to directions no training view saw). Nothing the decoder outputs as
 anchors depends on the chunk, so an unreadable one does not make the file invalid: readers

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from csgs_codec.bake.anchor_bake import BakeSettings, bake_anchor_scene
 from csgs_codec.chunks.view_origins import (
     MAX_ORIGINS,
     even_sample,
@@ -16,7 +17,6 @@ from csgs_codec.codec.anchor_encoder import AnchorEncoder
 from csgs_codec.errors import FormatError, InputError
 from csgs_codec.format.chunk import Chunk
 from csgs_codec.format.writer import write_container
-from csgs_codec.model.anchor_bake import BakeSettings, bake_anchor_scene
 from csgs_codec.model.scaffold import ScaffoldDecoder
 from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene
 from tests.anchors.helpers import FAST_FIT
@@ -120,3 +120,35 @@ def test_vorg_payload_rules(payload, message):
 def test_vorg_payload_round_trips():
     origins = np.arange(15, dtype=np.float32).reshape(5, 3)
     np.testing.assert_array_equal(parse_view_origins(view_origins_payload(origins)), origins)
+
+
+@pytest.mark.slow  # trains a scene: ~20 s alone, more beside other tests
+def test_a_trained_scene_bakes_within_half_a_db_of_its_exact_render(tmp_path):
+    """What users make: `csgs train` with the demo's settings, then `csgs decode -o x.ply`;
+    on the held-out photos the bake stays within 0.5 dB of the exact per-view render."""
+    from csgs_cli.main import main
+    from csgs_codec import read_scene
+    from csgs_codec.metrics.image import psnr
+    from csgs_codec.model.anchor_views import SceneViews
+    from csgs_codec.render.rasterizer import render
+    from csgs_codec.train.datasets import load_dataset
+    from csgs_codec.train.evaluation import split_views
+
+    data, out = tmp_path / "synthetic", tmp_path / "scene.csgs"
+    assert main(["synthetic", str(data), "--views", "12", "--size", "64x48", "--gaussians",
+                 "200", "-q"]) == 0
+    assert main(["train", str(data), "-o", str(out), "--iterations", "300", "--anchors",
+                 "150", "--features", "16", "--offsets", "5", "--semantic-iterations", "60",
+                 "--test-every", "4", "-q"]) == 0
+    assert main(["decode", str(out), "-o", str(tmp_path / "baked.ply"), "-q"]) == 0
+    baked = read_scene(tmp_path / "baked.ply")
+    exact = SceneViews(AnchorDecoder().decode(out))
+    assert exact.scene.view_origins is not None  # csgs train stores its training origins
+    _, test = split_views(load_dataset(data, read_masks=False), 4)
+
+    def mean_psnr(gaussians_for):
+        return np.mean([psnr(v.image, np.clip(render(gaussians_for(v.camera), v.camera,
+                                                     backend="numba").image, 0, 1))
+                        for v in test])
+
+    assert mean_psnr(lambda c: baked) >= mean_psnr(exact.gaussians) - 0.5
