@@ -68,9 +68,9 @@ def _merge_components(edges_a: np.ndarray, edges_b: np.ndarray, weights: np.ndar
 
 
 try:
-    from csgs_codec.render.numba_runtime import jit_kernel
+    from csgs_codec.render.numba_runtime import compile_safely, jit_kernel
 
-    _merge = jit_kernel()(_merge_components)
+    _merge = compile_safely(jit_kernel()(_merge_components))
 except ImportError:  # numba is the optional "fast" extra; the plain loop gives the same ids
     _merge = _merge_components
 

@@ -14,6 +14,7 @@ import shutil
 import subprocess
 import sys
 import textwrap
+import threading
 import warnings
 from pathlib import Path
 
@@ -148,3 +149,80 @@ def test_a_child_forked_while_a_thread_has_the_turn_can_launch_kernels():
     code = child_finishes_while_a_thread_holds(lambda: numba_runtime._LAUNCH,
                                                _one_kernel_launch)
     assert code == 0, "the child waited for a turn no thread of its own held"
+
+
+_HOLD_THE_CACHE_LOCK = textwrap.dedent("""
+    import fcntl, sys
+    from csgs_codec.render.numba_runtime import cache_lock_path
+    with open(cache_lock_path(), "a+b") as handle:
+        fcntl.lockf(handle, fcntl.LOCK_EX)
+        print("held", flush=True)
+        sys.stdin.readline()
+""")
+
+_FIRST_LAUNCH = textwrap.dedent("""
+    import sys
+    import numpy as np
+    from csgs_codec.render import numba_kernels
+    ids = np.array([0, 1, 1], np.int64)
+    print("ready", flush=True)
+    total = numba_kernels.sum_slots(ids, np.ones((3, 2), np.float32), 2)
+    print("first", total.tolist(), flush=True)
+""")
+
+
+def _holder() -> subprocess.Popen:
+    holder = subprocess.Popen([sys.executable, "-c", _HOLD_THE_CACHE_LOCK], cwd=REPO,
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    assert holder.stdout.readline().strip() == "held"
+    return holder
+
+
+@needs_numba
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="POSIX record locks")
+def test_a_first_launch_waits_while_another_process_writes_the_cache():
+    """numba's cache is unsafe against concurrent writers (CI's parallel workers crashed on
+    what they wrote together): a process's first launch waits for the one holding the lock,
+    although the kernel is cached already (loading it alone takes a fraction of a second)."""
+    _one_kernel_launch()  # cached by this process, so the child only loads it
+    holder = _holder()
+    user = subprocess.Popen([sys.executable, "-c", _FIRST_LAUNCH], cwd=REPO,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert user.stdout.readline().strip() == "ready"
+        with pytest.raises(subprocess.TimeoutExpired):
+            user.wait(timeout=3.0)  # blocked on the lock, not finished
+    finally:
+        holder.communicate("\n", timeout=30)
+    out, err = user.communicate(timeout=300)
+    assert user.returncode == 0, err[-2000:]
+    assert out.strip() == "first [[1.0, 1.0], [2.0, 2.0]]"
+
+
+@needs_numba
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="POSIX record locks")
+def test_later_launches_of_the_same_types_take_no_cache_lock():
+    from csgs_codec.render import numba_kernels
+
+    _one_kernel_launch()  # the first launch of these types in this process
+    holder = _holder()
+    try:
+        finished = threading.Event()
+
+        def launch() -> None:
+            _one_kernel_launch()
+            finished.set()
+
+        worker = threading.Thread(target=launch, daemon=True)
+        worker.start()
+        assert finished.wait(60), "a second launch waited for the cache lock"
+        ids = np.array([0, 0], np.int32)  # a new argument type: this one must wait
+        late = threading.Thread(target=numba_kernels.sum_slots,
+                                args=(ids, np.ones((2, 1), np.float32), 1), daemon=True)
+        late.start()
+        late.join(1.0)
+        assert late.is_alive()
+    finally:
+        holder.communicate("\n", timeout=30)
+    late.join(120)
+    assert not late.is_alive()
