@@ -16,8 +16,10 @@ heads from a set of view origins and fits, for every anchor-offset slot:
   non-DC coefficients so slots seen from few directions stay tame.
 
 The view origins are the given cameras' centres, else the scene's stored training origins
-(``AnchorScene.view_origins``, a file's ``vorg`` chunk), else :func:`bake_origins`: a sphere
-around the anchors at three distances, as the encoder's default viewing distribution.
+(``AnchorScene.view_origins``, a file's ``vorg`` chunk), else :func:`bake_origins`: spheres
+around the anchors at three distances, framed as the encoder's default viewing distribution
+frames a scene. csgs_codec/js/anchor_bake.mjs is the same bake in JavaScript (the browser
+page's), to float tolerance.
 Positions are view-independent already; semantic features and labels are the anchor's,
 repeated per Gaussian. The result is deterministic for a given scene, origins and settings on
 one machine (it feeds no range coder; nothing decodes it bit for bit).
@@ -40,6 +42,10 @@ from csgs_codec.scene.anchor_scene import AnchorScene
 from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.gaussian_scene import GaussianScene
 
+#: The default origins' framing: a 40-degree frame (vertical, 800 x 600) that the anchors'
+#: robust box fills to 70%, as the encoder's default viewing distribution frames a scene.
+_FOV_Y_DEG = 40.0
+_FILL = 0.7
 #: Anchors evaluated together (bounds memory: anchors x offsets x basis^2 doubles).
 ANCHOR_BATCH = 2048
 #: Least opacity weight a view gives a slot's colour fit, so that a slot on from few views
@@ -84,18 +90,35 @@ class BakeSettings:
 
 
 def bake_origins(scene: AnchorScene, settings: BakeSettings = BakeSettings()) -> np.ndarray:
-    """(V, 3) float64 view origins on a sphere around ``scene``, world units.
+    """(V, 3) float64 view origins for a scene that stores none, world units (FORMAT §17.13).
 
-    The sphere is the one the encoder's default viewing distribution uses for objects seen
-    from outside (:func:`csgs_codec.render.view_distribution.default_distribution`), framed
-    on the scene's view-independent export.
+    Fibonacci spheres of ``settings.directions`` points around the centre of the anchors'
+    2nd-98th percentile box, at ``settings.distances`` times the distance at which that box's
+    largest side fills 70% of a 40-degree frame (the framing of the encoder's default viewing
+    distribution), each shell turned about z by 2 pi shell / (shells x directions). Anchor
+    positions alone decide it, so any receiver computes the same origins.
     """
-    from csgs_codec.model.anchor_views import SceneViews
-    from csgs_codec.render.view_distribution import default_distribution
+    from csgs_codec.render.view_distribution import sphere_directions
 
-    views = default_distribution(SceneViews(scene).framing(), directions=settings.directions,
-                                 distances=settings.distances)
-    return np.stack([np.asarray(c.position, np.float64) for c in views.cameras])
+    positions = scene.positions.astype(np.float64)
+    if len(positions) == 0:
+        positions = np.zeros((1, 3))
+    low = np.percentile(positions, 2.0, axis=0)
+    high = np.percentile(positions, 98.0, axis=0)
+    extent = float(np.max(high - low))
+    if not extent > 0:
+        extent = 1.0
+    base = extent * (0.5 / _FILL / math.tan(math.radians(_FOV_Y_DEG / 2)) + 0.5)
+    centre = (low + high) / 2
+    shells = settings.distances
+    out = []
+    for shell, factor in enumerate(shells):
+        turn = 2.0 * math.pi * shell / (len(shells) * settings.directions)
+        c, s = math.cos(turn), math.sin(turn)
+        d = sphere_directions(settings.directions)
+        turned = np.stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1], d[:, 2]], 1)
+        out.append(centre + base * factor * turned)
+    return np.concatenate(out)
 
 
 def bake_anchor_scene(scene: AnchorScene, *, cameras: list[Camera] | None = None,
