@@ -106,3 +106,25 @@ def test_csgs_reads_splat_transforms_output_as_splat_transform_does(suffix, donu
     finite = np.isfinite(theirs["opacity"])
     np.testing.assert_allclose(ours.opacity[finite], theirs["opacity"][finite], atol=1e-6)
     assert rotation_error(ours.rotations, theirs["rotations"]).max() < 1e-6
+
+
+@pytest.mark.parametrize("suffix", [".spz", ".ply"])
+def test_splat_transform_reads_a_baked_anchor_scene(suffix, tmp_path):
+    """`csgs decode anchors.csgs -o a.spz` (default settings) writes a file an independent
+    reader opens: splat-transform reads the Gaussians csgs's own reader reads."""
+    splat_transform_or_skip()
+    from csgs_cli.main import main
+    from csgs_codec.interchange.scaffold_io import write_scaffold
+    from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene
+
+    folder = write_scaffold(synthetic_anchor_scene(2, 40, seed=4), tmp_path / "ckpt")
+    assert main(["encode", str(folder), "-o", str(tmp_path / "a.csgs"), "-q"]) == 0
+    out = tmp_path / f"baked{suffix}"
+    assert main(["decode", str(tmp_path / "a.csgs"), "-o", str(out), "-q"]) == 0
+    theirs = _decoded_by_splat_transform(out, tmp_path)
+    ours = read_scene_with_report(out)[0]
+    assert len(ours) == len(theirs["positions"]) > 100 and ours.sh_degree_stored == 3
+    for key in ("positions", "sh_dc", "sh_rest", "scales"):
+        np.testing.assert_allclose(getattr(ours, key), theirs[key], rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(ours.opacity, theirs["opacity"], atol=1e-5)
+    assert rotation_error(ours.rotations, theirs["rotations"]).max() < 1e-4
