@@ -41,3 +41,10 @@ echo "== train a tiny synthetic scene from images + instance masks (stages 1-3),
 "$csgs" train "$out/synthetic" -o "$out/synthetic.csgs" --iterations 300 --anchors 150 \
     --features 16 --offsets 5 --semantic-iterations 60 --test-every 4
 "$csgs" info "$out/synthetic.csgs"
+
+echo
+echo "== the trained anchor scene, rendered per view and baked into a standard SPZ file"
+"$csgs" render "$out/synthetic.csgs" --orbit 4 --size 400x300 -o "$out/synthetic_views" --quiet
+"$csgs" decode "$out/synthetic.csgs" -o "$out/synthetic.spz"
+"$csgs" compare "$out/synthetic.csgs" "$out/synthetic.spz" --orbit 8 --size 400x300
+echo "wrote $out/synthetic_views/*.png and $out/synthetic.spz"
