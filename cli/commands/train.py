@@ -21,7 +21,8 @@ def add_arguments(parser) -> None:
     from csgs_codec.train import defaults
     from csgs_codec.train.defaults import RATE_WEIGHT_PRESETS
     parser.add_argument("data", help="dataset: a folder with transforms.json, cameras.json "
-                                     "(+ images/) or a COLMAP model, or the camera file itself")
+                                     "(+ images/), a COLMAP model or an LLFF poses_bounds.npy "
+                                     "(+ images/), or the camera file itself")
     parser.add_argument("-o", "--output", required=True, metavar="CSGS",
                         help="output .csgs file")
     parser.add_argument("--lambda", dest="rate_weight", type=float,

@@ -7,12 +7,16 @@ Layouts :func:`load_dataset` recognises (``path`` is the dataset folder or its c
 * INRIA ``cameras.json``: each ``img_name`` is looked up in the ``images/`` folder.
 * COLMAP model (``sparse/0``, ``sparse`` or the folder itself): each image name is looked up
   in ``images/``.
+* LLFF capture (``poses_bounds.npy``, :mod:`csgs_codec.scene.llff_io`): the images of
+  ``images/``, or of the ``images_N/`` copy nearest above the asked size, in sorted name order.
 
 The ``images/`` folder is searched beside the camera file, then one and two levels up (COLMAP
 models sit in ``sparse/0``). Masks: one integer instance-id image per view with the image's
 stem (``masks/frame_001.png`` for ``images/frame_001.jpg``), from the ``masks/`` folder beside
-the images unless another folder is given. Without masks, the built-in segmenter
-(:mod:`csgs_codec.train.segmentation`) makes them, with a :class:`CsgsWarning`.
+the images unless another folder is given. A mask may also have the size of the full-size
+image when an LLFF ``images_N/`` copy is read: it is then resized like the image. Without
+masks, the built-in segmenter (:mod:`csgs_codec.train.segmentation`) makes them, with a
+:class:`CsgsWarning`.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from csgs_codec.errors import CsgsWarning, InputError
 from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.cameras_io import load_cameras, resize_camera
 from csgs_codec.scene.colmap_io import is_colmap_path
+from csgs_codec.scene.llff_io import POSES_FILE, is_llff_path, load_llff_capture
 from csgs_codec.train.image_files import (
     find_image,
     read_image,
@@ -78,8 +83,15 @@ def load_dataset(path: str | Path, *, downscale: float = 1.0, masks: str | Path 
         raise InputError(f"downscale must be a finite factor >= 1, got {downscale}",
                          property="downscale")
     camera_path = find_camera_file(Path(path))
-    cameras = load_cameras(camera_path)
-    image_root, image_names = _image_locations(camera_path, cameras, images)
+    downscale, mask_scale = float(downscale), 1.0
+    if is_llff_path(camera_path):
+        capture = load_llff_capture(camera_path, downscale=downscale, folder=images)
+        cameras, image_root = capture.cameras, capture.folder
+        image_names = [camera.name for camera in cameras]
+        downscale, mask_scale = capture.remaining_downscale, capture.scale
+    else:
+        cameras = load_cameras(camera_path)
+        image_root, image_names = _image_locations(camera_path, cameras, images)
     mask_root = _mask_folder(image_root, masks) if read_masks else None
     views = []
     for camera, name in zip(cameras, image_names):
@@ -88,8 +100,9 @@ def load_dataset(path: str | Path, *, downscale: float = 1.0, masks: str | Path 
         if (image.shape[1], image.shape[0]) != (camera.width, camera.height):
             raise InputError(f"image is {image.shape[1]}x{image.shape[0]} but its camera is "
                              f"{camera.width}x{camera.height}", file=image_path)
-        mask = None if mask_root is None else _read_view_mask(mask_root, name, image.shape[:2])
-        camera, image, mask = _downscaled(camera, image, mask, float(downscale))
+        mask = None if mask_root is None else _read_view_mask(mask_root, name, image_path,
+                                                              image.shape[:2], mask_scale)
+        camera, image, mask = _downscaled(camera, image, mask, downscale)
         views.append(TrainingView(image, camera, mask, name=name))
     if mask_root is None and segment_missing and read_masks:
         warnings.warn(f"{path}: no masks folder; making instance masks with the built-in "
@@ -104,8 +117,8 @@ def find_camera_file(path: Path) -> Path:
     """The camera file or COLMAP model that ``path`` names or holds.
 
     Raises:
-        InputError: ``path`` is missing or holds none of :data:`CAMERA_FILE_NAMES` nor a
-            COLMAP model.
+        InputError: ``path`` is missing or holds none of :data:`CAMERA_FILE_NAMES`, a
+            COLMAP model or an LLFF ``poses_bounds.npy``.
     """
     if not path.exists():
         raise InputError("no such file or folder", file=path)
@@ -114,8 +127,10 @@ def find_camera_file(path: Path) -> Path:
     for name in CAMERA_FILE_NAMES:
         if (path / name).is_file():
             return path / name
-    raise InputError(f"no cameras found: expected one of {', '.join(CAMERA_FILE_NAMES)} or a "
-                     "COLMAP model (sparse/0)", file=path)
+    if (path / POSES_FILE).is_file():
+        return path / POSES_FILE
+    raise InputError(f"no cameras found: expected one of {', '.join(CAMERA_FILE_NAMES)}, a "
+                     f"COLMAP model (sparse/0) or an LLFF {POSES_FILE}", file=path)
 
 
 def _image_locations(camera_path: Path, cameras: list[Camera], images: str | Path | None
@@ -158,7 +173,10 @@ def _mask_folder(image_root: Path, masks: str | Path | None) -> Path | None:
     return None
 
 
-def _read_view_mask(mask_root: Path, image_name: str, shape: tuple[int, int]) -> np.ndarray:
+def _read_view_mask(mask_root: Path, image_name: str, image_path: Path,
+                    shape: tuple[int, int], scale: float = 1.0) -> np.ndarray:
+    """The (H, W) = ``shape`` instance mask of an image; a mask ``scale`` times the image's
+    size (one of a full-size LLFF image read from ``images_N/``) is resized to it."""
     stem = Path(image_name).stem
     try:
         mask_path = find_image(mask_root, stem)
@@ -166,10 +184,24 @@ def _read_view_mask(mask_root: Path, image_name: str, shape: tuple[int, int]) ->
         raise InputError(f"no mask for image '{image_name}'",
                          file=mask_root / f"{stem}.png") from None
     mask = read_mask(mask_path)
-    if mask.shape != shape:
-        raise InputError(f"mask is {mask.shape[1]}x{mask.shape[0]} but its image is "
-                         f"{shape[1]}x{shape[0]}", file=mask_path)
-    return mask
+    return fit_mask_to_image(mask, mask_path, image_path, shape, scale)
+
+
+def fit_mask_to_image(mask: np.ndarray, mask_path: Path, image_path: Path,
+                      shape: tuple[int, int], scale: float = 1.0) -> np.ndarray:
+    """``mask`` (h, w) as (H, W) = ``shape``: unchanged when sizes agree, resized by nearest
+    neighbour when it is ``scale`` times the image's size (within a pixel, LLFF's rounding).
+
+    Raises:
+        InputError: naming both files and sizes when they do not agree.
+    """
+    if mask.shape == shape:
+        return mask
+    height, width = shape
+    if scale != 1.0 and all(abs(m - s * scale) <= 1.0 for m, s in zip(mask.shape, shape)):
+        return resize_mask(mask, width, height)
+    raise InputError(f"mask is {mask.shape[1]}x{mask.shape[0]} but its image {image_path} is "
+                     f"{width}x{height}", file=mask_path)
 
 
 def _downscaled(camera: Camera, image: np.ndarray, mask: np.ndarray | None, factor: float
