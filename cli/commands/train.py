@@ -21,7 +21,8 @@ def add_arguments(parser) -> None:
     from csgs_codec.train import defaults
     from csgs_codec.train.defaults import RATE_WEIGHT_PRESETS
     parser.add_argument("data", help="dataset: a folder with transforms.json, cameras.json "
-                                     "(+ images/) or a COLMAP model, or the camera file itself")
+                                     "(+ images/), a COLMAP model or an LLFF poses_bounds.npy "
+                                     "(+ images/), or the camera file itself")
     parser.add_argument("-o", "--output", required=True, metavar="CSGS",
                         help="output .csgs file")
     parser.add_argument("--lambda", dest="rate_weight", type=float,
@@ -63,6 +64,14 @@ def add_arguments(parser) -> None:
     parser.add_argument("--masks", metavar="DIR",
                         help="instance-mask folder (default: masks/ beside the images; "
                              "without one a built-in segmenter makes masks, with a warning)")
+    parser.add_argument("--foreground-masks", metavar="DIR",
+                        help="folder of object masks (255 object, 0 background; one per "
+                             "image, named by its stem): train the object alone with a "
+                             "transparent background (default: the capture's masks/ folder "
+                             "when it holds only 0/255 masks)")
+    parser.add_argument("--no-foreground-masks", action="store_true",
+                        help="train whole photos even when the capture has 0/255 masks "
+                             "(masks/ is then read as instance masks)")
     parser.add_argument("--no-semantic", action="store_true",
                         help="train color only (no masks, no semantic layer)")
     parser.add_argument("--test-every", type=int, default=8, metavar="K",
@@ -96,7 +105,7 @@ def run(args) -> int:
     from csgs_codec.codec.describe import describe_bitstream
     from csgs_codec.render.differentiable import resolve_training_rasterizer
     from csgs_codec.train.color_stage import ColorStageSettings
-    from csgs_codec.train.datasets import load_dataset
+    from csgs_codec.train.datasets import find_foreground_masks, load_dataset
     from csgs_codec.train.evaluation import score_views, split_views
     from csgs_codec.train.initial_points import find_initial_points
     from csgs_codec.train.pipeline import TrainSettings, train_scene
@@ -136,12 +145,18 @@ def run(args) -> int:
         option = OPTION_OF_SETTING.get(error.property, error.property or "")
         raise InputError(error.message.replace(error.property or "", option),
                          property=f"--{option.replace('_', '-')}") from None
+    if args.foreground_masks and args.no_foreground_masks:
+        raise InputError("--foreground-masks and --no-foreground-masks contradict each other",
+                         property="no-foreground-masks")
     resolve_training_rasterizer(args.rasterizer, args.device)  # fail before loading images
     check_output_folder(Path(args.output))
+    foreground = args.foreground_masks
+    if foreground is None and not args.no_foreground_masks:
+        foreground = find_foreground_masks(args.data)
     views = load_dataset(args.data, downscale=downscale_for(args.data, args.resolution),
                          masks=None if args.no_semantic else args.masks,
                          segment_missing=not args.no_semantic,
-                         read_masks=not args.no_semantic)
+                         read_masks=not args.no_semantic, foreground=foreground)
     train_views, test_views = split_views(views, args.test_every)
     points, source = find_initial_points(args.data, [v.camera for v in train_views],
                                          points=args.points, seed=args.seed,
@@ -154,6 +169,11 @@ def run(args) -> int:
     if not args.quiet:
         print(f"{len(train_views)} training views, {len(test_views)} held out, "
               f"{views[0].width}x{views[0].height}; initial points: {source}")
+        if foreground is not None:
+            how = ("given" if args.foreground_masks else
+                   "found: 0/255 masks; --no-foreground-masks trains the whole photos")
+            print(f"foreground masks: {foreground} ({how}); training the object alone, its "
+                  "background transparent")
     bar = tqdm(total=args.iterations, desc="stage 1", unit="step", disable=args.quiet,
                leave=False)
 
@@ -180,6 +200,8 @@ def run(args) -> int:
     print(f"time: {timings}")
     if test_views:
         scores = score_views(scene, test_views)
-        print(f"held-out views: PSNR {scores.psnr:.2f} dB, SSIM {scores.ssim:.4f} "
+        inside = ("" if math.isnan(scores.foreground_psnr) else
+                  f", PSNR inside the foreground masks {scores.foreground_psnr:.2f} dB")
+        print(f"held-out views: PSNR {scores.psnr:.2f} dB, SSIM {scores.ssim:.4f}{inside} "
               f"({scores.views} views, decoded scene)")
     return 0

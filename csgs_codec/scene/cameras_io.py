@@ -17,6 +17,7 @@ Formats:
   files) the size is read from the frame's image, ``file_path`` relative to the JSON file,
   ``.png`` appended when it has no suffix. Lens distortion is ignored (warned).
 * COLMAP text or binary models (``cameras`` + ``images``): see :mod:`.colmap_io`.
+* LLFF captures (``poses_bounds.npy`` + ``images/``): see :mod:`.llff_io`.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ import numpy as np
 from csgs_codec.errors import CsgsWarning, InputError
 from csgs_codec.scene.camera import MAX_CAMERA_FILE_BYTES, MAX_IMAGE_SIDE, Camera
 from csgs_codec.scene.colmap_io import is_colmap_path, load_colmap_cameras
+from csgs_codec.scene.llff_io import is_llff_path, load_llff_capture
 from csgs_codec.untrusted import load_json, open_regular, read_regular, refuse_non_regular
 
 #: OpenGL camera axes (x right, y up, z back) to OpenCV (x right, y down, z forward).
@@ -42,7 +44,8 @@ def load_cameras(path: str | Path) -> list[Camera]:
 
     ``path`` may be an INRIA ``cameras.json``, a ``transforms*.json``, a COLMAP model folder
     (holding ``cameras.txt``/``images.txt`` or ``.bin``, directly or under ``sparse/0``) or one
-    of the COLMAP files themselves.
+    of the COLMAP files themselves, or an LLFF capture (its folder or ``poses_bounds.npy``;
+    the cameras of its full-size images).
 
     Raises:
         InputError: unreadable file, unknown format or a malformed field (named).
@@ -53,9 +56,11 @@ def load_cameras(path: str | Path) -> list[Camera]:
     refuse_non_regular(path, directory_ok=True)  # a NUL byte, a device or FIFO: refused
     if is_colmap_path(path):
         return load_colmap_cameras(path)
+    if is_llff_path(path):
+        return load_llff_capture(path).cameras
     if path.is_dir():
-        raise InputError("folder holds no COLMAP model (cameras.txt/.bin + images.txt/.bin)",
-                         file=path)
+        raise InputError("folder holds no COLMAP model (cameras.txt/.bin + images.txt/.bin) "
+                         "nor an LLFF poses_bounds.npy", file=path)
     document = _read_json(path)
     if isinstance(document, list):
         return cameras_from_inria_json(document, source=path)

@@ -68,7 +68,11 @@ def grid_for_points(points: np.ndarray, target_anchors: int) -> AnchorGrid:
     """A grid whose voxel puts about ``target_anchors`` occupied cells on ``points``.
 
     The voxel is searched by bisection on a log scale between the points' extent and
-    1e-6 of it (25 steps), counting occupied cells each time.
+    1e-6 of it (25 steps), counting occupied cells each time. The count aimed at is at most
+    half the distinct points: with more anchors asked than points (a sparse SfM cloud) any
+    voxel below the points' spacing meets the count, and the search would end at 1e-6 of
+    the extent, where anchors start invisibly small and barely learn (a real capture,
+    mary_rose at 128 px, held out at 2.7 dB after 400 steps).
     """
     points = np.asarray(points, np.float64)
     if points.ndim != 2 or points.shape[1] != 3 or len(points) == 0:
@@ -77,6 +81,7 @@ def grid_for_points(points: np.ndarray, target_anchors: int) -> AnchorGrid:
     if target_anchors < 1:
         raise InputError(f"target anchor count must be >= 1, got {target_anchors}",
                          property="anchors")
+    target_anchors = min(target_anchors, max(1, len(np.unique(points, axis=0)) // 2))
     low, high = points.min(axis=0), points.max(axis=0)
     extent = float((high - low).max()) or 1.0
     lo, hi = math.log(extent * 1e-6), math.log(extent)

@@ -5,6 +5,8 @@ epoch) and minimises
 
     L = (1 - w) L1 + w (1 - SSIM)
         + lambda_rate * (R / P + lambda_mask * mean(sigmoid(mask logits)))
+        [+ lambda_alpha * mean rendered opacity on the background, for views with a
+           foreground mask (:mod:`.foreground`)]
 
 where R is the estimated bits of the noisy features, offsets and scaling under
 :class:`~csgs_codec.train.anchor_rate.AnchorRateModel` (trained jointly), P the number of coded
@@ -42,6 +44,7 @@ from csgs_codec.train.anchor_growth import (
 )
 from csgs_codec.train.anchor_model import INIT_DEVICE, AnchorGrid, AnchorModel, grid_for_points
 from csgs_codec.train.anchor_rate import AnchorRateModel
+from csgs_codec.train.foreground import background_alpha_loss
 from csgs_codec.train.grouped_adam import GroupedAdam, adam_step
 from csgs_codec.train.losses import photometric_loss
 from csgs_codec.train.quantization import add_quantization_noise
@@ -76,6 +79,8 @@ class ColorStageSettings:
         grow_fraction: share of seen slots (largest gradients) that may spawn anchors.
         min_opacity: anchors whose mean opacity per view stays below this are pruned.
         ssim_weight: w of the photometric loss.
+        background_alpha_weight: lambda_alpha, the weight of the background opacity term of
+            views with a foreground mask.
         learning_rates: parameter group -> initial Adam step size; MLPs and offsets decay
             exponentially to ``final_lr_ratio`` of it.
         final_lr_ratio: see ``learning_rates``.
@@ -111,6 +116,7 @@ class ColorStageSettings:
     grow_fraction: float = 0.05
     min_opacity: float = 0.005
     ssim_weight: float = 0.2
+    background_alpha_weight: float = 0.2
     learning_rates: dict[str, float] = field(default_factory=lambda: {
         "features": 0.0075, "offsets": 0.01, "scaling": 0.007, "mask_logits": 0.01,
         "mlps": 0.004, "rate": 0.005})
@@ -144,6 +150,8 @@ class ColorStageSettings:
             ("growth_every", self.growth_every >= 0),
             ("min_opacity", 0.0 <= self.min_opacity < 1.0),
             ("ssim_weight", 0.0 <= self.ssim_weight <= 1.0),
+            ("background_alpha_weight", math.isfinite(self.background_alpha_weight)
+             and self.background_alpha_weight >= 0),
             ("final_lr_ratio", 0.0 < self.final_lr_ratio <= 1.0),
             ("seed", 0 <= self.seed < 2**63),
             ("device", self.device in ("cpu", "cuda") or self.device.startswith("cuda:")),
@@ -363,6 +371,8 @@ def _train_steps(views: list[TrainingView], state: ColorStageState,
                          "with the same dataset and options)", property="views")
     device = torch.device(s.device)
     targets = [torch.as_tensor(v.image, device=device) for v in views]
+    backgrounds = [None if v.foreground is None else torch.as_tensor(~v.foreground, device=device)
+                   for v in views]
     seen_cache: dict[int, np.ndarray] = {}
     began = time.perf_counter()
     end = s.iterations if stop_at is None else min(stop_at, s.iterations)
@@ -396,6 +406,9 @@ def _train_steps(views: list[TrainingView], state: ColorStageState,
         if record:
             gaussians.positions.retain_grad()
         loss = photometric_loss(out.image, targets[index], s.ssim_weight)
+        if backgrounds[index] is not None and s.background_alpha_weight > 0:
+            loss = loss + s.background_alpha_weight * background_alpha_loss(
+                out.alpha, backgrounds[index])
         bits_per_parameter = None
         if with_rate and s.rate_weight > 0:
             estimate = rate_model.estimate(model.cells, noisy, mask)

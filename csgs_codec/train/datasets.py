@@ -7,18 +7,25 @@ Layouts :func:`load_dataset` recognises (``path`` is the dataset folder or its c
 * INRIA ``cameras.json``: each ``img_name`` is looked up in the ``images/`` folder.
 * COLMAP model (``sparse/0``, ``sparse`` or the folder itself): each image name is looked up
   in ``images/``.
+* LLFF capture (``poses_bounds.npy``, :mod:`csgs_codec.scene.llff_io`): the images of
+  ``images/``, or of the ``images_N/`` copy nearest above the asked size, in sorted name order.
 
 The ``images/`` folder is searched beside the camera file, then one and two levels up (COLMAP
 models sit in ``sparse/0``). Masks: one integer instance-id image per view with the image's
 stem (``masks/frame_001.png`` for ``images/frame_001.jpg``), from the ``masks/`` folder beside
-the images unless another folder is given. Without masks, the built-in segmenter
-(:mod:`csgs_codec.train.segmentation`) makes them, with a :class:`CsgsWarning`.
+the images unless another folder is given. A mask may also have the size of the full-size
+image when an LLFF ``images_N/`` copy is read: it is then resized like the image. Without
+masks, the built-in segmenter (:mod:`csgs_codec.train.segmentation`) makes them, with a
+:class:`CsgsWarning`. Foreground masks (object vs background, :mod:`.foreground`) are named
+the same way; a capture's ``masks/`` folder of 0/255 images is one (:func:`find_foreground_masks`),
+and is then not read as instance masks.
 """
 
 from __future__ import annotations
 
 import numbers
 import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +34,12 @@ from csgs_codec.errors import CsgsWarning, InputError
 from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.cameras_io import load_cameras, resize_camera
 from csgs_codec.scene.colmap_io import is_colmap_path
+from csgs_codec.scene.llff_io import POSES_FILE, is_llff_path, load_llff_capture
+from csgs_codec.train.foreground import (
+    composite_foreground,
+    is_binary_mask,
+    read_foreground_mask,
+)
 from csgs_codec.train.image_files import (
     find_image,
     read_image,
@@ -49,21 +62,30 @@ IMAGES_FOLDER = "images"
 def load_dataset(path: str | Path, *, downscale: float = 1.0, masks: str | Path | None = None,
                  images: str | Path | None = None, segment_missing: bool = True,
                  background: tuple[float, float, float] = (0.0, 0.0, 0.0),
-                 read_masks: bool = True) -> list[TrainingView]:
+                 read_masks: bool = True, foreground: str | Path | None = None
+                 ) -> list[TrainingView]:
     """Load every view of a dataset (layouts in the module notes).
 
     Args:
-        path: dataset folder, or its ``transforms*.json`` / ``cameras.json`` / COLMAP model.
+        path: dataset folder, or its ``transforms*.json`` / ``cameras.json`` / COLMAP model /
+            LLFF ``poses_bounds.npy``.
         downscale: divide the image size by this factor (>= 1; sizes are rounded, intrinsics
             scaled to match); images are area-averaged, masks take the nearest id.
-        masks: folder of instance-id images; default ``masks/`` beside the images when present.
-        images: folder of the images for INRIA and COLMAP layouts (default: found as described
-            in the module notes); ignored for transforms.json, whose paths are explicit.
+        masks: folder of instance-id images; default ``masks/`` beside the images when present
+            (unless it is the ``foreground`` folder).
+        images: folder of the images for INRIA, COLMAP and LLFF layouts (default: found as
+            described in the module notes); ignored for transforms.json, whose paths are
+            explicit.
         segment_missing: without a masks folder, make masks with the built-in segmenter
             (warning that quality depends on masks); False leaves ``mask`` None.
-        background: RGB behind transparent image pixels.
+        background: RGB behind transparent image pixels, and behind the object where
+            foreground masks are given.
         read_masks: False reads no masks at all (color-only training): ``mask`` stays None
             and ``masks`` / ``segment_missing`` are ignored.
+        foreground: folder of foreground masks (:mod:`csgs_codec.train.foreground`; see
+            :func:`find_foreground_masks` for a capture's own): each image is composited over
+            ``background`` outside its mask (before any downscale) and the view's
+            ``foreground`` set.
 
     Returns:
         One :class:`TrainingView` per camera, in the camera file's order (COLMAP: image name).
@@ -77,35 +99,96 @@ def load_dataset(path: str | Path, *, downscale: float = 1.0, masks: str | Path 
             or not 1.0 <= float(downscale) < float("inf")):
         raise InputError(f"downscale must be a finite factor >= 1, got {downscale}",
                          property="downscale")
-    camera_path = find_camera_file(Path(path))
-    cameras = load_cameras(camera_path)
-    image_root, image_names = _image_locations(camera_path, cameras, images)
-    mask_root = _mask_folder(image_root, masks) if read_masks else None
+    files = _view_files(Path(path), float(downscale), images)
+    foreground_root = None
+    if foreground is not None:
+        foreground_root = Path(foreground)
+        if not foreground_root.is_dir():
+            raise InputError("foreground masks folder not found", file=foreground_root)
+    mask_root = _mask_folder(files.image_root, masks, foreground_root) if read_masks else None
     views = []
-    for camera, name in zip(cameras, image_names):
-        image_path = find_image(image_root, name)
+    for camera, name in zip(files.cameras, files.names):
+        image_path = find_image(files.image_root, name)
         image = read_image(image_path, background)
         if (image.shape[1], image.shape[0]) != (camera.width, camera.height):
             raise InputError(f"image is {image.shape[1]}x{image.shape[0]} but its camera is "
                              f"{camera.width}x{camera.height}", file=image_path)
-        mask = None if mask_root is None else _read_view_mask(mask_root, name, image.shape[:2])
-        camera, image, mask = _downscaled(camera, image, mask, float(downscale))
-        views.append(TrainingView(image, camera, mask, name=name))
+        shape = image.shape[:2]
+        mask = None if mask_root is None else _read_view_mask(mask_root, name, image_path,
+                                                              shape, files.mask_scale)
+        keep = None
+        if foreground_root is not None:
+            mask_path = _view_mask_path(foreground_root, name, "foreground mask")
+            keep = fit_mask_to_image(read_foreground_mask(mask_path), mask_path, image_path,
+                                     shape, files.mask_scale)
+            image = composite_foreground(image, keep, background)
+        camera, image, mask = _downscaled(camera, image, mask, files.downscale)
+        if keep is not None:
+            keep = resize_mask(keep, camera.width, camera.height)
+        views.append(TrainingView(image, camera, mask, name=name, foreground=keep))
     if mask_root is None and segment_missing and read_masks:
-        warnings.warn(f"{path}: no masks folder; making instance masks with the built-in "
-                      "graph segmenter. Semantic quality depends on the masks: give SAM-style "
-                      "masks in a masks/ folder for good results", CsgsWarning, stacklevel=2)
+        why = ("no masks folder" if foreground_root is None else
+               f"no instance masks besides the foreground masks in {foreground_root}")
+        warnings.warn(f"{path}: {why}; making instance masks with the built-in graph "
+                      "segmenter. Semantic quality depends on the masks: give SAM-style masks "
+                      "(--masks) for good results", CsgsWarning, stacklevel=2)
         for view in views:
             view.mask = segment_image(view.image)
     return views
+
+
+def find_foreground_masks(path: str | Path, *, images: str | Path | None = None
+                          ) -> Path | None:
+    """The dataset's own foreground masks: its ``masks/`` folder (found as for instance
+    masks) when every view has a mask there holding only 0 and 255 (see
+    :func:`csgs_codec.train.foreground.is_binary_mask`), else None.
+
+    Raises:
+        InputError: as :func:`load_dataset` for the cameras and images.
+    """
+    files = _view_files(Path(path), 1.0, images)
+    folder = _mask_folder(files.image_root, None)
+    if folder is None:
+        return None
+    for name in files.names:
+        try:
+            candidate = find_image(folder, Path(name).stem)
+        except InputError:
+            return None
+        if not is_binary_mask(candidate):
+            return None
+    return folder
+
+
+@dataclass(frozen=True)
+class _ViewFiles:
+    """Where a dataset's views are: cameras, their image folder and names, the downscale
+    left to apply after reading, and a mask's size over its image's (LLFF's images_N/)."""
+
+    cameras: list[Camera]
+    image_root: Path
+    names: list[str]
+    downscale: float
+    mask_scale: float
+
+
+def _view_files(path: Path, downscale: float, images: str | Path | None) -> _ViewFiles:
+    camera_path = find_camera_file(path)
+    if is_llff_path(camera_path):
+        capture = load_llff_capture(camera_path, downscale=downscale, folder=images)
+        return _ViewFiles(capture.cameras, capture.folder, [c.name for c in capture.cameras],
+                          capture.remaining_downscale, capture.scale)
+    cameras = load_cameras(camera_path)
+    image_root, names = _image_locations(camera_path, cameras, images)
+    return _ViewFiles(cameras, image_root, names, downscale, 1.0)
 
 
 def find_camera_file(path: Path) -> Path:
     """The camera file or COLMAP model that ``path`` names or holds.
 
     Raises:
-        InputError: ``path`` is missing or holds none of :data:`CAMERA_FILE_NAMES` nor a
-            COLMAP model.
+        InputError: ``path`` is missing or holds none of :data:`CAMERA_FILE_NAMES`, a
+            COLMAP model or an LLFF ``poses_bounds.npy``.
     """
     if not path.exists():
         raise InputError("no such file or folder", file=path)
@@ -114,8 +197,10 @@ def find_camera_file(path: Path) -> Path:
     for name in CAMERA_FILE_NAMES:
         if (path / name).is_file():
             return path / name
-    raise InputError(f"no cameras found: expected one of {', '.join(CAMERA_FILE_NAMES)} or a "
-                     "COLMAP model (sparse/0)", file=path)
+    if (path / POSES_FILE).is_file():
+        return path / POSES_FILE
+    raise InputError(f"no cameras found: expected one of {', '.join(CAMERA_FILE_NAMES)}, a "
+                     f"COLMAP model (sparse/0) or an LLFF {POSES_FILE}", file=path)
 
 
 def _image_locations(camera_path: Path, cameras: list[Camera], images: str | Path | None
@@ -146,7 +231,10 @@ def _is_transforms_file(camera_path: Path) -> bool:
     return head.startswith(b"{") or head.startswith(b"\xef\xbb\xbf{")
 
 
-def _mask_folder(image_root: Path, masks: str | Path | None) -> Path | None:
+def _mask_folder(image_root: Path, masks: str | Path | None,
+                 foreground: Path | None = None) -> Path | None:
+    """The instance-mask folder: ``masks`` when given, else ``masks/`` beside the images
+    unless that folder holds the foreground masks."""
     if masks is not None:
         folder = Path(masks)
         if not folder.is_dir():
@@ -154,22 +242,46 @@ def _mask_folder(image_root: Path, masks: str | Path | None) -> Path | None:
         return folder
     for folder in (image_root / MASKS_FOLDER, image_root.parent / MASKS_FOLDER):
         if folder.is_dir():
+            if foreground is not None and folder.resolve() == foreground.resolve():
+                return None
             return folder
     return None
 
 
-def _read_view_mask(mask_root: Path, image_name: str, shape: tuple[int, int]) -> np.ndarray:
+def _view_mask_path(mask_root: Path, image_name: str, what: str = "mask") -> Path:
+    """The mask file of ``image_name`` in ``mask_root`` (its stem, any image suffix)."""
     stem = Path(image_name).stem
     try:
-        mask_path = find_image(mask_root, stem)
+        return find_image(mask_root, stem)
     except InputError:
-        raise InputError(f"no mask for image '{image_name}'",
+        raise InputError(f"no {what} for image '{image_name}'",
                          file=mask_root / f"{stem}.png") from None
+
+
+def _read_view_mask(mask_root: Path, image_name: str, image_path: Path,
+                    shape: tuple[int, int], scale: float = 1.0) -> np.ndarray:
+    """The (H, W) = ``shape`` instance mask of an image; a mask ``scale`` times the image's
+    size (one of a full-size LLFF image read from ``images_N/``) is resized to it."""
+    mask_path = _view_mask_path(mask_root, image_name)
     mask = read_mask(mask_path)
-    if mask.shape != shape:
-        raise InputError(f"mask is {mask.shape[1]}x{mask.shape[0]} but its image is "
-                         f"{shape[1]}x{shape[0]}", file=mask_path)
-    return mask
+    return fit_mask_to_image(mask, mask_path, image_path, shape, scale)
+
+
+def fit_mask_to_image(mask: np.ndarray, mask_path: Path, image_path: Path,
+                      shape: tuple[int, int], scale: float = 1.0) -> np.ndarray:
+    """``mask`` (h, w) as (H, W) = ``shape``: unchanged when sizes agree, resized by nearest
+    neighbour when it is ``scale`` times the image's size (within a pixel, LLFF's rounding).
+
+    Raises:
+        InputError: naming both files and sizes when they do not agree.
+    """
+    if mask.shape == shape:
+        return mask
+    height, width = shape
+    if scale != 1.0 and all(abs(m - s * scale) <= 1.0 for m, s in zip(mask.shape, shape)):
+        return resize_mask(mask, width, height)
+    raise InputError(f"mask is {mask.shape[1]}x{mask.shape[0]} but its image {image_path} is "
+                     f"{width}x{height}", file=mask_path)
 
 
 def _downscaled(camera: Camera, image: np.ndarray, mask: np.ndarray | None, factor: float

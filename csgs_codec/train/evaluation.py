@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from csgs_codec.errors import InputError
-from csgs_codec.metrics.image import psnr, ssim
+from csgs_codec.metrics.image import foreground_psnr, psnr, ssim
 from csgs_codec.model.scaffold import ScaffoldDecoder
 from csgs_codec.render.rasterizer import render
 from csgs_codec.scene.anchor_scene import AnchorScene
@@ -22,11 +22,13 @@ from csgs_codec.train.views import TrainingView
 
 @dataclass
 class ViewScores:
-    """Mean PSNR (dB) and SSIM of renders against images over some views (nan for none)."""
+    """Mean PSNR (dB) and SSIM of renders against images over some views (nan for none), and
+    the mean PSNR inside the views' foreground masks (nan unless every view has one)."""
 
     psnr: float
     ssim: float
     views: int
+    foreground_psnr: float = float("nan")
 
 
 def split_views(views: list[TrainingView], test_every: int
@@ -47,14 +49,17 @@ def score_views(scene: AnchorScene, views: list[TrainingView], *,
     if not views:
         return ViewScores(float("nan"), float("nan"), 0)
     decoder = ScaffoldDecoder(scene)
-    psnrs, ssims = [], []
+    psnrs, ssims, inside = [], [], []
     for view in views:
         gaussians = decoder.to_gaussians(view.camera)
         image = np.clip(render(gaussians, view.camera, backend=backend,
                                background=background).image, 0.0, 1.0)
         psnrs.append(psnr(view.image, image))
         ssims.append(ssim(view.image, image))
-    return ViewScores(float(np.mean(psnrs)), float(np.mean(ssims)), len(views))
+        if view.foreground is not None:
+            inside.append(foreground_psnr(view.image, image, view.foreground))
+    masked = float(np.mean(inside)) if len(inside) == len(views) else float("nan")
+    return ViewScores(float(np.mean(psnrs)), float(np.mean(ssims)), len(views), masked)
 
 
 def nearest_labels(positions: np.ndarray, reference_positions: np.ndarray,

@@ -1,4 +1,5 @@
-"""One training view: an image, the camera that took it and an optional instance mask."""
+"""One training view: an image, the camera that took it, an optional instance mask and an
+optional foreground mask."""
 
 from __future__ import annotations
 
@@ -20,12 +21,16 @@ class TrainingView:
         camera: the pinhole camera, ``camera.width == W`` and ``camera.height == H``.
         mask: (H, W) int32 instance ids (any integers; equal ids mean one instance), or None.
         name: identifier, usually the image file name.
+        foreground: (H, W) bool, True where the photo shows the object being trained (the
+            image is then already composited over the background elsewhere; see
+            :mod:`csgs_codec.train.foreground`), or None to train every pixel.
     """
 
     image: np.ndarray
     camera: Camera
     mask: np.ndarray | None = None
     name: str = ""
+    foreground: np.ndarray | None = None
 
     @property
     def height(self) -> int:
@@ -56,3 +61,8 @@ class TrainingView:
             raise InputError(f"mask must be (H, W) = {image.shape[:2]} int32, got "
                              f"{self.mask.shape} {self.mask.dtype}", file=self.name or None,
                              property="mask")
+        if self.foreground is not None and (self.foreground.shape != image.shape[:2]
+                                            or self.foreground.dtype != np.bool_):
+            raise InputError(f"foreground must be (H, W) = {image.shape[:2]} bool, got "
+                             f"{self.foreground.shape} {self.foreground.dtype}",
+                             file=self.name or None, property="foreground")

@@ -28,6 +28,14 @@ def test_grid_voxel_gives_about_the_requested_anchor_count():
         assert 0.5 * target <= occupied <= target
 
 
+def test_grid_for_fewer_points_than_anchors_keeps_voxels_at_the_point_spacing():
+    points = np.random.default_rng(1).uniform(-1, 1, (600, 3))
+    grid = grid_for_points(points, 2000)
+    occupied = len(np.unique(grid.cells_of(points), axis=0))
+    assert 150 <= occupied <= 300
+    assert grid.voxel > 0.05  # mean spacing of 600 points in a 2-unit cube: about 0.24
+
+
 def test_grid_refuses_empty_points_and_bad_targets():
     with pytest.raises(InputError, match="points"):
         grid_for_points(np.zeros((0, 3)), 10)
