@@ -11,6 +11,11 @@ Usage::
 
     python benchmarks/anchor_bake.py --out benchmarks/results/anchor_bake_DATE.json
     python benchmarks/anchor_bake.py --dataset DIR --train-args "--resolution 384" --out F
+    python benchmarks/anchor_bake.py --dataset DIR --anchor-file F.csgs --downscale 6 \
+        --test-every 8 --out F
+
+A capture with foreground masks (its ``masks/`` of 0/255 images, as ``csgs train`` finds
+them) is scored as training saw it: photos composited over black outside the object.
 """
 
 from __future__ import annotations
@@ -61,6 +66,12 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--dataset", help="capture to train (default: the demo's synthetic)")
     parser.add_argument("--train-args", default=DEMO_TRAIN)
+    parser.add_argument("--anchor-file", help="score this trained file of --dataset instead "
+                        "of training one")
+    parser.add_argument("--downscale", type=float, default=1.0,
+                        help="load the held-out photos at 1/this size (the training size)")
+    parser.add_argument("--test-every", type=int, default=TEST_EVERY,
+                        help="the held-out views: every K-th (as csgs train --test-every)")
     parser.add_argument("--out", required=True)
     args = parser.parse_args()
 
@@ -68,7 +79,7 @@ def main() -> int:
     from csgs_codec.bake.anchor_bake import BakeSettings, bake_anchor_scene, bake_origins
     from csgs_codec.codec.anchor_decoder import AnchorDecoder
     from csgs_codec.model.anchor_views import SceneViews
-    from csgs_codec.train.datasets import load_dataset
+    from csgs_codec.train.datasets import find_foreground_masks, load_dataset
     from csgs_codec.train.evaluation import split_views
 
     csgs = str(Path(sys.executable).with_name("csgs"))
@@ -78,15 +89,21 @@ def main() -> int:
         dataset = str(work / "synthetic")
         subprocess.run([csgs, "synthetic", dataset, "--views", "12", "--size", "64x48",
                         "--gaussians", "200", "--quiet"], check=True)
-    anchor_file = work / "scene.csgs"
-    began = time.perf_counter()
-    subprocess.run([csgs, "train", dataset, "-o", str(anchor_file), "--quiet",
-                    *shlex.split(args.train_args)], check=True)
-    train_seconds = time.perf_counter() - began
+    train_seconds = None
+    if args.anchor_file:
+        anchor_file = Path(args.anchor_file)
+    else:
+        anchor_file = work / "scene.csgs"
+        began = time.perf_counter()
+        subprocess.run([csgs, "train", dataset, "-o", str(anchor_file), "--quiet",
+                        *shlex.split(args.train_args)], check=True)
+        train_seconds = time.perf_counter() - began
     scene = AnchorDecoder().decode(anchor_file, layers="color,semantic")
     exact = SceneViews(scene)
-    views = load_dataset(dataset, read_masks=False)
-    _, test = split_views(views, TEST_EVERY)
+    foreground = find_foreground_masks(dataset)
+    views = load_dataset(dataset, read_masks=False, downscale=args.downscale,
+                         foreground=foreground)
+    _, test = split_views(views, args.test_every)
     rows = []
     exact_scores = scores(test, exact.gaussians)
     rows.append({"scene": "exact per-view anchors", "gaussians_per_view": None,
@@ -108,7 +125,9 @@ def main() -> int:
                      "spz_bytes": spz.stat().st_size, "standard_csgs_bytes": len(standard)})
     doc = {"schema": "csgs-bench/1", "benchmark": "anchor_bake", "machine": machine(),
            "dataset": args.dataset or "demo synthetic (csgs synthetic --views 12 --size 64x48)",
-           "train_args": args.train_args, "train_seconds": train_seconds,
+           "train_args": None if args.anchor_file else args.train_args,
+           "anchor_file": args.anchor_file, "train_seconds": train_seconds,
+           "foreground_masks": foreground is not None, "downscale": args.downscale,
            "anchors": len(scene), "slots": scene.active_offsets(),
            "held_out_views": len(test), "results": rows}
     Path(args.out).write_text(json.dumps(doc, indent=2) + "\n")
