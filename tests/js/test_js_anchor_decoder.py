@@ -1,0 +1,120 @@
+"""The JavaScript receiver decodes anchor scenes (spec/FORMAT.md §17) to the arrays the Python
+reference decoder (AnchorDecoder) returns, hash for hash: every anchor conformance vector,
+an anchor file with view origins (vorg) and an appearance table, and what ``csgs train``
+writes for a tiny synthetic capture. Skipped when ``node`` is not on PATH.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from benchmarks._js_receiver import REPO, node_executable, run_js
+from csgs_codec.codec.anchor_encoder import AnchorEncoder
+from csgs_codec.format import read_layers
+from csgs_codec.format.chunk import Chunk
+from csgs_codec.format.writer import write_container
+from csgs_codec.scene.anchor_scene import MLPWeights
+from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene
+from tests.anchors.helpers import FAST_FIT
+from tests.js.anchor_results import assert_same_anchors, python_anchor_result
+
+pytestmark = pytest.mark.skipif(node_executable() is None,
+                                reason="node (Node.js >= 18) is not on PATH")
+
+ANCHORS = sorted((REPO / "spec" / "vectors" / "anchors").glob("*.csgs"))
+LAYER_READS = ("color", "color,semantic")
+
+
+def _compare(paths: list[Path], layers: str, **options) -> list[dict]:
+    results = run_js(paths, layers=layers, **options)
+    for path, js in zip(paths, results):
+        assert_same_anchors(js, python_anchor_result(path.read_bytes(), layers),
+                            f"{path.name} [{layers}]")
+    return results
+
+
+def test_the_anchor_vectors_are_there():
+    names = {p.stem for p in ANCHORS}
+    assert {"anchors_color_q8", "anchors_color_q8_mlp_float16", "anchors_semantic_q5",
+            "anchors_semantic_q5_acrm_v2", "anchors_missing_features"} <= names
+
+
+@pytest.mark.parametrize(("threads", "range_coder"), [(1, "js"), (2, "wasm")])
+@pytest.mark.parametrize("layers", LAYER_READS)
+def test_anchor_vectors_decode_as_in_python(layers, threads, range_coder):
+    results = _compare(ANCHORS, layers, threads=threads, range_coder=range_coder)
+    decoded = {p.stem: r for p, r in zip(ANCHORS, results) if r["ok"]}
+    # Not vacuous: the semantic read yields features and labels, the colour read none.
+    semantic = decoded["anchors_semantic_q5"]["arrays"]
+    assert ("semantic" in semantic and "labels" in semantic) == (layers == "color,semantic")
+    assert "mlp.color.w1" in decoded["anchors_color_q8_mlp_float16"]["arrays"]
+
+
+def _scene_with_origins_and_appearance():
+    """A small anchor scene whose file carries vorg and an appearance table (color head
+    widened by A = 4 inputs)."""
+    scene = synthetic_anchor_scene(2, 40, feat_dim=24, n_offsets=6, seed=4)
+    rng = np.random.default_rng(9)
+    color = scene.mlps.color
+    widened = np.concatenate([color.w1, rng.normal(0, 0.1, (color.w1.shape[0], 4))], axis=1)
+    scene.mlps.color = MLPWeights(widened.astype(np.float32), color.b1, color.w2, color.b2)
+    scene.mlps.appearance = rng.normal(0, 0.5, (5, 4)).astype(np.float32)
+    scene.view_origins = rng.normal(0, 3, (40, 3)).astype(np.float32)
+    scene.validate()
+    return scene
+
+
+@pytest.fixture(scope="module")
+def vorg_file(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("vorg") / "origins.csgs"
+    path.write_bytes(AnchorEncoder(6, fit=FAST_FIT).encode(_scene_with_origins_and_appearance()))
+    return path
+
+
+def _with_vorg_payload(data: bytes, payload: bytes) -> bytes:
+    """``data`` with its vorg chunk's payload replaced."""
+    container = read_layers(data, layers="color,semantic")
+    return write_container([Chunk(e.type, e.layer.label, payload if e.type == "vorg"
+                                  else bytes(container.payloads[e.index]))
+                            for e in container.toc])
+
+
+def test_view_origins_and_the_appearance_table_decode_as_in_python(vorg_file, tmp_path):
+    (js,) = _compare([vorg_file], "color,semantic", threads=1)
+    assert js["arrays"]["view_origins"]["shape"] == [32, 3]  # an even sample of the 40
+    assert js["arrays"]["mlp.appearance"]["shape"] == [5, 4]
+    # An invalid vorg payload (NaN origins) is no reason to refuse the file: none reported.
+    nan = tmp_path / "nan_origins.csgs"
+    nan.write_bytes(_with_vorg_payload(vorg_file.read_bytes(), b"\x01\x02" + b"\xff" * 24))
+    (js,) = _compare([nan], "color", threads=1)
+    assert js["ok"] and "view_origins" not in js["arrays"]
+
+
+def test_a_damaged_vorg_frame_is_refused_where_python_refuses_it(vorg_file, tmp_path):
+    data = bytearray(vorg_file.read_bytes())
+    entry = next(e for e in read_layers(bytes(data), layers="base").toc if e.type == "vorg")
+    data[entry.offset + 9] ^= 0x40  # an origin byte: the frame's CRC no longer matches
+    bad = tmp_path / "bad_vorg_crc.csgs"
+    bad.write_bytes(bytes(data))
+    (js,) = _compare([bad], "color")
+    assert js["chunk"] == "vorg"
+
+
+@pytest.mark.slow  # `csgs train` takes about 45 s here, alone
+def test_what_csgs_train_writes_decodes_as_in_python(tmp_path):
+    """The default `csgs train` settings (F, K, CARM groups, quality, semantic layer, vorg),
+    few iterations, on a tiny synthetic capture."""
+    from csgs_cli.main import main
+
+    data, out = tmp_path / "synthetic", tmp_path / "trained.csgs"
+    assert main(["synthetic", str(data), "--views", "6", "--size", "48x36", "--gaussians",
+                 "100", "-q"]) == 0
+    assert main(["train", str(data), "-o", str(out), "--iterations", "3", "--anchors", "20",
+                 "--semantic-iterations", "2", "-q"]) == 0
+    for layers in LAYER_READS:
+        (js,) = _compare([out], layers)
+        assert "view_origins" in js["arrays"] and "mlp.opacity.w1" in js["arrays"]
+    assert "semantic" in js["arrays"]
