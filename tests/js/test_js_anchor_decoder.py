@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from benchmarks._js_receiver import REPO, node_executable, run_js
@@ -16,9 +15,7 @@ from csgs_codec.codec.anchor_encoder import AnchorEncoder
 from csgs_codec.format import read_layers
 from csgs_codec.format.chunk import Chunk
 from csgs_codec.format.writer import write_container
-from csgs_codec.scene.anchor_scene import MLPWeights
-from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene
-from tests.anchors.helpers import FAST_FIT
+from tests.anchors.helpers import FAST_FIT, scene_with_origins_and_appearance
 from tests.js.anchor_results import assert_same_anchors, python_anchor_result
 
 pytestmark = pytest.mark.skipif(node_executable() is None,
@@ -53,24 +50,10 @@ def test_anchor_vectors_decode_as_in_python(layers, threads, range_coder):
     assert "mlp.color.w1" in decoded["anchors_color_q8_mlp_float16"]["arrays"]
 
 
-def _scene_with_origins_and_appearance():
-    """A small anchor scene whose file carries vorg and an appearance table (color head
-    widened by A = 4 inputs)."""
-    scene = synthetic_anchor_scene(2, 40, feat_dim=24, n_offsets=6, seed=4)
-    rng = np.random.default_rng(9)
-    color = scene.mlps.color
-    widened = np.concatenate([color.w1, rng.normal(0, 0.1, (color.w1.shape[0], 4))], axis=1)
-    scene.mlps.color = MLPWeights(widened.astype(np.float32), color.b1, color.w2, color.b2)
-    scene.mlps.appearance = rng.normal(0, 0.5, (5, 4)).astype(np.float32)
-    scene.view_origins = rng.normal(0, 3, (40, 3)).astype(np.float32)
-    scene.validate()
-    return scene
-
-
 @pytest.fixture(scope="module")
 def vorg_file(tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("vorg") / "origins.csgs"
-    path.write_bytes(AnchorEncoder(6, fit=FAST_FIT).encode(_scene_with_origins_and_appearance()))
+    path.write_bytes(AnchorEncoder(6, fit=FAST_FIT).encode(scene_with_origins_and_appearance()))
     return path
 
 
