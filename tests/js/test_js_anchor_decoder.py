@@ -57,6 +57,20 @@ def vorg_file(tmp_path_factory) -> Path:
     return path
 
 
+def test_a_file_cut_after_its_color_layer_decodes_that_layer_as_in_python(tmp_path):
+    """A colour-only read never needs a semantic byte; asking for the semantic layer of the
+    cut file is refused where Python refuses it."""
+    data = (REPO / "spec" / "vectors" / "anchors" / "anchors_semantic_q5.csgs").read_bytes()
+    toc = read_layers(data, layers="base").toc
+    cut = min(e.offset for e in toc if e.layer.label == "semantic")
+    prefix = tmp_path / "color_prefix.csgs"
+    prefix.write_bytes(data[:cut])
+    (js,) = _compare([prefix], "color", threads=1)
+    assert js["ok"] and "semantic" not in js["arrays"]
+    (js,) = _compare([prefix], "color,semantic", threads=1)
+    assert not js["ok"]
+
+
 def _with_vorg_payload(data: bytes, payload: bytes) -> bytes:
     """``data`` with its vorg chunk's payload replaced."""
     container = read_layers(data, layers="color,semantic")
