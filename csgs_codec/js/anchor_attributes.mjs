@@ -21,6 +21,8 @@ const TWO52 = 2 ** 52;
 const TWO53 = 2 ** 53;
 const VALUE_RANGE = 2n ** 62n;
 const MAX_STREAMS = 64;
+/** q of every step index (§16.3.1). */
+const STEPS = Float64Array.from({ length: STEP_COUNT }, (_, j) => stepSize(j));
 
 /**
  * Split hyperprior outputs into the parameters of each attribute type (§17.2 layout).
@@ -67,7 +69,7 @@ export function decodeValues(stream, p, family, chunk, baseOffset) {
   const values = new Float64Array(n);
   let big = null;
   for (let i = 0; i < n; i++) {
-    const q = stepSize(p.step[i]);
+    const q = STEPS[p.step[i]];
     const mu = mean[i];
     const exactR = bigR && bigR.has(i) ? bigR.get(i) : null;
     const product = q * r[i];
