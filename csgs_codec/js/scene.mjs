@@ -26,7 +26,7 @@ export function prepareScene(data, options) {
   const layers = new Set(['color', ...(options.layers || [])]);
   const container = readLayers(data, layers);
   if (container.toc.entries.some((e) => e.type === 'ANCH')) {
-    throw new UnsupportedError('an anchor scene (spec/FORMAT.md §17): decode it with decodeAnchorScene (anchor_scene.mjs)');
+    throw new UnsupportedError('anchor scenes (spec/FORMAT.md §17) are not implemented in decodeScene; decodeAnchorScene (anchor_scene.mjs) decodes them');
   }
   return prepareContainer(container, data.length, layers, options);
 }
