@@ -132,8 +132,7 @@ function weights(r, version, count, name, family) {
 
 /** Why the heads do not fit F and K (§17.7 "Invalid if"), or null when they do. */
 function misfit(mlps, featDim, nOffsets) {
-  const appearance = mlps.appearance;
-  if (appearance && (appearance.cameras === 0 || appearance.width === 0 || !appearance.values.every(Number.isFinite))) {
+  if (mlps.appearance && (mlps.appearanceCount === 0 || mlps.appearanceWidth === 0 || !mlps.appearance.every(Number.isFinite))) {
     return 'the appearance table is empty or not finite';
   }
   for (const [name, perOffset] of HEADS) {
@@ -141,7 +140,7 @@ function misfit(mlps, featDim, nOffsets) {
     if (!['w1', 'b1', 'w2', 'b2'].every((key) => head[key].every(Number.isFinite))) return `${name}: a weight is not finite`;
     if (!head.hidden || !head.inputs || !head.outputs) return `${name}: a width is 0`;
     if (head.outputs !== perOffset * nOffsets) return `${name}: ${head.outputs} outputs for ${nOffsets} offsets`;
-    const extra = head.inputs - featDim - 3 - (name === 'color' && appearance ? appearance.width : 0);
+    const extra = head.inputs - featDim - 3 - (name === 'color' && mlps.appearance ? mlps.appearanceWidth : 0);
     if (extra !== 0 && extra !== 1) return `${name}: ${head.inputs} inputs do not fit feature width ${featDim}`;
   }
   return null;
@@ -149,9 +148,11 @@ function misfit(mlps, featDim, nOffsets) {
 
 /**
  * The AMLP payload (§17.7): the three heads, checked against F and K.
- * @returns {{opacity: object, cov: object, color: object, appearance: null |
- *   {values: Float32Array, cameras: number, width: number}}} each head {hidden H, inputs D,
- *   outputs O, w1 (H x D), b1 (H), w2 (O x H), b2 (O)}, float32, row-major (out x in)
+ * @returns {{opacity: object, cov: object, color: object, appearance: Float32Array|null,
+ *   appearanceCount: number, appearanceWidth: number}} each head {hidden H, inputs D,
+ *   outputs O, w1 (H x D), b1 (H), w2 (O x H), b2 (O)}, float32, row-major (out x in); the
+ *   appearance table C x A (C = appearanceCount cameras, A = appearanceWidth; 0 without one),
+ *   the layout anchor_bake.mjs takes
  */
 export function readMlps(data, baseOffset, featDim, nOffsets, family) {
   const r = new ByteReader(data, baseOffset, 'AMLP');
@@ -161,7 +162,7 @@ export function readMlps(data, baseOffset, featDim, nOffsets, family) {
   at = r.offset;
   const flags = r.u8('flags');
   if (flags > 1) throw r.error(`reserved flag bits set (${flags})`, at);
-  const mlps = { appearance: null };
+  const mlps = { appearance: null, appearanceCount: 0, appearanceWidth: 0 };
   for (const [name] of HEADS) {
     const hidden = r.varint(`${name} hidden`, MAX_MLP_WIDTH);
     const inputs = r.varint(`${name} inputs`, MAX_MLP_WIDTH);
@@ -175,7 +176,7 @@ export function readMlps(data, baseOffset, featDim, nOffsets, family) {
   if (flags) {
     const cameras = r.varint('appearance cameras', MAX_APPEARANCE_CAMERAS);
     const width = r.varint('appearance width', MAX_MLP_WIDTH);
-    mlps.appearance = { values: weights(r, version, cameras * width, 'appearance', family), cameras, width };
+    Object.assign(mlps, { appearance: weights(r, version, cameras * width, 'appearance', family), appearanceCount: cameras, appearanceWidth: width });
   }
   r.expectEnd('the MLP weights');
   const why = misfit(mlps, featDim, nOffsets);

@@ -114,8 +114,9 @@ function anchorSemantic(container, cells, posBits, family, sine) {
  *   [] or ['color'] (never reads a semantic byte), or ['semantic'] / ['color', 'semantic']
  * @returns {Promise<object>} {kind: 'anchors', count M, featDim F, nOffsets K, header (ANCH),
  *   positions (M x 3), features (M x F), offsets (M x K x 3, masked ones 0), scaling (M x 6),
- *   offsetMask (M x K, Uint8Array 0/1), mlps (null or {opacity, cov, color, appearance}, see
- *   anchor_payloads.mjs readMlps), viewOrigins (V x 3 or null), semantic (M x S or null),
+ *   offsetMask (M x K, Uint8Array 0/1), mlps (null or {opacity, cov, color, appearance,
+ *   appearanceCount, appearanceWidth}, see anchor_payloads.mjs readMlps: what
+ *   anchor_bake.mjs bakeAnchorScene takes), viewOrigins (V x 3 or null), semantic (M x S or null),
  *   semanticNames, labels (Int32Array M or null)}; float32 arrays, row-major
  */
 export async function decodeAnchorScene(data, options) {
@@ -173,8 +174,8 @@ export function anchorArrays(scene) {
         [`mlp.${name}.w2`]: [w2, [outputs, hidden]], [`mlp.${name}.b2`]: [b2, [outputs]],
       });
     }
-    const a = scene.mlps.appearance;
-    if (a) arrays['mlp.appearance'] = [a.values, [a.cameras, a.width]];
+    const { appearance, appearanceCount, appearanceWidth } = scene.mlps;
+    if (appearance) arrays['mlp.appearance'] = [appearance, [appearanceCount, appearanceWidth]];
   }
   if (scene.viewOrigins) arrays.view_origins = [scene.viewOrigins, [scene.viewOrigins.length / 3, 3]];
   if (scene.semantic) arrays.semantic = [scene.semantic, [m, scene.semanticNames.length]];
