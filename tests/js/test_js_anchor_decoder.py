@@ -1,22 +1,28 @@
 """The JavaScript receiver decodes anchor scenes (spec/FORMAT.md §17) to the arrays the Python
 reference decoder (AnchorDecoder) returns, hash for hash: every anchor conformance vector,
 an anchor file with view origins (vorg) and an appearance table, and what ``csgs train``
-writes for a tiny synthetic capture. Skipped when ``node`` is not on PATH.
+writes for a tiny synthetic capture; and its result feeds the browser's bake as it is.
+Skipped when ``node`` is not on PATH.
 """
 
 from __future__ import annotations
 
+import subprocess
 from pathlib import Path
 
 import pytest
 
 from benchmarks._js_receiver import REPO, node_executable, run_js
+from csgs_codec.bake.anchor_bake import BakeSettings, bake_anchor_scene
+from csgs_codec.codec.anchor_decoder import AnchorDecoder
 from csgs_codec.codec.anchor_encoder import AnchorEncoder
 from csgs_codec.format import read_layers
 from csgs_codec.format.chunk import Chunk
 from csgs_codec.format.writer import write_container
 from tests.anchors.helpers import FAST_FIT, scene_with_origins_and_appearance
 from tests.js.anchor_results import assert_same_anchors, python_anchor_result
+from tests.js.array_bundle import unpack
+from tests.js.test_js_anchor_bake import assert_same_bake
 
 pytestmark = pytest.mark.skipif(node_executable() is None,
                                 reason="node (Node.js >= 18) is not on PATH")
@@ -98,6 +104,17 @@ def test_a_damaged_vorg_frame_is_refused_where_python_refuses_it(vorg_file, tmp_
     bad.write_bytes(bytes(data))
     (js,) = _compare([bad], "color")
     assert js["chunk"] == "vorg"
+
+
+def test_the_decoded_scene_feeds_the_browser_s_bake_as_it_is(vorg_file):
+    """decodeAnchorScene then bakeAnchorScene (the page's path) gives the reference bake of
+    AnchorDecoder's scene (stored origins, appearance table, semantic layer)."""
+    done = subprocess.run([node_executable(), str(REPO / "tests" / "js" / "anchor_decode_bake.mjs"),
+                           str(vorg_file), '{"shDegree": 1}'], capture_output=True, timeout=300)
+    assert done.returncode == 0, done.stderr.decode()[-3000:]
+    ours, _ = unpack(done.stdout)
+    scene = AnchorDecoder().decode(vorg_file.read_bytes(), layers="color,semantic")
+    assert_same_bake(scene, ours, bake_anchor_scene(scene, settings=BakeSettings(sh_degree=1)))
 
 
 @pytest.mark.slow  # `csgs train` takes about 45 s here, alone
