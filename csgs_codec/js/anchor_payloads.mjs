@@ -89,13 +89,18 @@ export function readOffsetMasks(data, baseOffset, count, slots) {
   const decoder = new RangeDecoder(range, words);
   const mask = new Uint8Array(count * k);
   const before = new Int32Array(count); // kept slots of each anchor before the current one
-  const rows = new Int32Array(count);
+  const rows = new Int32Array(count); // anchors grouped by context, increasing in each group
+  const starts = new Int32Array(k + 2);
   const bits = new Int32Array(count);
   for (let slot = 0; slot < k; slot++) {
     const base = (slot * (slot + 1)) / 2;
+    starts.fill(0);
+    for (let i = 0; i < count; i++) starts[before[i] + 1]++;
+    for (let j = 0; j <= slot; j++) starts[j + 1] += starts[j];
+    const fill = starts.slice(0, slot + 1);
+    for (let i = 0; i < count; i++) rows[fill[before[i]]++] = i;
     for (let j = 0; j <= slot; j++) {
-      let n = 0;
-      for (let i = 0; i < count; i++) if (before[i] === j) rows[n++] = i;
+      const n = starts[j + 1] - starts[j];
       if (!n) continue;
       try {
         decoder.decodeMany(binaryTable(freqs[base + j]), bits, n);
@@ -103,7 +108,7 @@ export function readOffsetMasks(data, baseOffset, count, slots) {
         if (err instanceof RangeDecodeError) throw new FormatError(`range decoder failed in mask slot ${slot} (${err.message})`, { chunk: 'AMSK', offset: baseOffset });
         throw err;
       }
-      for (let t = 0; t < n; t++) mask[rows[t] * k + slot] = bits[t];
+      for (let t = 0; t < n; t++) mask[rows[starts[j] + t] * k + slot] = bits[t];
     }
     for (let i = 0; i < count; i++) before[i] += mask[i * k + slot];
   }
