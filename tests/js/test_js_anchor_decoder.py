@@ -19,6 +19,8 @@ from csgs_codec.codec.anchor_encoder import AnchorEncoder
 from csgs_codec.format import read_layers
 from csgs_codec.format.chunk import Chunk
 from csgs_codec.format.writer import write_container
+from csgs_codec.model.anchor_hyperprior import FitSettings
+from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene
 from tests.anchors.helpers import FAST_FIT, scene_with_origins_and_appearance
 from tests.js.anchor_results import assert_same_anchors, python_anchor_result
 from tests.js.array_bundle import unpack
@@ -29,6 +31,8 @@ pytestmark = pytest.mark.skipif(node_executable() is None,
 
 ANCHORS = sorted((REPO / "spec" / "vectors" / "anchors").glob("*.csgs"))
 LAYER_READS = ("color", "color,semantic")
+#: Networks fitted just enough to be exported (the edge-shape tests need files, not rates).
+TINY_FIT = FitSettings(hidden=8, carm_hidden=4, steps=5, batch=64)
 
 
 def _compare(paths: list[Path], layers: str, **options) -> list[dict]:
@@ -75,6 +79,36 @@ def test_a_file_cut_after_its_color_layer_decodes_that_layer_as_in_python(tmp_pa
     assert js["ok"] and "semantic" not in js["arrays"]
     (js,) = _compare([prefix], "color,semantic", threads=1)
     assert not js["ok"]
+
+
+def _edge_scene(shape: str):
+    """Small scenes at the edges of §17's ranges: every offset masked (AOFF the empty
+    stream), no MLPs (has_mlps clear), one CARM group (ACRM empty), one channel per group
+    (G = F), K = 64 slots."""
+    if shape == "all_masked":
+        scene = synthetic_anchor_scene(1, 20, feat_dim=10, n_offsets=4, seed=1)
+        scene.offset_mask[:] = False
+        scene.offsets[:] = 0
+        return scene, {}
+    if shape == "no_mlps":
+        return synthetic_anchor_scene(1, 20, feat_dim=10, seed=2, with_mlps=False), {}
+    if shape == "one_group":
+        return synthetic_anchor_scene(1, 20, feat_dim=10, seed=3), {"carm_groups": 1}
+    if shape == "group_per_channel":
+        return synthetic_anchor_scene(1, 20, feat_dim=6, n_offsets=3, feature_groups=3,
+                                      seed=4), {"carm_groups": 6}
+    return synthetic_anchor_scene(1, 20, feat_dim=8, n_offsets=64, feature_groups=2,
+                                  seed=5), {}
+
+
+@pytest.mark.parametrize("shape", ["all_masked", "no_mlps", "one_group", "group_per_channel",
+                                   "k_64"])
+def test_scenes_at_the_edges_of_the_ranges_decode_as_in_python(shape, tmp_path):
+    scene, options = _edge_scene(shape)
+    path = tmp_path / f"{shape}.csgs"
+    path.write_bytes(AnchorEncoder(7, fit=TINY_FIT, **options).encode(scene))
+    (js,) = _compare([path], "color,semantic", threads=1)
+    assert js["ok"] and ("mlp.opacity.w1" in js["arrays"]) == (shape != "no_mlps")
 
 
 def _with_vorg_payload(data: bytes, payload: bytes) -> bytes:
