@@ -78,3 +78,29 @@ def scene_hashes(scene) -> dict[str, dict]:
         out["labels"] = {"shape": list(scene.labels.shape),
                          "sha256": _digest(scene.labels, "<i4")}
     return out
+
+
+def anchor_hashes(scene) -> dict[str, dict]:
+    """{name: {"shape", "sha256"}} of a decoded AnchorScene in the CLI's layout (see
+    csgs_codec/js/anchor_scene.mjs anchorArrays): float32 arrays, the offset mask one byte
+    (0/1) per slot, int32 labels; the MLP arrays as ``mlp.<head>.<w1|b1|w2|b2>`` and
+    ``mlp.appearance``; view_origins, semantic and labels only when present."""
+    arrays = {"positions": scene.positions, "features": scene.features,
+              "offsets": scene.offsets, "scaling": scene.scaling}
+    if scene.mlps is not None:
+        for name, head in scene.mlps.heads().items():
+            arrays.update({f"mlp.{name}.{key}": arr for key, arr in head.arrays().items()})
+        if scene.mlps.appearance is not None:
+            arrays["mlp.appearance"] = scene.mlps.appearance
+    if scene.view_origins is not None:
+        arrays["view_origins"] = scene.view_origins
+    if scene.semantic is not None:
+        arrays["semantic"] = scene.semantic
+    out = {name: {"shape": list(v.shape), "sha256": _digest(v, "<f4")}
+           for name, v in arrays.items()}
+    out["offset_mask"] = {"shape": list(scene.offset_mask.shape),
+                          "sha256": _digest(scene.offset_mask, "?")}
+    if scene.labels is not None:
+        out["labels"] = {"shape": list(scene.labels.shape),
+                         "sha256": _digest(scene.labels, "<i4")}
+    return out

@@ -10,7 +10,11 @@
  * hash is the SHA-256 of the array's little-endian bytes in row-major order (positions,
  * sh_dc, sh_rest (N x R x 3), opacity, scales, rotations (w x y z) as float32; semantic as
  * float32; labels as int32) and "views", the vdis record (§12.21: source, count, left_out,
- * description) or null. Container mode (--container): the header, every TOC entry and the
+ * description) or null, with "kind": "gaussians". An anchor scene (§17, anchor_scene.mjs)
+ * gives "kind": "anchors", the anchor count and the arrays of anchorArrays (positions,
+ * features, offsets (M x K x 3), scaling, offset_mask (one byte 0/1 per slot), the MLP
+ * arrays mlp.<head>.<w1|b1|w2|b2> and mlp.appearance, view_origins, semantic as float32;
+ * labels as int32), decoded on this thread whatever --threads says. Container mode (--container): the header, every TOC entry and the
  * size and SHA-256 of each payload read. On a rejection: {"ok": false, "error":
  * "FormatError" | "UnsupportedError", "chunk": ..., "offset": ..., "message": ...}, exit
  * status 2 (FormatError) or 3 (unsupported); a file that is missing, a folder or unreadable
@@ -28,6 +32,7 @@
 import { readFileSync, statSync } from 'node:fs';
 import { performance } from 'node:perf_hooks';
 
+import { decodeAnchorScene, isAnchorFile } from './anchor_scene.mjs';
 import { LAYERS, readLayers } from './container.mjs';
 import { arrayDigests, sha256 } from './digests_node.mjs';
 import { FormatError, UnsupportedError } from './errors.mjs';
@@ -39,9 +44,10 @@ import { loadTables } from './tables_node.mjs';
 
 function sceneSummary(scene) {
   const out = arrayDigests(scene);
+  if (scene.kind === 'anchors') return { kind: 'anchors', count: scene.count, arrays: out, semantic_names: scene.semanticNames };
   const v = scene.metadata.views;
   const views = v && { source: v.source, count: v.count, left_out: v.leftOut, description: v.description };
-  return { count: scene.count, arrays: out, semantic_names: scene.semanticNames, views };
+  return { kind: 'gaussians', count: scene.count, arrays: out, semantic_names: scene.semanticNames, views };
 }
 
 function containerSummary(data, layers) {
@@ -97,7 +103,9 @@ async function decodeFile(file, wanted, container, repeat, tables, lanes) {
     for (let i = 0; i < repeat; i++) {
       const cpu = process.cpuUsage();
       const start = performance.now();
-      scene = await decodeScene(data, { layers: [...wanted], tables: loaded, lanes });
+      const options = { layers: [...wanted], tables: loaded, lanes };
+      // Anchor scenes decode on this thread (their lanes are not implemented).
+      scene = isAnchorFile(data) ? await decodeAnchorScene(data, options) : await decodeScene(data, options);
       const wall = (performance.now() - start) / 1000;
       const used = process.cpuUsage(cpu);
       first = first ?? wall;

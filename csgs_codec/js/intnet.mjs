@@ -25,7 +25,13 @@ function bounded(r, field, low, high) {
 /** Most coded values a payload may declare per byte left (§16.4.3 version 2). */
 function codedValueLimit(remaining) { return 4 * remaining + 65536; }
 
-function readWeights(r, version, i, count, bits, family) {
+/**
+ * Layer ``i``'s ``count`` weights of ``bits`` signed bits (§16.4.3): version 1 fixed-width
+ * (range checked by the caller), version 2 a table index and a residual stream (checked
+ * here). Also the weights of the dense networks of §17.5.
+ * @returns {Float64Array}
+ */
+export function readWeights(r, version, i, count, bits, family) {
   if (version === 1) {
     const size = bits <= 8 ? 1 : bits <= 16 ? 2 : 4;
     if (count > Math.floor(r.remaining / size)) {
@@ -173,6 +179,9 @@ export function setIntNetKernel(kind) {
   if (kind !== 'wasm' && kind !== 'js') throw new Error(`unknown integer-network kernel ${kind}`);
   useWasm = kind === 'wasm';
 }
+
+/** The loop integer networks run now: 'wasm' or 'js' (see setIntNetKernel). */
+export function intNetKernel() { return useWasm ? 'wasm' : 'js'; }
 
 /**
  * Evaluate the network on integer positions (§16.4.1, §16.4.2).

@@ -46,6 +46,13 @@ export function decodeSymbols(bytes, tables, n, family, chunk, baseOffset) {
   const r = new ByteReader(bytes, baseOffset, chunk);
   const count = r.varint('count', MAX_COUNT);
   if (count !== n) throw r.error(`stream holds ${count} residuals, the caller expects ${n}`);
+  if (typeof tables !== 'number') {
+    // Per-value tables computed from decoded data (an anchor hyperprior's outputs) may lie
+    // outside the family: the reference decoder refuses them here, naming no place.
+    for (let i = 0; i < n; i++) {
+      if (!(tables[i] >= 0 && tables[i] < 64)) throw new FormatError(`scale index ${tables[i]} is outside [0, 64)`);
+    }
+  }
   const words = r.varint('word_count', Math.floor(r.remaining / 4));
   const data = r.raw(4 * words, 'range_data');
   const decoder = new RangeDecoder(data, words);

@@ -1,7 +1,8 @@
 /**
  * Decoding a standard (Gaussian) scene: the color codec's chunks of spec/FORMAT.md §12.4 -
- * §12.19 on top of the container; a tiled file (§12.22) decodes tile by tile. Anchor scenes (§17) are not implemented here: a file with
- * an ANCH chunk raises UnsupportedError.
+ * §12.19 on top of the container; a tiled file (§12.22) decodes tile by tile. Anchor scenes (§17)
+ * decode with anchor_scene.mjs (decodeAnchorScene): given a file with an ANCH chunk,
+ * decodeScene raises UnsupportedError saying so.
  */
 
 import { readHeader } from './base_layer.mjs';
@@ -25,7 +26,7 @@ export function prepareScene(data, options) {
   const layers = new Set(['color', ...(options.layers || [])]);
   const container = readLayers(data, layers);
   if (container.toc.entries.some((e) => e.type === 'ANCH')) {
-    throw new UnsupportedError('anchor scenes (spec/FORMAT.md §17) are not implemented in the JavaScript receiver');
+    throw new UnsupportedError('anchor scenes (spec/FORMAT.md §17) are not implemented in decodeScene; decodeAnchorScene (anchor_scene.mjs) decodes them');
   }
   return prepareContainer(container, data.length, layers, options);
 }

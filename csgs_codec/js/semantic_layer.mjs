@@ -12,9 +12,10 @@ import { decodeSymbols } from './residual.mjs';
  * channel. */
 const SEMANTIC_NAME = /^(sem_|ins_feat_)[A-Za-z0-9_]+$/;
 
-/** The semantic channel names of SEMF and SEMC (§12.16): count, then each name checked. */
-function readNames(r) {
-  const count = r.varint('channel_count', 256);
+/** The semantic channel names of SEMF, SEMC and ASEM (§12.16, §17.11): count (at most
+ * ``maximum``), then each name checked. */
+export function readNames(r, maximum = 256) {
+  const count = r.varint('channel_count', maximum);
   const names = [];
   const decoder = new TextDecoder('utf-8', { fatal: true });
   for (let i = 0; i < count; i++) {
@@ -30,7 +31,7 @@ function readNames(r) {
 }
 
 /** The value of an IEEE binary16 bit pattern (exact in a double, and in a float32). */
-function halfToFloat(bits) {
+export function halfToFloat(bits) {
   const sign = bits & 0x8000 ? -1 : 1;
   const exponent = (bits >> 10) & 0x1f;
   const fraction = bits & 0x3ff;
@@ -120,26 +121,30 @@ export function decodeSemantic(container, header, scene, family) {
     scene.semanticNames = names;
     scene.instances = instances;
   }
-  if (present.has('SEML')) {
-    const [data, offset] = single(container, 'SEML');
-    const r = new ByteReader(data, offset, 'SEML');
-    const base = r.svarintBig('label_base');
-    const at = r.offset;
-    const table = r.u8('scale_index');
-    if (table >= 64) throw r.error(`scale index ${table} out of range`, at);
-    const stream = r.byteString('label_stream');
-    r.expectEnd('the label stream');
-    const { values, big } = decodeSymbols(stream, table, header.count, family, 'SEML', r.offset - stream.length);
-    const labels = new Int32Array(header.count);
-    const exact = base >= -(2n ** 52n) && base <= 2n ** 52n;
-    const baseNum = Number(base);
-    for (let i = 0; i < values.length; i++) {
-      let v;
-      if (exact && !(big && big.has(i))) v = values[i] + baseNum;
-      else v = Number((big && big.has(i) ? big.get(i) : BigInt(values[i])) + base);
-      if (v < -(2 ** 31) || v >= 2 ** 31) throw r.error('label outside the int32 range');
-      labels[i] = v;
-    }
-    scene.labels = labels;
+  if (present.has('SEML')) scene.labels = readLabels(container, header.count, family);
+}
+
+/** The ``count`` int32 labels of the container's SEML (§12.17; a tile's Gaussians or an
+ * anchor scene's anchors). */
+export function readLabels(container, count, family) {
+  const [data, offset] = single(container, 'SEML');
+  const r = new ByteReader(data, offset, 'SEML');
+  const base = r.svarintBig('label_base');
+  const at = r.offset;
+  const table = r.u8('scale_index');
+  if (table >= 64) throw r.error(`scale index ${table} out of range`, at);
+  const stream = r.byteString('label_stream');
+  r.expectEnd('the label stream');
+  const { values, big } = decodeSymbols(stream, table, count, family, 'SEML', r.offset - stream.length);
+  const labels = new Int32Array(count);
+  const exact = base >= -(2n ** 52n) && base <= 2n ** 52n;
+  const baseNum = Number(base);
+  for (let i = 0; i < values.length; i++) {
+    let v;
+    if (exact && !(big && big.has(i))) v = values[i] + baseNum;
+    else v = Number((big && big.has(i) ? big.get(i) : BigInt(values[i])) + base);
+    if (v < -(2 ** 31) || v >= 2 ** 31) throw r.error('label outside the int32 range');
+    labels[i] = v;
   }
+  return labels;
 }

@@ -7,9 +7,9 @@ and byte offset; the receiver must never throw anything else, die or hang. FORMA
 error reports informative, but both decoders follow its conventions and §8's order (frames in
 TOC order, fields in payload order), so a file with several faults is refused for the same one.
 
-Anchor scenes (FORMAT §17) are outside the receiver (it says "unsupported"): their files are
-left out of the seeds, and a mutant whose TOC comes to list an ANCH chunk is only checked for
-crashes (counted as "anchor").
+A file whose TOC lists an ANCH chunk (an anchor scene, FORMAT §17) is decoded by the
+reference AnchorDecoder and the receiver's decodeAnchorScene, any other by the Decoder and
+decodeScene; outcomes count by kind ("ok" or "anchors-ok" for decoded files).
 """
 
 from __future__ import annotations
@@ -23,8 +23,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from benchmarks._js_receiver import node_executable, scene_hashes
-from csgs_codec.codec.anchor_decoder import is_anchor_file
+from benchmarks._js_receiver import anchor_hashes, node_executable, scene_hashes
+from csgs_codec.codec.anchor_decoder import AnchorDecoder, is_anchor_file
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.errors import CsgsError, FormatError, UnsupportedError
 from tests.fuzz.campaign import mutant_at
@@ -93,19 +93,31 @@ def lists_anchor_chunk(data: bytes) -> bool:
 
 
 def standard_seeds(seeds: Sequence[Seed]) -> list[Seed]:
-    """The seeds that are standard (Gaussian) scenes, the ones the receiver decodes."""
+    """The seeds that are standard (Gaussian) scenes."""
     return [seed for seed in seeds if not lists_anchor_chunk(seed.data)]
 
 
+def anchor_seeds(seeds: Sequence[Seed]) -> list[Seed]:
+    """The seeds that are anchor scenes (their TOC lists ANCH)."""
+    return [seed for seed in seeds if lists_anchor_chunk(seed.data)]
+
+
 def python_outcome(data: bytes) -> dict:
-    """The Python decoder's result on ``data`` in the receiver oracle's terms."""
+    """The Python decoder's result on ``data`` in the receiver oracle's terms (AnchorDecoder
+    for a file whose TOC lists ANCH, else Decoder)."""
+    anchors = lists_anchor_chunk(data)
     try:
-        scene = Decoder().decode(data, layers=LAYERS)
+        if anchors:
+            scene = AnchorDecoder().decode(data, layers=LAYERS)
+            hashes = anchor_hashes(scene)
+        else:
+            scene = Decoder().decode(data, layers=LAYERS)
+            hashes = scene_hashes(scene)
     except (FormatError, UnsupportedError) as err:
         return {"ok": False, "error": type(err).__name__, "chunk": err.chunk,
                 "offset": err.offset, "message": str(err)}
-    return {"ok": True, "count": len(scene), "arrays": scene_hashes(scene),
-            "semantic_names": list(scene.semantic_names)}
+    return {"ok": True, "kind": "anchors" if anchors else "gaussians", "count": len(scene),
+            "arrays": hashes, "semantic_names": list(scene.semantic_names)}
 
 
 def _run_oracle(paths: list[Path]) -> tuple[list[dict], int] | None:
@@ -148,8 +160,9 @@ def compare(python: dict, receiver: dict) -> tuple[str, str] | None:
         return "accept", f"Python {'decodes' if python['ok'] else 'refuses'} it " \
                          f"({python.get('message', '')}); the receiver {said}"
     if python["ok"]:
-        if (python["count"], python["arrays"], python["semantic_names"]) != (
-                receiver["count"], receiver["arrays"], receiver["semantic_names"]):
+        if (python.get("kind"), python["count"], python["arrays"],
+                python["semantic_names"]) != (receiver.get("kind"), receiver["count"],
+                                               receiver["arrays"], receiver["semantic_names"]):
             differ = sorted(k for k in set(python["arrays"]) | set(receiver["arrays"])
                             if python["arrays"].get(k) != receiver["arrays"].get(k))
             return "arrays", f"decoded arrays differ: {differ}"
@@ -178,27 +191,22 @@ def run_differential(seeds: Sequence[Seed], start: int, count: int, campaign_see
             results, rss = receiver_outcomes(paths)
             summary.max_rss_bytes = max(summary.max_rss_bytes, rss)
             for (i, mutant), receiver in zip(mutants.items(), results):
-                python = None if lists_anchor_chunk(mutant.data) else python_outcome(mutant.data)
-                _count(summary, i, mutant, python, receiver)
+                _count(summary, i, mutant, python_outcome(mutant.data), receiver)
             for path in paths:
                 path.unlink()
     return summary
 
 
-def _count(summary: DifferentialSummary, index: int, mutant, python: dict | None,
+def _count(summary: DifferentialSummary, index: int, mutant, python: dict,
            receiver: dict) -> None:
-    """Count one input; ``python`` is None for a file listing an ANCH chunk."""
+    """Count one input."""
     summary.inputs += 1
     summary.slowest_ms = heapq.nlargest(SLOWEST_KEPT,
                                         summary.slowest_ms + [(receiver["ms"], index)])
-    if python is None:
-        summary.outcomes["anchor"] += 1
-        if not receiver["ok"] and receiver["error"] in ("crash", "died"):
-            summary.disagreements.append(Disagreement(
-                index, mutant.seed, mutant.operators, receiver["error"],
-                f"{receiver.get('type', 'exit')}: {receiver['message']}", mutant.data))
-        return
-    summary.outcomes["ok" if python["ok"] else python["error"]] += 1
+    if python["ok"]:
+        summary.outcomes["anchors-ok" if python["kind"] == "anchors" else "ok"] += 1
+    else:
+        summary.outcomes[python["error"]] += 1
     differ = compare(python, receiver)
     if differ is not None:
         summary.disagreements.append(Disagreement(index, mutant.seed, mutant.operators,

@@ -1,9 +1,11 @@
 #!/usr/bin/env node
 /**
  * The fuzz oracle's JavaScript side: decode each FILE with the receiver (csgs_codec/js/),
- * both layers, on this thread, and print one JSON line per file, whatever happens:
+ * both layers, on this thread (an anchor scene, whose TOC lists ANCH, with
+ * decodeAnchorScene; any other with decodeScene), and print one JSON line per file,
+ * whatever happens:
  *
- *   {"ok": true, "count", "arrays": {name: {"shape", "sha256"}}, "semantic_names", "ms"}
+ *   {"ok": true, "kind", "count", "arrays": {name: {"shape", "sha256"}}, "semantic_names", "ms"}
  *   {"ok": false, "error": "FormatError" | "UnsupportedError", "chunk", "offset", "message", "ms"}
  *   {"ok": false, "error": "crash", "type", "message", "stack", "ms"}   (any other exception)
  *
@@ -17,16 +19,29 @@
 import { readFileSync } from 'node:fs';
 import { performance } from 'node:perf_hooks';
 
+import { decodeAnchorScene, isAnchorFile } from '../../csgs_codec/js/anchor_scene.mjs';
 import { arrayDigests } from '../../csgs_codec/js/digests_node.mjs';
 import { FormatError, UnsupportedError } from '../../csgs_codec/js/errors.mjs';
 import { decodeScene } from '../../csgs_codec/js/scene.mjs';
 import { loadTables } from '../../csgs_codec/js/tables_node.mjs';
 
+/** Whether the TOC of `data` lists ANCH (false when the TOC is unreadable: either decoder
+ * then refuses it the same way). */
+function listsAnchors(data) {
+  try {
+    return isAnchorFile(data);
+  } catch (err) {
+    if (err instanceof FormatError) return false;
+    throw err;
+  }
+}
+
 /** The outcome of decoding `data` (see the header), without its time. */
 async function outcome(data, tables) {
   try {
-    const scene = await decodeScene(data, { layers: ['color', 'semantic'], tables });
-    return { ok: true, count: scene.count, arrays: arrayDigests(scene), semantic_names: scene.semanticNames };
+    const options = { layers: ['color', 'semantic'], tables };
+    const scene = await (listsAnchors(data) ? decodeAnchorScene(data, options) : decodeScene(data, options));
+    return { ok: true, kind: scene.kind ?? 'gaussians', count: scene.count, arrays: arrayDigests(scene), semantic_names: scene.semanticNames };
   } catch (err) {
     if (err instanceof FormatError) return { ok: false, error: 'FormatError', chunk: err.chunk, offset: err.offset, message: err.message };
     if (err instanceof UnsupportedError) return { ok: false, error: 'UnsupportedError', chunk: null, offset: null, message: err.message };

@@ -9,6 +9,10 @@ points in a tile of their own grid), at quality 5; plus every .csgs under
 spec/vectors/scenes and (anchor scenes, where present) spec/vectors/anchors. The large donut
 vectors (45,624 Gaussians) get a small weight so they
 are fuzzed without dominating the run time.
+
+Anchor seeds (:func:`build_anchor_seeds`, for the JavaScript receiver's differential
+campaign): the anchor vectors and two encodes of small anchor scenes, one with view origins
+(vorg) and an appearance table, one at the default F = 50, K = 10 with five CARM groups.
 """
 
 from __future__ import annotations
@@ -90,4 +94,21 @@ def build_seeds(vectors_dir: Path = VECTORS_DIR) -> list[Seed]:
     for family in SEED_VECTOR_FAMILIES:
         for path in current(sorted((vectors_dir / family).glob("*.csgs"))):
             seeds.append(_seed(f"vector:{path.stem}", path.read_bytes()))
+    return seeds
+
+
+def build_anchor_seeds(vectors_dir: Path = VECTORS_DIR) -> list[Seed]:
+    """Anchor-scene seeds: the anchor vectors, then encodes (fast fit) of
+    ``scene_with_origins_and_appearance`` (vorg, appearance) and of a 100-anchor default
+    scene."""
+    from csgs_codec.codec.anchor_encoder import AnchorEncoder
+    from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene
+    from tests.anchors.helpers import FAST_FIT, scene_with_origins_and_appearance
+
+    seeds = [_seed(f"vector:{path.stem}", path.read_bytes())
+             for path in current(sorted((vectors_dir / "anchors").glob("*.csgs")))]
+    seeds.append(_seed("anchors_vorg_q6", AnchorEncoder(6, fit=FAST_FIT).encode(
+        scene_with_origins_and_appearance())))
+    seeds.append(_seed("anchors_default_q4", AnchorEncoder(4, fit=FAST_FIT).encode(
+        synthetic_anchor_scene(2, 50, seed=6))))
     return seeds

@@ -3,9 +3,10 @@ UnsupportedError, never dies or hangs, and agrees with the Python decoder on eve
 (both decode it to the same arrays, or both refuse it with the same kind of error, naming the
 same chunk and byte offset).
 
-The default run fuzzes the decoder campaign's seeds (tests/fuzz/seeds.py, standard scenes);
-the slow run many more of them, and mutants of what users make: the default encodes of the
-sample and of the repository's SH-3 capture. Skipped when ``node`` is not on PATH.
+The default run fuzzes the decoder campaign's seeds (tests/fuzz/seeds.py, standard scenes)
+and the anchor-scene seeds (build_anchor_seeds); the slow run many more of both, and mutants
+of what users make: the default encodes of the sample and of the repository's SH-3 capture.
+Skipped when ``node`` is not on PATH.
 """
 
 from __future__ import annotations
@@ -19,13 +20,14 @@ from tests.conftest import SAMPLE
 from tests.fuzz.container_edit import split_chunks
 from tests.fuzz.js_differential import (
     DifferentialSummary,
+    anchor_seeds,
     compare,
     python_outcome,
     receiver_outcomes,
     run_differential,
     standard_seeds,
 )
-from tests.fuzz.seeds import Seed, build_seeds
+from tests.fuzz.seeds import Seed, build_anchor_seeds, build_seeds
 
 pytestmark = pytest.mark.skipif(node_executable() is None,
                                 reason="node (Node.js >= 18) is not on PATH")
@@ -34,11 +36,18 @@ REPO_SH3 = Path(__file__).resolve().parents[2] / "benchmarks" / "data" / "yashic
 DEFAULT_INPUTS = 300
 SLOW_INPUTS = 5000
 SLOW_USER_INPUTS = 600
+ANCHOR_INPUTS = 200
+SLOW_ANCHOR_INPUTS = 3000
 
 
 @pytest.fixture(scope="module")
 def seeds() -> list[Seed]:
     return standard_seeds(build_seeds())
+
+
+@pytest.fixture(scope="module")
+def anchor_seed_files() -> list[Seed]:
+    return build_anchor_seeds()
 
 
 def _report(summary: DifferentialSummary) -> str:
@@ -56,6 +65,23 @@ def _assert_agrees(summary: DifferentialSummary, inputs: int) -> None:
 def test_the_receiver_agrees_with_python_on_mutants_of_the_campaign_seeds(seeds):
     summary = run_differential(seeds, 0, DEFAULT_INPUTS, campaign_seed=11)
     _assert_agrees(summary, DEFAULT_INPUTS)
+
+
+def test_the_receiver_agrees_with_python_on_mutants_of_anchor_scenes(anchor_seed_files):
+    summary = run_differential(anchor_seed_files, 0, ANCHOR_INPUTS, campaign_seed=21)
+    assert summary.inputs == ANCHOR_INPUTS
+    assert not summary.disagreements, _report(summary)
+    # Some mutants decode as anchor scenes; most reach a named rejection.
+    assert summary.outcomes["anchors-ok"] > 0
+    assert summary.outcomes["FormatError"] > ANCHOR_INPUTS // 2
+
+
+def test_the_anchor_seeds_are_anchor_scenes_with_every_optional_part(anchor_seed_files):
+    assert anchor_seeds(anchor_seed_files) == anchor_seed_files
+    names = {s.name for s in anchor_seed_files}
+    assert {"vector:anchors_semantic_q5", "anchors_vorg_q6", "anchors_default_q4"} <= names
+    vorg = next(s for s in anchor_seed_files if s.name == "anchors_vorg_q6")
+    assert any(c.type == b"vorg" for c in vorg.chunks)
 
 
 def test_the_seeds_are_standard_scenes_of_every_kind(seeds):
@@ -106,3 +132,10 @@ def test_the_receiver_agrees_with_python_on_mutants_of_default_encodes(default_e
                  for path in (default_encode(SAMPLE), default_encode(REPO_SH3))]
     summary = run_differential(user_made, 0, SLOW_USER_INPUTS, campaign_seed=13, batch=25)
     _assert_agrees(summary, SLOW_USER_INPUTS)
+
+
+@pytest.mark.slow
+def test_the_receiver_agrees_with_python_on_many_mutants_of_anchor_scenes(anchor_seed_files):
+    summary = run_differential(anchor_seed_files, 0, SLOW_ANCHOR_INPUTS, campaign_seed=22)
+    assert not summary.disagreements, _report(summary)
+    assert summary.outcomes["anchors-ok"] > 0

@@ -1,10 +1,8 @@
 """The JavaScript receiver (csgs_codec/js/) decodes every standard-scene conformance vector
 to the same arrays as the Python decoder, reads every container vector as recorded, and
-rejects every invalid vector with an error naming the chunk and offset.
-
-Anchor scenes (spec/FORMAT.md §17) are not implemented in JavaScript yet: for those vectors
-the test asserts that the receiver says "unsupported" instead of decoding or passing
-silently. Skipped when ``node`` is not on PATH.
+rejects every invalid vector (those cut from anchor scenes too) with an error naming the
+chunk and offset the Python decoder names. Anchor scenes' own vectors:
+tests/js/test_js_anchor_decoder.py. Skipped when ``node`` is not on PATH.
 """
 
 from __future__ import annotations
@@ -20,6 +18,7 @@ from csgs_codec.errors import FormatError
 from csgs_codec.format.source import open_source
 from csgs_codec.format.toc import read_toc
 from tests.conformance import current
+from tests.js.anchor_results import assert_same_anchors, python_anchor_result
 
 pytestmark = pytest.mark.skipif(node_executable() is None,
                                 reason="node (Node.js >= 18) is not on PATH")
@@ -30,12 +29,8 @@ CONTAINER = sorted((VECTORS / "container").glob("*.csgs"))
 ANCHORS = sorted((VECTORS / "anchors").glob("*.csgs"))
 MANIFEST = json.loads((VECTORS / "invalid" / "manifest.json").read_text())
 INVALID = [VECTORS / "invalid" / v["file"] for v in MANIFEST["vectors"]]
-#: Invalid vectors cut from anchor scenes: the receiver stops at "unsupported" (their ANCH
-#: chunk) before it could find the damage.
+#: Invalid vectors cut from anchor scenes (the reference decoder is AnchorDecoder).
 ANCHOR_INVALID = [p for p in INVALID if p.name.startswith("fuzz_anchor_")]
-#: Of those, the ones whose damage is in the container (a frame cut off), found before any
-#: chunk is decoded: rejected as invalid, as Python does, not "unsupported".
-ANCHOR_CONTAINER_FAULTS = {"fuzz_anchor_truncate.csgs"}
 LAYER_READS = ("color", "color,semantic")
 
 
@@ -80,11 +75,10 @@ def test_the_vector_sets_are_the_expected_ones():
             "view_pruned_q5", "view_pruned_vdis_version_9"} <= names
 
 
-def test_only_anchor_scenes_are_expected_unsupported():
-    """The "unsupported" lists hide no standard scene: every vector on them is an anchor
-    scene, and every other vector with a readable TOC is a standard one."""
-    expected = ANCHORS + ANCHOR_INVALID
-    assert all(_has_anchor_chunk(p) for p in expected)
+def test_the_anchor_invalid_vectors_are_anchor_scenes_and_no_other_is():
+    """The invalid vectors compared with AnchorDecoder are anchor scenes, and every other
+    vector with a readable TOC is a standard one."""
+    assert all(_has_anchor_chunk(p) for p in ANCHORS + ANCHOR_INVALID)
     others = SCENES + [p for p in INVALID if p not in ANCHOR_INVALID]
     assert [p.name for p in others if _has_anchor_chunk(p)] == []
 
@@ -143,23 +137,14 @@ def test_container_vectors_read_as_recorded():
 def test_invalid_vectors_are_rejected_naming_chunk_and_offset(threads, range_coder):
     """Also on two threads: the error raised is the first in the Python decoder's order,
     whichever thread found it."""
-    standard = [p for p in INVALID if p not in ANCHOR_INVALID]
-    results = run_js(standard, layers="color,semantic", threads=threads,
+    results = run_js(INVALID, layers="color,semantic", threads=threads,
                      range_coder=range_coder)
-    for path, js in zip(standard, results):
+    for path, js in zip(INVALID, results):
+        if path in ANCHOR_INVALID:
+            py = python_anchor_result(path.read_bytes(), "color,semantic")
+            assert not py["ok"], f"{path.name} decodes in Python"
+            assert_same_anchors(js, py, path.name)
+            continue
         py = _python(path, "color,semantic")
         assert not py["ok"], f"{path.name} decodes in Python"
         _assert_same(js, py, path.name)
-
-
-def test_anchor_vectors_are_reported_unsupported():
-    """Expected unsupported (anchor scenes are not implemented in JavaScript yet): every
-    anchor vector and every invalid vector cut from one, except container faults."""
-    paths = ANCHORS + ANCHOR_INVALID
-    for path, js in zip(paths, run_js(paths, layers="color,semantic")):
-        assert not js["ok"], path.name
-        if path.name in ANCHOR_CONTAINER_FAULTS:
-            _assert_same(js, _python(path, "color,semantic"), path.name)
-            continue
-        assert js["error"] == "UnsupportedError", f"{path.name}: {js}"
-        assert "anchor scenes" in js["message"], path.name
