@@ -6,7 +6,9 @@
  * Order: header and TOC, then the bytes up to the end of the color layer (one HTTP Range
  * request, or a slice of a picked file), decoded; the splats with their base color are
  * posted as soon as they are decoded (stage 'first'), the SH bands after; then, when asked,
- * the semantic layer's bytes, decoded and posted.
+ * the semantic layer's bytes, decoded and posted. An anchor scene (TOC lists ANCH) is
+ * decoded and baked into splats (anchor_open.mjs): a quick preview bake first, then the
+ * reference decoder's bake.
  *
  * Its URL may say ``?lanes=N`` (see decodeLanes).
  * Messages in: {kind: 'open', url | file, layers: ['color'] | ['color', 'semantic'],
@@ -32,6 +34,7 @@ import { readToc } from '../js/container.mjs';
 import { LocalLane } from '../js/decode_runner.mjs';
 import { FormatError, UnsupportedError } from '../js/errors.mjs';
 import { decodeScene, decodeSemanticLayer, sceneArrays } from '../js/scene.mjs';
+import { openAnchors } from './anchor_open.mjs';
 import { loadTables, sha256Hex } from './tables_fetch.mjs';
 
 const HEADER_SIZE = 16;
@@ -131,10 +134,11 @@ function concat(parts) {
   return out;
 }
 
-/** {name: {shape, sha256}} of a decoded scene's arrays (decode_cli.mjs's layout). */
-async function arrayHashes(scene) {
+/** {name: {shape, sha256}} of a decoded scene's arrays (decode_cli.mjs's layout; ``arrays``
+ * gives them for an anchor scene). */
+async function arrayHashes(scene, arrays = sceneArrays) {
   const out = {};
-  for (const [name, [values, shape]] of Object.entries(sceneArrays(scene))) {
+  for (const [name, [values, shape]] of Object.entries(arrays(scene))) {
     out[name] = { shape, sha256: await sha256Hex(new Uint8Array(values.buffer, values.byteOffset, values.byteLength)) };
   }
   return out;
@@ -178,6 +182,12 @@ async function open(request, post) {
     mark(post, 'tocRead');
     if (source.size !== null && source.size > fileEnd) {
       throw new FormatError(`${source.size - fileEnd} bytes follow the last chunk`, { offset: fileEnd });
+    }
+    if (entries.some((e) => e.type === 'ANCH')) {
+      const stageOf = (name) => { stage = name; };
+      await openAnchors({ source, prefix, colorEnd, fileEnd, hasSemantic, wanted, tablesReady,
+        hashes: request.hashes, post, progress, mark, concat, arrayHashes, stageOf });
+      return;
     }
     const need = colorEnd - prefix.length;
     const body = await source.read(prefix.length, colorEnd,

@@ -5,6 +5,10 @@
  * the list names every module the workers reach.
  */
 
+import '../js/anchor_attributes.mjs';
+import '../js/anchor_bake.mjs';
+import '../js/anchor_payloads.mjs';
+import '../js/anchor_scene.mjs';
 import '../js/base_layer.mjs';
 import '../js/bytes.mjs';
 import '../js/categorical.mjs';
@@ -16,6 +20,7 @@ import '../js/crc32.mjs';
 import '../js/decode_plan.mjs';
 import '../js/decode_runner.mjs';
 import '../js/decode_tasks.mjs';
+import '../js/dense_net.mjs';
 import '../js/errors.mjs';
 import '../js/far_points.mjs';
 import '../js/float_stream.mjs';

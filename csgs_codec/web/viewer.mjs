@@ -143,8 +143,8 @@ function describeError(error) {
 /** What the user can do about an error (the worker says which kind it is). */
 function advice(error) {
   if (error.errorKind === 'unsupported') {
-    return 'The page shows standard scenes: decode this one with `csgs decode FILE -o scene.ply`, '
-      + 'then `csgs encode scene.ply -o scene.csgs`, and open that.';
+    return 'The page cannot draw what this file holds: `csgs info FILE` says what it is, and '
+      + '`csgs decode FILE -o scene.ply` writes a standard scene where one can be made.';
   }
   if (error.errorKind === 'format') {
     return 'The file is damaged or cut short. If `csgs info FILE` reads it without an error, '

@@ -3,7 +3,7 @@ page decodes a .csgs in its worker and draws it like the project rasterizer, a c
 an object as `csgs select` does, a file cut inside the semantic layer shows the color layer
 and says what is missing, ``--layers color`` reads only the color layer's bytes, the file
 picker opens a file, the default view is scene/orbit.py's view 0 and the orbit, fly and zoom
-controls move it, anchor scenes are reported as not supported, and invalid files are refused
+controls move it, an anchor scene it cannot draw is reported as such, and invalid files are refused
 at the chunk and byte offset the Python decoder names.
 
 Render agreement: on samples/donut.ply (quality 5, 45,624 Gaussians, 4 orbit views at
@@ -258,16 +258,24 @@ def test_default_view_is_the_orbit_view_and_the_controls_move_it(browser, donut)
         assert np.linalg.norm(position() - flown) == pytest.approx(0.1 * distance, rel=1e-6)
 
 
-def test_anchor_scenes_are_reported_as_not_supported(browser):
+def test_an_anchor_scene_without_networks_is_reported_as_not_drawable(browser, tmp_path):
     from selenium.webdriver.common.by import By
 
-    vector = sorted((REPO / "spec" / "vectors" / "anchors").glob("*.csgs"))[0]
-    with ViewerServer(vector) as server:
+    from csgs_codec.codec.anchor_encoder import AnchorEncoder
+    from csgs_codec.scene.anchor_scene import AnchorScene
+    from csgs_codec.scene.synthetic_anchors import synthetic_anchor_scene
+    from tests.anchors.helpers import FAST_FIT
+
+    scene = synthetic_anchor_scene(n_objects=2, anchors_per_object=20, seed=2)
+    path = tmp_path / "no_mlps.csgs"
+    path.write_bytes(AnchorEncoder(fit=FAST_FIT).encode(AnchorScene(**{**scene.__dict__,
+                                                                       "mlps": None})))
+    with ViewerServer(path) as server:
         _open(browser, server)
         state = wait_for_state(browser, lambda s: s["phase"] == "error")
-    assert not state["colorShown"]
+    assert not state["colorShown"] and state["error"]["errorKind"] == "unsupported"
     message = browser.find_element(By.ID, "message").text
-    assert "Cannot show this file" in message and "not implemented" in message
+    assert "Cannot show this file" in message and "no Scaffold-GS MLPs" in message
     assert "csgs decode" in message  # what the user can do about it
 
 

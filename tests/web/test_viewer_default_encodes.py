@@ -14,7 +14,7 @@ import os
 
 import pytest
 
-from benchmarks._js_receiver import scene_hashes
+from benchmarks._js_receiver import REPO, scene_hashes
 from csgs_codec import Decoder, write_ply
 from csgs_codec.semantic.synthetic import labelled_blob_scene
 from csgs_codec.web.server import ViewerServer
@@ -98,3 +98,47 @@ def test_the_sample_segmented_then_encoded_by_default_opens(browser, default_enc
     state, python = open_in_page(browser, path)
     assert decoded_as_in_python(state, python), state["error"]
     assert state["semanticReady"] and state["hashes"]["semantic"] == python["hashes"]["semantic"]
+
+
+ANCHOR_FIXTURE = REPO / "tests" / "data" / "anchors" / "demo_trained.csgs"
+
+
+def open_anchors_in_page(browser, path) -> tuple[dict, dict]:
+    """Open the anchor file ``path`` in the page (hashes on), wait until it is done or failed;
+    returns (the page state, the Python side: the decoded anchors' hashes and its bake)."""
+    from benchmarks._js_receiver import anchor_hashes
+    from csgs_codec.bake.anchor_bake import bake_anchor_scene
+    from csgs_codec.codec.anchor_decoder import AnchorDecoder
+
+    decoded = AnchorDecoder().decode(path, layers="color,semantic")
+    with ViewerServer(path) as server:
+        browser.get(f"{server.url}?size={SIZE}&hashes=1")
+        state = wait_for_state(browser, lambda s: (s["phase"] == "done" and s["colorShown"]
+                                                   and s["hashes"] is not None) or s["error"])
+    return state, {"hashes": anchor_hashes(decoded), "baked": bake_anchor_scene(decoded),
+                   "decoded": decoded}
+
+
+@pytest.mark.parametrize("name", ["demo_trained.csgs", "anchors_semantic_q5.csgs",
+                                  "anchors_color_q8_mlp_float16.csgs"])
+def test_anchor_files_open_as_the_reference_bake(browser, name):
+    """What `csgs train` writes (the demo's file) and the anchor vectors open: the page
+    decodes the anchors hash for hash as Python does, draws a preview first, then the bake
+    of as many splats as the reference decoder's, and selects an object by click."""
+    path = ANCHOR_FIXTURE if name == ANCHOR_FIXTURE.name else (
+        REPO / "spec" / "vectors" / "anchors" / name)
+    state, python = open_anchors_in_page(browser, path)
+    assert state["error"] is None, state["error"]
+    assert state["hashes"] == python["hashes"]
+    assert state["count"] == len(python["baked"]) > 0
+    assert state["firstFrameMs"] is not None and state["colorFrameMs"] >= state["firstFrameMs"]
+    if python["decoded"].labels is not None or python["decoded"].semantic is not None:
+        assert state["semanticReady"]
+        picked = browser.execute_script(  # the first pixel, centre outwards, with an object
+            "const v = window.csgsViewer; let last = 'no pixel tried';"
+            "for (let r = 0; r < 150; r += 10) for (const [dx, dy] of "
+            "[[0, 0], [r, 0], [-r, 0], [0, r], [0, -r], [r, r], [-r, -r]]) {"
+            "  try { const got = v.selectAt(200 + dx, 150 + dy); if (got.count > 0) "
+            "    return got.count; } catch (e) { last = String(e); } }"
+            "return last;")
+        assert isinstance(picked, int) and 0 < picked < state["count"], picked
