@@ -26,6 +26,7 @@ def run(args) -> int:
     """Rank the instances, print the best ones, write the best one's Gaussians."""
     import numpy as np
 
+    from csgs_cli.output_guard import refuse_overwriting_inputs
     from csgs_cli.scene_input import load_scene
     from csgs_codec.atomic_write import check_output
     from csgs_codec.errors import InputError
@@ -33,6 +34,8 @@ def run(args) -> int:
     from csgs_codec.semantic.query import query_instances
     from csgs_codec.untrusted import read_regular
 
+    refuse_overwriting_inputs([("-o", args.output)],
+                              [("the scene", args.scene), ("--embedding", args.embedding)])
     if args.output:
         check_output(Path(args.output), [args.scene])
     query = _read_vector(Path(args.embedding), read_regular, InputError)

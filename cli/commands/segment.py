@@ -62,10 +62,11 @@ def run(args) -> int:
     from tqdm import tqdm
 
     from csgs_cli.dataset_input import check_output_folder, downscale_for
+    from csgs_cli.output_guard import refuse_overwriting_inputs
     from csgs_cli.scene_input import load_scene
     from csgs_codec.atomic_write import check_output, write_atomically
     from csgs_codec.interchange.ply_io import ply_bytes
-    from csgs_codec.train.datasets import load_dataset
+    from csgs_codec.train.datasets import dataset_files, load_dataset
     from csgs_codec.train.segment import SegmentSettings, segment_scene
 
     output = Path(args.output)
@@ -81,6 +82,10 @@ def run(args) -> int:
     except InputError as error:
         raise InputError(error.message, property=f"--{error.property}") from None
     check_output_folder(output)
+    refuse_overwriting_inputs(
+        [("-o", output)],
+        [("the scene", args.scene), ("--mask-embeddings", args.mask_embeddings)]
+        + [("--images", file) for file in dataset_files(args.images, masks=args.masks)])
     check_output(output, [args.scene])
     scene = load_scene(args.scene, command=NAME, layers="color")
     views = load_dataset(args.images, downscale=downscale_for(args.images, args.resolution),

@@ -92,11 +92,12 @@ def run(args) -> int:
     from tqdm import tqdm
 
     from csgs_cli.dataset_input import check_output_folder, downscale_for
+    from csgs_cli.output_guard import refuse_overwriting_inputs
     from csgs_codec.atomic_write import write_atomically
     from csgs_codec.codec.describe import describe_bitstream
     from csgs_codec.render.differentiable import resolve_training_rasterizer
     from csgs_codec.train.color_stage import ColorStageSettings
-    from csgs_codec.train.datasets import load_dataset
+    from csgs_codec.train.datasets import dataset_files, load_dataset
     from csgs_codec.train.evaluation import score_views, split_views
     from csgs_codec.train.initial_points import find_initial_points
     from csgs_codec.train.pipeline import TrainSettings, train_scene
@@ -138,6 +139,11 @@ def run(args) -> int:
                          property=f"--{option.replace('_', '-')}") from None
     resolve_training_rasterizer(args.rasterizer, args.device)  # fail before loading images
     check_output_folder(Path(args.output))
+    masks = None if args.no_semantic else args.masks
+    refuse_overwriting_inputs(
+        [("-o", args.output)],
+        [("--points", args.points)]
+        + [("the dataset", file) for file in dataset_files(args.data, masks=masks)])
     views = load_dataset(args.data, downscale=downscale_for(args.data, args.resolution),
                          masks=None if args.no_semantic else args.masks,
                          segment_missing=not args.no_semantic,

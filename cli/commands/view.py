@@ -69,6 +69,7 @@ def run(args) -> int:
     if args.scene is None:
         raise InputError("give the scene to view (only --web opens without one)",
                          property="scene")
+    from csgs_cli.output_guard import refuse_overwriting_inputs
     from csgs_cli.scene_input import load_scene
     from csgs_cli.view_options import parse_size
     from csgs_codec.render.preview import save_screenshot, show_window
@@ -77,6 +78,8 @@ def run(args) -> int:
     if args.max_gaussians < 1:
         raise InputError(f"--max-gaussians must be positive, got {args.max_gaussians}",
                          property="--max-gaussians")
+    refuse_overwriting_inputs([("--screenshot", args.screenshot)],
+                              [("the scene", args.scene), ("--select-mask", args.select_mask)])
     scene = load_scene(args.scene, command=NAME)
     if not isinstance(scene, GaussianScene):  # an anchor scene: shown as its bake
         from csgs_codec.bake.anchor_bake import bake_anchor_scene

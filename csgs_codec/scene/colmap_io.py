@@ -97,6 +97,17 @@ def quaternion_to_matrix(qvec: np.ndarray) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- locating files
+def colmap_model_files(path: Path) -> list[Path]:
+    """The files of the COLMAP model ``path`` names (cameras, images and, when present,
+    points3D); [] when ``path`` is no COLMAP model. Nothing is read."""
+    files = _model_files(Path(path))
+    if files is None:
+        return []
+    cameras_file, images_file, binary = files
+    points = cameras_file.parent / f"points3D{'.bin' if binary else '.txt'}"
+    return [cameras_file, images_file] + ([points] if points.is_file() else [])
+
+
 def _model_files(path: Path) -> tuple[Path, Path, bool] | None:
     """(cameras file, images file, is_binary) for a model folder or one of its files."""
     if path.is_file():

@@ -17,6 +17,7 @@ the images unless another folder is given. Without masks, the built-in segmenter
 
 from __future__ import annotations
 
+import contextlib
 import numbers
 import warnings
 from pathlib import Path
@@ -26,7 +27,7 @@ import numpy as np
 from csgs_codec.errors import CsgsWarning, InputError
 from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.cameras_io import load_cameras, resize_camera
-from csgs_codec.scene.colmap_io import is_colmap_path
+from csgs_codec.scene.colmap_io import colmap_model_files, is_colmap_path
 from csgs_codec.train.image_files import (
     find_image,
     read_image,
@@ -116,6 +117,28 @@ def find_camera_file(path: Path) -> Path:
             return path / name
     raise InputError(f"no cameras found: expected one of {', '.join(CAMERA_FILE_NAMES)} or a "
                      "COLMAP model (sparse/0)", file=path)
+
+
+def dataset_files(path: str | Path, *, masks: str | Path | None = None,
+                  images: str | Path | None = None) -> list[Path]:
+    """The files :func:`load_dataset` (same arguments) would read: the camera file (or the
+    COLMAP model's files), each view's image and each mask it finds. Files that are missing
+    are left out (loading reports them); no image is opened.
+
+    Raises:
+        InputError: as :func:`load_dataset` for a missing or malformed camera file.
+    """
+    camera_path = find_camera_file(Path(path))
+    cameras = load_cameras(camera_path)
+    files = colmap_model_files(camera_path) if camera_path.is_dir() else [camera_path]
+    image_root, names = _image_locations(camera_path, cameras, images)
+    mask_root = _mask_folder(image_root, masks)
+    for name in names:
+        for root, stem in ((image_root, name), (mask_root, Path(name).stem)):
+            if root is not None:
+                with contextlib.suppress(InputError, OSError, ValueError):
+                    files.append(find_image(root, stem))
+    return files
 
 
 def _image_locations(camera_path: Path, cameras: list[Camera], images: str | Path | None
