@@ -140,11 +140,9 @@ def read_mask_embeddings(folder: Path, views) -> list:
     Raises:
         InputError: a missing folder or file, or a file that is not a 2-D numeric .npy.
     """
-    import io
-
     import numpy as np
 
-    from csgs_codec.untrusted import read_regular
+    from csgs_codec.untrusted import read_npy
 
     if not folder.is_dir():
         raise InputError("mask embeddings folder not found", file=folder)
@@ -153,12 +151,8 @@ def read_mask_embeddings(folder: Path, views) -> list:
         path = folder / f"{Path(view.name).stem}.npy"
         if not path.is_file():
             raise InputError(f"no mask embeddings for view '{view.name}'", file=path)
-        try:
-            array = np.load(io.BytesIO(read_regular(path, 1 << 30, what="mask embeddings")),
-                            allow_pickle=False)
-        except (ValueError, OSError) as exc:
-            raise InputError(f"not a .npy array ({exc})", file=path) from None
-        if array.ndim != 2 or array.dtype.kind not in "fiu":
+        array = read_npy(path, 1 << 30, what="mask embeddings", kinds="iuf")
+        if array.ndim != 2:
             raise InputError(f"expected a 2-D numeric array (mask id x value), got "
                              f"{array.shape} {array.dtype}", file=path)
         arrays.append(array.astype(np.float32))

@@ -183,19 +183,12 @@ def load_mask(path: str, count: int):
         InputError: the file is missing, not a .npy array, or not (count,) bool.
     """
     import numpy as np
-    from numpy.lib import format as npy
 
-    from csgs_codec.errors import InputError
+    from csgs_codec.untrusted import read_npy
 
-    try:  # the header first, so a file claiming a huge array allocates nothing
-        with open(path, "rb") as fh:
-            version = npy.read_magic(fh)
-            reader = npy.read_array_header_1_0 if version == (1, 0) else \
-                npy.read_array_header_2_0
-            shape, _, dtype = reader(fh)
-            if dtype != np.bool_ or shape != (count,):
-                raise InputError(f"selection mask must be a ({count},) bool array for this "
-                                 f"scene, got {shape} {dtype}", file=path)
-        return np.load(path, allow_pickle=False)
-    except (OSError, ValueError, EOFError) as exc:
-        raise InputError(f"cannot read the selection mask as .npy: {exc}", file=path) from None
+    limit = count + (1 << 16)  # one byte per Gaussian and a header
+    mask = read_npy(path, limit, what="a selection mask", kinds="b")
+    if mask.dtype != np.bool_ or mask.shape != (count,):
+        raise InputError(f"selection mask must be a ({count},) bool array for this scene, got "
+                         f"{mask.shape} {mask.dtype}", file=path)
+    return mask
