@@ -85,7 +85,7 @@ def load_dataset(path: str | Path, *, downscale: float = 1.0, masks: str | Path 
     views = []
     for camera, name in zip(cameras, image_names):
         image_path = find_image(image_root, name)
-        image = read_image(image_path, background)
+        image = read_image(image_path, background, size=(camera.width, camera.height))
         if (image.shape[1], image.shape[0]) != (camera.width, camera.height):
             raise InputError(f"image is {image.shape[1]}x{image.shape[0]} but its camera is "
                              f"{camera.width}x{camera.height}", file=image_path)
@@ -188,7 +188,7 @@ def _read_view_mask(mask_root: Path, image_name: str, shape: tuple[int, int]) ->
     except InputError:
         raise InputError(f"no mask for image '{image_name}'",
                          file=mask_root / f"{stem}.png") from None
-    mask = read_mask(mask_path)
+    mask = read_mask(mask_path, size=(shape[1], shape[0]))
     if mask.shape != shape:
         raise InputError(f"mask is {mask.shape[1]}x{mask.shape[0]} but its image is "
                          f"{shape[1]}x{shape[0]}", file=mask_path)
