@@ -36,6 +36,7 @@ from csgs_codec.train.image_files import (
     resize_mask,
 )
 from csgs_codec.train.segmentation import segment_image
+from csgs_codec.train.semantic_batch import MAX_MASKS_PER_VIEW
 from csgs_codec.train.views import TrainingView
 from csgs_codec.untrusted import open_regular
 
@@ -189,6 +190,11 @@ def _read_view_mask(mask_root: Path, image_name: str, shape: tuple[int, int]) ->
         raise InputError(f"no mask for image '{image_name}'",
                          file=mask_root / f"{stem}.png") from None
     mask = read_mask(mask_path, size=(shape[1], shape[0]))
+    ids = len(np.unique(mask))
+    if ids > MAX_MASKS_PER_VIEW:
+        raise InputError(f"mask holds {ids:,} ids, more than the {MAX_MASKS_PER_VIEW:,} a "
+                         "view may hold (every pair of a view's masks is compared)",
+                         file=mask_path)
     if mask.shape != shape:
         raise InputError(f"mask is {mask.shape[1]}x{mask.shape[0]} but its image is "
                          f"{shape[1]}x{shape[0]}", file=mask_path)
