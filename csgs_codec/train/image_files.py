@@ -31,9 +31,17 @@ def find_image(folder: Path, name: str) -> Path:
     when the named file is missing (COLMAP and INRIA files often drop the suffix).
 
     Raises:
-        InputError: naming the expected path when no candidate exists.
+        InputError: naming the expected path when no candidate exists, or when the system
+            refuses the name (longer than the file system allows, say).
     """
     path = folder / name
+    try:
+        return _find_image(path)
+    except OSError as exc:
+        raise InputError(f"cannot look up the image: {exc.strerror or exc}", file=path) from None
+
+
+def _find_image(path: Path) -> Path:
     if path.is_file():
         return path
     for suffix in IMAGE_SUFFIXES:

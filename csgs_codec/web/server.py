@@ -219,8 +219,11 @@ def package_file(url_path: str, root: Path = PACKAGE_ROOT) -> Path | None:
         return None
     if not relative.startswith(SERVED_FOLDERS) or Path(relative).suffix not in CONTENT_TYPES:
         return None
-    path = (root / relative).resolve()
-    if not path.is_relative_to(root) or not path.is_file():
+    try:  # a name the system refuses (too long: ENAMETOOLONG) is a file that is not there
+        path = (root / relative).resolve()
+        if not path.is_relative_to(root) or not path.is_file():
+            return None
+    except OSError:
         return None
     return path
 
