@@ -159,11 +159,11 @@ def write_mask(mask, path: str | Path) -> None:
 
 
 def _orbit_camera(scene, index: int, views: int, size: tuple[int, int], up: str | None):
+    from csgs_cli.view_options import check_orbit_views
     from csgs_codec.scene.gaussian_scene import GaussianScene
     from csgs_codec.scene.orbit import orbit_cameras
 
-    if views < 1:
-        raise InputError(f"--orbit needs at least 1 view, got {views}", property="--orbit")
+    check_orbit_views(views)
     if index >= views:
         raise InputError(f"orbit view {index} does not exist: the orbit has {views} views "
                          "(0 first)", property="--view")

@@ -122,9 +122,15 @@ function valueOf(args, i) {
   return args[i + 1];
 }
 
-/** A positive integer option value, or a UsageError. */
-function countOf(name, text) {
-  if (!/^[0-9]+$/.test(text) || Number(text) < 1) throw new UsageError(`${name} must be a whole number >= 1, got '${text}'`);
+/** Most worker threads --threads may start (each holds its own decoder; 100000 reached 13 GB). */
+const MAX_THREADS = 256;
+
+/** A positive integer option value (at most `most`), or a UsageError. */
+function countOf(name, text, most = Number.MAX_SAFE_INTEGER) {
+  if (!/^[0-9]+$/.test(text) || Number(text) < 1 || Number(text) > most) {
+    const range = most < Number.MAX_SAFE_INTEGER ? `1..${most}` : '>= 1';
+    throw new UsageError(`${name} must be a whole number ${range}, got '${text}'`);
+  }
   return Number(text);
 }
 
@@ -147,7 +153,7 @@ function parseArgs(args) {
     if (arg === '--layers') options.layers = layersOf(valueOf(args, i++));
     else if (arg === '--container') options.container = true;
     else if (arg === '--repeat') options.repeat = countOf(arg, valueOf(args, i++));
-    else if (arg === '--threads') options.threads = countOf(arg, valueOf(args, i++));
+    else if (arg === '--threads') options.threads = countOf(arg, valueOf(args, i++), MAX_THREADS);
     else if (arg === '--range-coder') {
       options.rangeCoder = valueOf(args, i++);
       if (!['wasm', 'js'].includes(options.rangeCoder)) throw new UsageError(`--range-coder takes wasm or js, got '${options.rangeCoder}'`);
