@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.atomic_write import write_atomically
-from csgs_codec.errors import InputError
+from csgs_codec.errors import InputError, require_type
 from csgs_codec.scene.gaussian_scene import GaussianScene
 
 
@@ -19,6 +19,7 @@ def ply_bytes(scene: GaussianScene) -> bytes:
     Order: x y z nx ny nz f_dc_0..2 f_rest_* opacity scale_0..2 rot_0..3, then the semantic
     channels by name (float) and ``label`` (int) when present. Normals are written as zeros.
     """
+    require_type(scene, GaussianScene, "scene")
     scene.validate()
     n = len(scene)
     bands = scene.sh_rest.shape[1]

@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from csgs_codec.errors import InputError
+from csgs_codec.errors import InputError, require_type
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.scene.instance_table import MAX_EMBEDDING_DIM, InstanceTable
 from csgs_codec.train import defaults
@@ -153,8 +153,11 @@ def segment_scene(scene: GaussianScene, views: list[TrainingView],
     if not isinstance(scene, GaussianScene) or len(scene) == 0:
         raise InputError("segmenting needs a standard scene with at least one Gaussian",
                          property="scene")
-    if not views:
-        raise InputError("segmenting needs at least one view with a mask", property="views")
+    if not isinstance(views, list | tuple) or not views:
+        raise InputError("segmenting needs a list of at least one view with a mask",
+                         property="views")
+    for view in views:
+        require_type(view, TrainingView, "views")
     report = progress or (lambda phase, done, total: None)
     seconds = {}
     began = time.perf_counter()
