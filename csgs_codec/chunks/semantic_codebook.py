@@ -136,6 +136,8 @@ def read_codebook(r: ByteReader, count: int, max_channels: int
     if not np.isfinite(prototypes).all():
         raise r.error("a prototype value is not finite", at)
     prototypes = prototypes.reshape(instances, len(names))
+    if len(np.unique(prototypes.view(np.uint32), axis=0)) != instances:
+        raise r.error("two prototype rows are equal (each instance has its own)", at)
     at = r.offset
     width = r.varint("embedding_dim", maximum=1 << 32)
     if width > MAX_EMBEDDING_DIM:
