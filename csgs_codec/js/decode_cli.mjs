@@ -20,7 +20,7 @@
  * or non-numeric value) prints one usage line on stderr and exits with 2. --repeat N decodes N times and reports the
  * fastest decode_s (wall) and decode_cpu_s (CPU time of the process), and first_decode_s,
  * the first decode (before the JIT has warmed up); tables are loaded once, outside the
- * timing. --threads N (default 2, as the Python decoder's) decodes on N worker threads
+ * timing. --threads N (1..256, default 2, as the Python decoder's) decodes on N worker threads
  * (parallel_node.mjs); 1 on this thread only. --range-coder picks the WebAssembly loops (the
  * range decoder's and the integer network's; default) or plain JavaScript; same output.
  */
