@@ -3,7 +3,7 @@
 
 Every command names all the files it reads and all the files it writes. An output that
 resolves to an input -- the same name, a hard link or a symlink to it (same device and
-inode), or a file inside an input folder -- is refused with an InputError naming the
+inode), or a file an input folder's reader reads -- is refused with an InputError naming the
 output's option and the input it would destroy. Two outputs that resolve to one file are
 refused too (the second would replace the first).
 """
@@ -21,6 +21,11 @@ from csgs_codec.errors import InputError
 MAX_FOLDER_FILES = 10_000
 #: Folder levels below an input folder looked at (INRIA: point_cloud/iteration_N/x.ply).
 MAX_FOLDER_DEPTH = 3
+#: The kinds of file an input folder's readers read: scenes and cameras (.ply, .json, COLMAP
+#: .bin/.txt), SOG images (.webp), Scaffold-GS MLPs (.pt, .pth), embeddings (.npy). Other
+#: files in the folder (a .csgs written there by an earlier run, say) are no input.
+FOLDER_INPUT_SUFFIXES = frozenset({".ply", ".json", ".bin", ".txt", ".webp", ".pt", ".pth",
+                                   ".npy"})
 
 Named = tuple[str, "str | os.PathLike | None"]
 
@@ -32,8 +37,9 @@ def refuse_overwriting_inputs(outputs: Iterable[Named], inputs: Iterable[Named])
         outputs: (option, path) per file the command writes, e.g. ``("-o", "x.ply")``;
             None paths are skipped.
         inputs: (what, path) per file or folder the command reads, e.g.
-            ``("--cameras", "cams.json")``; a folder stands for every file under it (up to
-            :data:`MAX_FOLDER_DEPTH` levels). None paths and missing files are skipped.
+            ``("--cameras", "cams.json")``; a folder stands for the files under it (up to
+            :data:`MAX_FOLDER_DEPTH` levels) of the kinds in :data:`FOLDER_INPUT_SUFFIXES`.
+            None paths and missing files are skipped.
 
     Raises:
         InputError: naming the output file and option, and the input it resolves to.
@@ -81,7 +87,8 @@ def _resolved(path) -> str:
 
 
 def _files_of(path: Path) -> list[Path]:
-    """``path`` itself, and when it is a folder the files under it (bounded)."""
+    """``path`` itself, and when it is a folder the files under it that readers read
+    (bounded)."""
     try:
         is_dir = path.is_dir()
     except (OSError, ValueError):
@@ -93,7 +100,8 @@ def _files_of(path: Path) -> list[Path]:
     for folder, subfolders, names in os.walk(path):
         if len(Path(folder).parts) - root_depth >= MAX_FOLDER_DEPTH:
             subfolders.clear()
-        files.extend(Path(folder) / name for name in names)
+        files.extend(Path(folder) / name for name in names
+                     if Path(name).suffix.lower() in FOLDER_INPUT_SUFFIXES)
         if len(files) > MAX_FOLDER_FILES:
             break
     return files

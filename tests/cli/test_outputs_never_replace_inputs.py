@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from csgs_cli.main import main
+from csgs_cli.output_guard import refuse_overwriting_inputs
 from csgs_codec.interchange.ply_io import write_ply
 from tests.codec.helpers import random_scene
 
@@ -115,3 +116,16 @@ def test_segment_output_is_no_file_of_the_capture(files, dataset, capsys):
     os.symlink(image, link)
     _refused(["segment", str(files["scene"]), "--images", str(dataset), "-o", str(link)],
              image, "-o", capsys)
+
+
+def test_a_file_a_scene_folder_reads_is_protected_and_others_are_not(tmp_path, capsys):
+    folder = tmp_path / "inria"
+    cloud = folder / "point_cloud" / "iteration_7" / "point_cloud.ply"
+    cloud.parent.mkdir(parents=True)
+    write_ply(random_scene(32, sh_degree=0), cloud)
+    (folder / "cameras.json").write_text("[]")
+    _refused(["encode", str(folder), "-o", str(folder / "cameras.json")],
+             folder / "cameras.json", "-o", capsys)
+    earlier = folder / "scene.csgs"  # an earlier run's output kept in the folder
+    earlier.write_bytes(b"old")
+    refuse_overwriting_inputs([("-o", earlier)], [("the scene", folder)])
