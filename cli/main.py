@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import pkgutil
 import sys
 import traceback
@@ -165,6 +166,21 @@ def main(argv: list[str] | None = None) -> int:
             return 130
         except BrokenPipeError:
             return EXIT_OK
+        except OSError as err:
+            # A path the system refuses (a name too long, a read-only folder, ...) that no
+            # check before named: the file and the system's reason, as for any bad input.
+            if err.filename is None:
+                raise
+            if args.debug:
+                traceback.print_exc()
+            print(f"csgs: error: {_path_text(err.filename)}: {err.strerror or err}",
+                  file=sys.stderr)
+            return EXIT_BAD_INPUT
+
+
+def _path_text(name) -> str:
+    """A file name from an OSError (text, bytes or a descriptor number) as text."""
+    return os.fsdecode(name) if isinstance(name, (str, bytes, os.PathLike)) else str(name)
 
 
 if __name__ == "__main__":

@@ -8,6 +8,8 @@ from csgs_codec.errors import InputError
 
 DEFAULT_ORBIT_VIEWS = 16
 DEFAULT_ORBIT_SIZE = (800, 600)
+#: Most views an orbit may have (each is a camera made up front; 10^8 ran for minutes).
+MAX_ORBIT_VIEWS = 10_000
 
 
 def add_view_arguments(parser, *, default_orbit: int = DEFAULT_ORBIT_VIEWS) -> None:
@@ -48,10 +50,16 @@ def cameras_from_args(args, scene) -> list:
         cameras = load_cameras(args.cameras)
         return [resize_camera(c, *size) for c in cameras] if size else cameras
     count = args._default_orbit if args.orbit is None else args.orbit
-    if count < 1:
-        raise InputError(f"--orbit needs at least 1 view, got {count}", property="--orbit")
+    check_orbit_views(count)
     width, height = size or DEFAULT_ORBIT_SIZE
     return orbit_cameras(scene, count, width=width, height=height, up=args.up)
+
+
+def check_orbit_views(count: int) -> None:
+    """InputError naming --orbit unless ``count`` is 1..MAX_ORBIT_VIEWS."""
+    if not 1 <= count <= MAX_ORBIT_VIEWS:
+        raise InputError(f"--orbit must be 1..{MAX_ORBIT_VIEWS:,} views, got {count:,}",
+                         property="--orbit")
 
 
 def progress(args, items, description: str):

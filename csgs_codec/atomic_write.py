@@ -5,13 +5,20 @@ link); a symlink is written through to its target, which stays a link; anything 
 a regular file (a device node, a folder, a FIFO) is refused; SIGTERM during the write cleans
 up like Ctrl-C; and :func:`check_output` lets a caller refuse an unwritable location before a
 long computation rather than after it.
+
+SIGKILL (or a power cut) leaves the temporary file behind: nothing can clean up in the dying
+process. Temporary names carry this machine's name and the writing process's id, so the next
+write into the same folder removes those of this machine whose process no longer runs (once
+per folder and process; another machine's, on a shared disk, are left alone).
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import re
 import signal
+import socket
 import stat
 import tempfile
 import threading
@@ -20,6 +27,13 @@ from pathlib import Path
 from csgs_codec.errors import InputError
 
 PathLike = str | os.PathLike
+
+#: This machine's name as temporary file names carry it (letters, digits, '_'; 16 at most).
+_HOST = re.sub(r"[^A-Za-z0-9_]", "_", socket.gethostname())[:16] or "host"
+#: A temporary file's name: '.<target>.<host>-<pid>.<random>.tmp' (tempfile's random part).
+_TEMPORARY = re.compile(r"\..+\.([A-Za-z0-9_]{1,16})-([0-9]{1,10})\.[a-z0-9_]+\.tmp")
+#: Folders whose stale temporary files this process has removed already.
+_swept: set[str] = set()
 
 
 def check_output(path: PathLike, inputs: tuple[PathLike, ...] | list[PathLike] = ()) -> Path:
@@ -71,8 +85,10 @@ def write_atomically(path: PathLike, data: bytes,
     """
     target = check_output(path, inputs)
     replaced = _existing(target)
+    remove_stale_temporaries(target.parent)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.{_HOST}-{os.getpid()}.",
+                                   suffix=".tmp", dir=target.parent)
     except OSError as exc:
         raise InputError(f"cannot write here: {exc.strerror or exc}", file=path) from None
     try:
@@ -89,6 +105,43 @@ def write_atomically(path: PathLike, data: bytes,
         if isinstance(exc, OSError):
             raise InputError(f"cannot write: {exc.strerror or exc}", file=path) from None
         raise
+
+
+def remove_stale_temporaries(folder: PathLike) -> list[str]:
+    """Remove the temporary files :func:`write_atomically` left in ``folder`` when its
+    process was killed (SIGKILL leaves them): those of this machine whose process id no
+    longer runs. Looks at a folder once per process; returns the names removed.
+
+    Files of a running process, of another machine, or not named as temporaries are left
+    alone, and a file that cannot be removed is skipped silently.
+    """
+    key = os.path.realpath(folder)
+    if key in _swept:
+        return []
+    _swept.add(key)
+    removed = []
+    with contextlib.suppress(OSError), os.scandir(key) as entries:
+        for entry in entries:
+            match = _TEMPORARY.fullmatch(entry.name)
+            if match is None or match[1] != _HOST or _running(int(match[2])):
+                continue
+            with contextlib.suppress(OSError):
+                os.unlink(entry.path)
+                removed.append(entry.name)
+    return removed
+
+
+def _running(pid: int) -> bool:
+    """Whether a process ``pid`` exists on this machine (one of another user counts)."""
+    if pid == os.getpid() or os.name == "nt":  # Windows' os.kill(pid, 0) would end it
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError, OSError):
+        return True
+    return True
 
 
 @contextlib.contextmanager

@@ -95,3 +95,24 @@ class DataLossWarning(CsgsWarning):
 class CompoundedLossWarning(DataLossWarning):
     """The input was itself lossily coded (SPZ, SOG, .splat, ...): encoding it again adds a
     second quantization to the first. Shown even with ``--quiet``."""
+
+
+def require_type(value, expected: type | tuple[type, ...], what: str, hint: str = "") -> None:
+    """Raise :class:`InputError` naming ``what`` unless ``value`` is an ``expected`` instance.
+
+    The message says which type was expected and which was given (a file name given where a
+    scene object belongs gets ``hint``, e.g. how to read the file first), instead of the
+    AttributeError the first attribute access on the wrong object would raise.
+    """
+    if isinstance(value, expected):
+        return
+    names = " or ".join(t.__name__ for t in (expected if isinstance(expected, tuple)
+                                             else (expected,)))
+    given = "None" if value is None else _article(type(value).__name__)
+    if isinstance(value, str | bytes | Path) and hint:
+        given += f" ({hint})"
+    raise InputError(f"expected {_article(names)}, got {given}", property=what)
+
+
+def _article(noun: str) -> str:
+    return f"{'an' if noun[:1].lower() in 'aeiou' else 'a'} {noun}"

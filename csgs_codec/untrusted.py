@@ -192,3 +192,74 @@ def load_json(data: bytes | str, *, file: str | Path | None = None, what: str = 
                     file=file, **where)
     return document
 
+
+
+#: The signature every .npy file starts with (numpy's format, NEP 1).
+NPY_MAGIC = b"\x93NUMPY"
+#: Largest .npy header read (numpy writes headers padded to 64 bytes; 64 KiB is generous).
+MAX_NPY_HEADER = 1 << 16
+_KIND_WORDS = {"b": "booleans", "i": "integers", "u": "integers", "f": "floats"}
+
+
+def read_npy(path: str | os.PathLike, limit: int, *, what: str = "this file",
+             kinds: str = "biuf"):
+    """The array in the ``.npy`` file ``path``, read without pickles and without trusting
+    its header: the header's shape and dtype are checked against the file's size before
+    any array is made, so a 64-byte file claiming 10^10 values allocates nothing.
+
+    Args:
+        path: the file.
+        limit: the largest file size accepted, bytes.
+        what: what the file is, for messages ("a query embedding").
+        kinds: numpy dtype kinds accepted (default bool, signed, unsigned, float).
+
+    Returns:
+        The array, in the header's shape and dtype (a writable copy).
+
+    Raises:
+        InputError: naming the file: not a .npy (an .npz, empty, other bytes), a malformed
+            header, a dtype of another kind or with objects, a shape that is not whole numbers,
+            or a size that does not match the header.
+    """
+    import ast
+
+    import numpy as np
+
+    name = display_name(path)
+    data = read_regular(path, limit, what=what)
+    if data.startswith(b"PK\x03\x04"):
+        raise InputError(f"an .npz archive, not a .npy file: {what} is one array saved with "
+                         "numpy.save", file=name)
+    if not data.startswith(NPY_MAGIC) or len(data) < 10:
+        found = "an empty file" if not data else "no .npy signature"
+        raise InputError(f"not a .npy file ({found}): {what} is one array saved with "
+                         "numpy.save", file=name)
+    major = data[6]
+    width = 2 if major == 1 else 4 if major in (2, 3) else None
+    if width is None:
+        raise InputError(f".npy format version {major} is not supported (1-3 are)", file=name)
+    start = 8 + width
+    length = int.from_bytes(data[8:start], "little")
+    if length > MAX_NPY_HEADER or start + length > len(data):
+        raise InputError(f".npy header of {length:,} bytes does not fit the file", file=name)
+    try:
+        header = ast.literal_eval(data[start:start + length].decode("latin1"))
+        shape, fortran, descr = header["shape"], header["fortran_order"], header["descr"]
+        dtype = np.dtype(descr)
+    except (ValueError, SyntaxError, TypeError, KeyError, MemoryError, RecursionError):
+        raise InputError("malformed .npy header", file=name) from None
+    if (not isinstance(shape, tuple) or len(shape) > 32
+            or not all(type(side) is int and side >= 0 for side in shape)):
+        raise InputError(f".npy shape must be whole numbers >= 0, got {shape!r}", file=name)
+    if dtype.hasobject or dtype.kind not in kinds or dtype.fields is not None:
+        wanted = " or ".join(dict.fromkeys(_KIND_WORDS[k] for k in kinds))
+        raise InputError(f"holds {dtype} values; {what} holds {wanted}", file=name)
+    count = 1
+    for side in shape:
+        count *= side
+    body = len(data) - start - length
+    if count * dtype.itemsize != body:
+        raise InputError(f".npy header says {shape} {dtype} ({count * dtype.itemsize:,} bytes) "
+                         f"but the file holds {body:,} bytes of values", file=name)
+    values = np.frombuffer(data, dtype=dtype, count=count, offset=start + length)
+    return values.reshape(shape, order="F" if fortran is True else "C").copy()

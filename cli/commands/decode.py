@@ -84,6 +84,7 @@ def run(args) -> int:
     its extension names."""
     from tqdm import tqdm
 
+    from csgs_cli.output_guard import refuse_overwriting_inputs
     from csgs_codec.atomic_write import check_output
     from csgs_codec.codec.anchor_decoder import is_anchor_file
     from csgs_codec.codec.decoder import Decoder
@@ -100,6 +101,7 @@ def run(args) -> int:
             raise InputError(f"--{option.replace('_', '-')} applies to anchor scenes; this "
                              "file holds standard Gaussians", file=args.bitstream,
                              property=f"--{option.replace('_', '-')}")
+    refuse_overwriting_inputs([("-o", args.output)], [("the scene", args.bitstream)])
     check_output(args.output, [args.bitstream])
     writer_for(args.output)  # an unknown extension fails before the decode
     start = time.perf_counter()
@@ -184,12 +186,15 @@ def _decode_anchors(args) -> int:
     ``--checkpoint``)."""
     from pathlib import Path
 
+    from csgs_cli.output_guard import refuse_overwriting_inputs
     from csgs_codec.atomic_write import check_output
     from csgs_codec.codec.anchor_decoder import AnchorDecoder
     from csgs_codec.interchange.scaffold_io import write_scaffold
     from csgs_codec.interchange.writers import WRITERS, write_scene
 
     bake = Path(args.output).suffix.lower() in WRITERS
+    refuse_overwriting_inputs([("-o", args.output if bake else None)],
+                              [("the scene", args.bitstream), ("--cameras", args.cameras)])
     if bake:
         check_output(args.output, [args.bitstream])
     start = time.perf_counter()

@@ -112,6 +112,7 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     """Read, encode and write atomically; print the sizes."""
+    from csgs_cli.output_guard import refuse_overwriting_inputs
     from csgs_cli.scene_input import inria_output, is_anchor_input
     from csgs_codec.atomic_write import check_output, write_atomically
     from csgs_codec.codec.encoder import COUNTED_STAGES, Encoder
@@ -120,6 +121,8 @@ def run(args) -> int:
     from csgs_codec.interchange import warn_if_lossy
 
     _check_exclusive(args)
+    refuse_overwriting_inputs([("-o", args.output)],
+                              [("the scene", args.scene), ("--cameras", args.cameras)])
     inria = inria_output(args.scene)
     # Before a long encode, not after it.
     check_output(args.output, [args.scene] + ([str(inria[0])] if inria else []))

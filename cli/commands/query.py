@@ -26,16 +26,18 @@ def run(args) -> int:
     """Rank the instances, print the best ones, write the best one's Gaussians."""
     import numpy as np
 
+    from csgs_cli.output_guard import refuse_overwriting_inputs
     from csgs_cli.scene_input import load_scene
     from csgs_codec.atomic_write import check_output
-    from csgs_codec.errors import InputError
     from csgs_codec.interchange.ply_io import write_ply
     from csgs_codec.semantic.query import query_instances
-    from csgs_codec.untrusted import read_regular
+    from csgs_codec.untrusted import read_npy
 
+    refuse_overwriting_inputs([("-o", args.output)],
+                              [("the scene", args.scene), ("--embedding", args.embedding)])
     if args.output:
         check_output(Path(args.output), [args.scene])
-    query = _read_vector(Path(args.embedding), read_regular, InputError)
+    query = _read_vector(Path(args.embedding), read_npy)
     scene = load_scene(args.scene, command=NAME, layers="color,semantic")
     result = query_instances(scene, query)
     sizes = np.bincount(result.rows[result.rows >= 0], minlength=len(result.scores))
@@ -50,17 +52,8 @@ def run(args) -> int:
     return 0
 
 
-def _read_vector(path: Path, read_regular, error):
-    """The query vector in a .npy file (no pickles)."""
-    import io
-
+def _read_vector(path: Path, read_npy):
+    """The query vector in a .npy file, float64 (no pickles, header checked first)."""
     import numpy as np
 
-    data = read_regular(path, 1 << 26, what="a query embedding")
-    try:
-        vector = np.load(io.BytesIO(data), allow_pickle=False)
-    except (ValueError, OSError) as exc:
-        raise error(f"not a .npy array ({exc})", file=path) from None
-    if vector.dtype.kind not in "fiu":
-        raise error(f"holds {vector.dtype} values, not numbers", file=path)
-    return vector.astype(np.float64)
+    return read_npy(path, 1 << 26, what="a query embedding", kinds="iuf").astype(np.float64)

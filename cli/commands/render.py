@@ -24,6 +24,7 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     """Render every requested view of ``args.scene`` into ``args.output``."""
+    from csgs_cli.output_guard import refuse_overwriting_inputs
     from csgs_cli.scene_input import load_scene
     from csgs_cli.view_options import cameras_from_args, progress
     from csgs_codec.model.anchor_views import SceneViews
@@ -35,12 +36,14 @@ def run(args) -> int:
     output = Path(args.output)
     if output.exists() and not output.is_dir():
         raise InputError("output exists and is not a folder", file=output)
+    names = image_file_names(cameras)
+    refuse_overwriting_inputs([("-o", output / name) for name in names],
+                              [("the scene", args.scene), ("--cameras", args.cameras)])
     try:
         output.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InputError(f"cannot create output folder: {exc.strerror or exc}",
                          file=output) from None
-    names = image_file_names(cameras)
     for camera, name in progress(args, list(zip(cameras, names)), "rendering"):
         save_png(render(views.gaussians(camera), camera, backend=args.backend).image,
                  output / name)

@@ -62,10 +62,11 @@ def run(args) -> int:
     from tqdm import tqdm
 
     from csgs_cli.dataset_input import check_output_folder, downscale_for
+    from csgs_cli.output_guard import refuse_overwriting_inputs
     from csgs_cli.scene_input import load_scene
     from csgs_codec.atomic_write import check_output, write_atomically
     from csgs_codec.interchange.ply_io import ply_bytes
-    from csgs_codec.train.datasets import load_dataset
+    from csgs_codec.train.datasets import dataset_files, load_dataset
     from csgs_codec.train.segment import SegmentSettings, segment_scene
 
     output = Path(args.output)
@@ -81,6 +82,10 @@ def run(args) -> int:
     except InputError as error:
         raise InputError(error.message, property=f"--{error.property}") from None
     check_output_folder(output)
+    refuse_overwriting_inputs(
+        [("-o", output)],
+        [("the scene", args.scene), ("--mask-embeddings", args.mask_embeddings)]
+        + [("--images", file) for file in dataset_files(args.images, masks=args.masks)])
     check_output(output, [args.scene])
     scene = load_scene(args.scene, command=NAME, layers="color")
     views = load_dataset(args.images, downscale=downscale_for(args.images, args.resolution),
@@ -135,11 +140,9 @@ def read_mask_embeddings(folder: Path, views) -> list:
     Raises:
         InputError: a missing folder or file, or a file that is not a 2-D numeric .npy.
     """
-    import io
-
     import numpy as np
 
-    from csgs_codec.untrusted import read_regular
+    from csgs_codec.untrusted import read_npy
 
     if not folder.is_dir():
         raise InputError("mask embeddings folder not found", file=folder)
@@ -148,12 +151,8 @@ def read_mask_embeddings(folder: Path, views) -> list:
         path = folder / f"{Path(view.name).stem}.npy"
         if not path.is_file():
             raise InputError(f"no mask embeddings for view '{view.name}'", file=path)
-        try:
-            array = np.load(io.BytesIO(read_regular(path, 1 << 30, what="mask embeddings")),
-                            allow_pickle=False)
-        except (ValueError, OSError) as exc:
-            raise InputError(f"not a .npy array ({exc})", file=path) from None
-        if array.ndim != 2 or array.dtype.kind not in "fiu":
+        array = read_npy(path, 1 << 30, what="mask embeddings", kinds="iuf")
+        if array.ndim != 2:
             raise InputError(f"expected a 2-D numeric array (mask id x value), got "
                              f"{array.shape} {array.dtype}", file=path)
         arrays.append(array.astype(np.float32))

@@ -63,6 +63,7 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     """Select at the click and write the selected Gaussians; prints how many."""
+    from csgs_cli.output_guard import refuse_overwriting_inputs
     from csgs_cli.scene_input import load_scene
     from csgs_codec.atomic_write import check_output
     from csgs_codec.interchange.ply_io import write_ply
@@ -72,7 +73,11 @@ def run(args) -> int:
     output = Path(args.output)
     if output.is_dir():
         raise InputError("output is a folder; give a .ply file name", file=output)
+    refuse_overwriting_inputs([("-o", output), ("--save-mask", args.save_mask)],
+                              [("the scene", args.scene), ("--view", view_file(args.view))])
     check_output(output, [args.scene])
+    if args.save_mask:
+        check_output(args.save_mask, [args.scene])
     scene = load_scene(args.scene, command=NAME, layers="color,semantic")
     camera = camera_from_view(args.view, scene, size=args.size, up=args.up,
                               orbit_views=args.orbit)
@@ -122,15 +127,24 @@ def camera_from_view(spec: str, scene, *, size: str | None = None, up: str | Non
     if orbit:
         return _orbit_camera(scene, int(orbit[1]), orbit_views, wanted or DEFAULT_ORBIT_SIZE,
                              up)
-    path, pick = Path(spec), None
-    if not path.exists() and "#" in spec:
-        head, _, pick = spec.rpartition("#")
-        path = Path(head)
+    path, pick = view_file(spec), None
+    if not Path(spec).exists() and "#" in spec:
+        pick = spec.rpartition("#")[2]
     cameras = load_cameras(path)
     if not cameras:
         raise InputError("the cameras file holds no camera", file=path)
     camera = _pick_camera(cameras, pick, path)
     return resize_camera(camera, *wanted) if wanted else camera
+
+
+def view_file(spec: str) -> Path | None:
+    """The cameras file a --view spec reads (None for an orbit view)."""
+    if re.fullmatch(r"orbit:(\d{1,6})", spec.strip()):
+        return None
+    path = Path(spec)
+    if not path.exists() and "#" in spec:
+        path = Path(spec.rpartition("#")[0])
+    return path
 
 
 def write_mask(mask, path: str | Path) -> None:
@@ -145,11 +159,11 @@ def write_mask(mask, path: str | Path) -> None:
 
 
 def _orbit_camera(scene, index: int, views: int, size: tuple[int, int], up: str | None):
+    from csgs_cli.view_options import check_orbit_views
     from csgs_codec.scene.gaussian_scene import GaussianScene
     from csgs_codec.scene.orbit import orbit_cameras
 
-    if views < 1:
-        raise InputError(f"--orbit needs at least 1 view, got {views}", property="--orbit")
+    check_orbit_views(views)
     if index >= views:
         raise InputError(f"orbit view {index} does not exist: the orbit has {views} views "
                          "(0 first)", property="--view")

@@ -47,8 +47,7 @@ def run(args) -> int:
         raise InputError(f"{args.views} views of {width}x{height} exceed "
                          f"{MAX_TOTAL_PIXELS:,} pixels in all", property="views")
     folder = Path(args.folder)
-    if folder.exists() and not folder.is_dir():
-        raise InputError("exists and is not a folder", file=folder)
+    writable_folder(folder)  # before rendering, not after
     dataset = make_synthetic_dataset(args.seed, objects=args.objects,
                                      gaussians_per_object=args.gaussians, views=args.views,
                                      width=width, height=height)
@@ -56,3 +55,24 @@ def run(args) -> int:
     print(f"{target}: {args.views} views {width}x{height}, {args.objects} objects, "
           f"{len(dataset.scene):,} Gaussians (ground truth in scene.ply)")
     return 0
+
+
+def writable_folder(folder: Path) -> None:
+    """Create ``folder`` (and its parents) unless it exists, and check files can be made in
+    it and in its masks/ and images/ (when they exist).
+
+    Raises:
+        InputError: naming the folder: not a folder, cannot be created, or not writable.
+    """
+    import os
+
+    try:
+        if folder.exists() and not folder.is_dir():
+            raise InputError("exists and is not a folder", file=folder)
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create the folder: {exc.strerror or exc}",
+                         file=folder) from None
+    for place in (folder, folder / "masks", folder / "images"):
+        if place.is_dir() and not os.access(place, os.W_OK | os.X_OK):
+            raise InputError("folder is not writable", file=place)

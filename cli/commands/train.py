@@ -12,6 +12,8 @@ NAME = "train"
 #: The option that sets each stage-1 setting whose name differs from it.
 OPTION_OF_SETTING = {"rate_weight": "lambda", "initial_anchors": "anchors",
                      "feat_dim": "features", "n_offsets": "offsets"}
+#: Largest step, anchor and checkpoint counts (a larger one is a typo: 10^7 steps take weeks).
+MAX_COUNT = 10_000_000
 HELP = ("train a scene from images + cameras (+ instance masks) through the three CSGaussian "
         "stages and write it as a .csgs")
 
@@ -101,14 +103,16 @@ def run(args) -> int:
     from tqdm import tqdm
 
     from csgs_cli.dataset_input import check_output_folder, downscale_for
+    from csgs_cli.output_guard import refuse_overwriting_inputs
     from csgs_codec.atomic_write import write_atomically
     from csgs_codec.codec.describe import describe_bitstream
     from csgs_codec.render.differentiable import resolve_training_rasterizer
     from csgs_codec.train.color_stage import ColorStageSettings
-    from csgs_codec.train.datasets import find_foreground_masks, load_dataset
+    from csgs_codec.train.datasets import dataset_files, find_foreground_masks, load_dataset
     from csgs_codec.train.evaluation import score_views, split_views
     from csgs_codec.train.initial_points import find_initial_points
     from csgs_codec.train.pipeline import TrainSettings, train_scene
+    from csgs_codec.train.segment import MAX_MARGIN
 
     if args.device == "cuda" and not torch.cuda.is_available():
         raise InputError("--device cuda: torch sees no CUDA device", property="device")
@@ -117,11 +121,11 @@ def run(args) -> int:
                          property="lambda")
     for name in ("iterations", "semantic_iterations", "anchors", "max_anchors",
                  "checkpoint_every"):
-        if getattr(args, name) < 1:
-            raise InputError(f"--{name.replace('_', '-')} must be at least 1",
+        if not 1 <= getattr(args, name) <= MAX_COUNT:
+            raise InputError(f"--{name.replace('_', '-')} must be 1..{MAX_COUNT:,}",
                              property=name)
-    if not (math.isfinite(args.semantic_margin) and args.semantic_margin > 0):
-        raise InputError(f"--semantic-margin must be a finite number > 0, got "
+    if not (math.isfinite(args.semantic_margin) and 0 < args.semantic_margin <= MAX_MARGIN):
+        raise InputError(f"--semantic-margin must be a number in (0, {MAX_MARGIN:g}], got "
                          f"{args.semantic_margin}", property="semantic-margin")
     if not (math.isfinite(args.semantic_rate) and args.semantic_rate >= 0):
         raise InputError(f"--semantic-rate must be a finite number >= 0, got "
@@ -153,6 +157,12 @@ def run(args) -> int:
     foreground = args.foreground_masks
     if foreground is None and not args.no_foreground_masks:
         foreground = find_foreground_masks(args.data)
+    masks = None if args.no_semantic else args.masks
+    refuse_overwriting_inputs(
+        [("-o", args.output)],
+        [("--points", args.points)]
+        + [("the dataset", file)
+           for file in dataset_files(args.data, masks=masks, foreground=foreground)])
     views = load_dataset(args.data, downscale=downscale_for(args.data, args.resolution),
                          masks=None if args.no_semantic else args.masks,
                          segment_missing=not args.no_semantic,

@@ -69,6 +69,7 @@ def run(args) -> int:
     if args.scene is None:
         raise InputError("give the scene to view (only --web opens without one)",
                          property="scene")
+    from csgs_cli.output_guard import refuse_overwriting_inputs
     from csgs_cli.scene_input import load_scene
     from csgs_cli.view_options import parse_size
     from csgs_codec.render.preview import save_screenshot, show_window
@@ -77,6 +78,8 @@ def run(args) -> int:
     if args.max_gaussians < 1:
         raise InputError(f"--max-gaussians must be positive, got {args.max_gaussians}",
                          property="--max-gaussians")
+    refuse_overwriting_inputs([("--screenshot", args.screenshot)],
+                              [("the scene", args.scene), ("--select-mask", args.select_mask)])
     scene = load_scene(args.scene, command=NAME)
     if not isinstance(scene, GaussianScene):  # an anchor scene: shown as its bake
         from csgs_codec.bake.anchor_bake import bake_anchor_scene
@@ -180,19 +183,12 @@ def load_mask(path: str, count: int):
         InputError: the file is missing, not a .npy array, or not (count,) bool.
     """
     import numpy as np
-    from numpy.lib import format as npy
 
-    from csgs_codec.errors import InputError
+    from csgs_codec.untrusted import read_npy
 
-    try:  # the header first, so a file claiming a huge array allocates nothing
-        with open(path, "rb") as fh:
-            version = npy.read_magic(fh)
-            reader = npy.read_array_header_1_0 if version == (1, 0) else \
-                npy.read_array_header_2_0
-            shape, _, dtype = reader(fh)
-            if dtype != np.bool_ or shape != (count,):
-                raise InputError(f"selection mask must be a ({count},) bool array for this "
-                                 f"scene, got {shape} {dtype}", file=path)
-        return np.load(path, allow_pickle=False)
-    except (OSError, ValueError, EOFError) as exc:
-        raise InputError(f"cannot read the selection mask as .npy: {exc}", file=path) from None
+    limit = count + (1 << 16)  # one byte per Gaussian and a header
+    mask = read_npy(path, limit, what="a selection mask", kinds="b")
+    if mask.dtype != np.bool_ or mask.shape != (count,):
+        raise InputError(f"selection mask must be a ({count},) bool array for this scene, got "
+                         f"{mask.shape} {mask.dtype}", file=path)
+    return mask

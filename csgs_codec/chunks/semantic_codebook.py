@@ -20,7 +20,7 @@ from csgs_codec.chunks.semantic_names import names_from_bytes, names_to_bytes
 from csgs_codec.entropy.categorical import decode_categorical, encode_categorical
 from csgs_codec.errors import InputError
 from csgs_codec.format.primitives import ByteReader, ByteWriter
-from csgs_codec.scene.instance_table import MAX_EMBEDDING_DIM, InstanceTable
+from csgs_codec.scene.instance_table import MAX_EMBEDDING_DIM, MAX_EMBEDDING_VALUE, InstanceTable
 
 #: Payload layout version (the only one).
 VERSION = 1
@@ -91,7 +91,13 @@ def write_codebook(out: ByteWriter, names: tuple[str, ...], prototypes: np.ndarr
     if embeddings is None:
         out.varint(0)
     else:
-        half_embeddings = np.asarray(embeddings, np.float32).astype(np.float16)
+        embeddings = np.asarray(embeddings, np.float32)
+        if not np.isfinite(embeddings).all() or (
+                embeddings.size and float(np.abs(embeddings).max()) > MAX_EMBEDDING_VALUE):
+            raise InputError(f"embeddings must be finite with magnitudes up to "
+                             f"{MAX_EMBEDDING_VALUE:g} (binary16)", chunk="SEMC",
+                             property="embeddings")
+        half_embeddings = embeddings.astype(np.float16)
         out.varint(half_embeddings.shape[1])
         out.array(half_embeddings.reshape(-1), "<f2")
         stored = half_embeddings.astype(np.float32)
@@ -130,6 +136,8 @@ def read_codebook(r: ByteReader, count: int, max_channels: int
     if not np.isfinite(prototypes).all():
         raise r.error("a prototype value is not finite", at)
     prototypes = prototypes.reshape(instances, len(names))
+    if len(np.unique(prototypes.view(np.uint32), axis=0)) != instances:
+        raise r.error("two prototype rows are equal (each instance has its own)", at)
     at = r.offset
     width = r.varint("embedding_dim", maximum=1 << 32)
     if width > MAX_EMBEDDING_DIM:

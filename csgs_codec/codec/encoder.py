@@ -50,7 +50,7 @@ from csgs_codec.decisions.presets import (
 )
 from csgs_codec.decisions.view_pruning import decide
 from csgs_codec.entropy.geometry import canonical_order, encode_positions
-from csgs_codec.errors import InputError
+from csgs_codec.errors import InputError, require_type
 from csgs_codec.format import Chunk
 from csgs_codec.format.primitives import ByteWriter
 from csgs_codec.progress import announce, ignore_progress
@@ -194,6 +194,8 @@ class Encoder:
     def encode_with_report(self, scene: GaussianScene) -> EncodeReport:
         """Encode ``scene`` and report the reconstruction, order and bytes per chunk."""
         start = time.perf_counter()
+        require_type(scene, GaussianScene, "scene",
+                     "read a file with csgs_codec.codec.files.read_scene(path) first")
         scene.validate()
         # What the format cannot carry is refused here, before any coding.
         check_encodable(scene, semantic=self.config.semantic != "none")

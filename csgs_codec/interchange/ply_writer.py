@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
 
 from csgs_codec.atomic_write import write_atomically
+from csgs_codec.errors import InputError, require_type
 from csgs_codec.scene.gaussian_scene import GaussianScene
 
 
@@ -17,6 +19,7 @@ def ply_bytes(scene: GaussianScene) -> bytes:
     Order: x y z nx ny nz f_dc_0..2 f_rest_* opacity scale_0..2 rot_0..3, then the semantic
     channels by name (float) and ``label`` (int) when present. Normals are written as zeros.
     """
+    require_type(scene, GaussianScene, "scene")
     scene.validate()
     n = len(scene)
     bands = scene.sh_rest.shape[1]
@@ -46,8 +49,21 @@ def vertex_ply_bytes(n: int, fields: list[tuple[str, np.ndarray]], *,
         fields: (name, (n,) values) written as float properties, in this order.
         labels: optional (n,) integers written last as ``property int label``.
         comment: an optional header comment line.
+
+    Raises:
+        InputError: a property name that is not one word of printable ASCII, a name given
+            twice, or a comment that is not one line of printable ASCII.
     """
     fields = list(fields)
+    seen = set()
+    for name, _ in fields + ([("label", None)] if labels is not None else []):
+        check_property_name(name)
+        if name in seen:
+            raise InputError("property name given twice", property=name)
+        seen.add(name)
+    if comment is not None and not re.fullmatch(r"[ -~]*", comment):
+        raise InputError(f"a PLY comment must be one line of printable ASCII, got {comment!r}",
+                         property="comment")
     types = {name: "<f4" for name, _ in fields}
     if labels is not None:
         fields.append(("label", labels))
@@ -62,6 +78,15 @@ def vertex_ply_bytes(n: int, fields: list[tuple[str, np.ndarray]], *,
               for name, _ in fields]
     lines.append("end_header\n")
     return "\n".join(lines).encode("ascii") + rows.tobytes()
+
+
+def check_property_name(name) -> None:
+    """InputError unless ``name`` can be a PLY property name: one word (1..255 characters)
+    of printable ASCII, no spaces. A newline would end the header line and let the name
+    write header lines of its own; other bytes do not encode."""
+    if not isinstance(name, str) or not re.fullmatch(r"[!-~]{1,255}", name):
+        raise InputError(f"a PLY property name must be one word of printable ASCII (no "
+                         f"spaces), 1..255 characters, got {name!r}")
 
 
 def write_ply(scene: GaussianScene, path: str | Path, inputs=()) -> None:

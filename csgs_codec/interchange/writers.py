@@ -8,7 +8,7 @@ import warnings
 from pathlib import Path
 
 from csgs_codec.atomic_write import write_atomically
-from csgs_codec.errors import DataLossWarning, UnsupportedError
+from csgs_codec.errors import DataLossWarning, UnsupportedError, require_type
 from csgs_codec.scene.gaussian_scene import GaussianScene
 
 
@@ -61,6 +61,7 @@ def writer_for(path: str | os.PathLike):
 def scene_bytes(scene: GaussianScene, suffix: str) -> bytes:
     """The scene encoded as the format of ``suffix`` (e.g. ``".spz"``), warning with a
     :class:`DataLossWarning` about what that format cannot carry."""
+    require_type(scene, GaussianScene, "scene")
     name, write, semantic, sh = writer_for("x" + suffix)
     lost = []
     if not semantic and scene.semantic is not None:

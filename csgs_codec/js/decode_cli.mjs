@@ -24,7 +24,7 @@
  * or non-numeric value) prints one usage line on stderr and exits with 2. --repeat N decodes N times and reports the
  * fastest decode_s (wall) and decode_cpu_s (CPU time of the process), and first_decode_s,
  * the first decode (before the JIT has warmed up); tables are loaded once, outside the
- * timing. --threads N (default 2, as the Python decoder's) decodes on N worker threads
+ * timing. --threads N (1..256, default 2, as the Python decoder's) decodes on N worker threads
  * (parallel_node.mjs); 1 on this thread only. --range-coder picks the WebAssembly loops (the
  * range decoder's and the integer network's; default) or plain JavaScript; same output.
  */
@@ -130,9 +130,15 @@ function valueOf(args, i) {
   return args[i + 1];
 }
 
-/** A positive integer option value, or a UsageError. */
-function countOf(name, text) {
-  if (!/^[0-9]+$/.test(text) || Number(text) < 1) throw new UsageError(`${name} must be a whole number >= 1, got '${text}'`);
+/** Most worker threads --threads may start (each holds its own decoder; 100000 reached 13 GB). */
+const MAX_THREADS = 256;
+
+/** A positive integer option value (at most `most`), or a UsageError. */
+function countOf(name, text, most = Number.MAX_SAFE_INTEGER) {
+  if (!/^[0-9]+$/.test(text) || Number(text) < 1 || Number(text) > most) {
+    const range = most < Number.MAX_SAFE_INTEGER ? `1..${most}` : '>= 1';
+    throw new UsageError(`${name} must be a whole number ${range}, got '${text}'`);
+  }
   return Number(text);
 }
 
@@ -155,7 +161,7 @@ function parseArgs(args) {
     if (arg === '--layers') options.layers = layersOf(valueOf(args, i++));
     else if (arg === '--container') options.container = true;
     else if (arg === '--repeat') options.repeat = countOf(arg, valueOf(args, i++));
-    else if (arg === '--threads') options.threads = countOf(arg, valueOf(args, i++));
+    else if (arg === '--threads') options.threads = countOf(arg, valueOf(args, i++), MAX_THREADS);
     else if (arg === '--range-coder') {
       options.rangeCoder = valueOf(args, i++);
       if (!['wasm', 'js'].includes(options.rangeCoder)) throw new UsageError(`--range-coder takes wasm or js, got '${options.rangeCoder}'`);

@@ -41,7 +41,7 @@ export function halfToFloat(bits) {
 }
 
 /** SEMC (§12.23): (names, N x S features), each Gaussian its instance's prototype. */
-function readCodebook(r, count) {
+export function readCodebook(r, count) {
   const versionAt = r.offset;
   const version = r.u8('version');
   if (version !== 1) throw r.error(`SEMC version ${version} is not 1`, versionAt);
@@ -62,6 +62,13 @@ function readCodebook(r, count) {
   for (let i = 0; i < prototypes.length; i++) {
     prototypes[i] = layout === 0 ? view.getFloat32(4 * i, true) : halfToFloat(view.getUint16(2 * i, true));
     if (!Number.isFinite(prototypes[i])) throw r.error('a prototype value is not finite', at);
+  }
+  const rows = new Set();
+  const bits = new Uint32Array(prototypes.buffer);
+  for (let k = 0; k < instances; k++) {
+    const key = bits.subarray(k * channels, (k + 1) * channels).join(',');
+    if (rows.has(key)) throw r.error('two prototype rows are equal (each instance has its own)', at);
+    rows.add(key);
   }
   at = r.offset;
   const width = r.varint('embedding_dim', 4294967296);

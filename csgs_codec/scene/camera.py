@@ -49,3 +49,33 @@ class Camera:
     def position(self) -> np.ndarray:
         """Camera centre in world coordinates, (3,) float64."""
         return self.camera_to_world[:3, 3].copy()
+
+
+#: Range of a focal length, in units of the image's longer side: 1e-2 is a field of view of
+#: 178 degrees, 1e4 a lens 10,000 times longer than the sensor. Outside it, projections
+#: overflow float32 (fl_x 1e-300) or nothing is visible.
+FOCAL_RANGE = (1e-2, 1e4)
+#: How far outside the image a principal point may lie, in image widths (heights).
+PRINCIPAL_POINT_MARGIN = 10.0
+
+
+def intrinsics_problem(width: int, height: int, fx: float, fy: float, cx: float, cy: float
+                       ) -> tuple[str, str] | None:
+    """(field, what is wrong) for pinhole intrinsics no render can use, or None when sane.
+
+    Focal lengths (pixels) must lie in :data:`FOCAL_RANGE` times the longer image side, and
+    the principal point (pixels) within :data:`PRINCIPAL_POINT_MARGIN` image sizes of the
+    image. Fields are named "fx", "fy", "cx", "cy".
+    """
+    side = max(width, height)
+    low, high = FOCAL_RANGE[0] * side, FOCAL_RANGE[1] * side
+    for field, value in (("fx", fx), ("fy", fy)):
+        if not low <= value <= high:
+            return field, (f"focal length {value:g} px is out of range for a {width}x{height} "
+                           f"image ({low:g}..{high:g} px)")
+    for field, value, size in (("cx", cx, width), ("cy", cy, height)):
+        margin = PRINCIPAL_POINT_MARGIN * size
+        if not -margin <= value <= size + margin:
+            return field, (f"principal point {value:g} px is too far outside the "
+                           f"{width}x{height} image ({-margin:g}..{size + margin:g} px)")
+    return None

@@ -29,7 +29,12 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.errors import CsgsWarning, InputError
-from csgs_codec.scene.camera import MAX_CAMERA_FILE_BYTES, MAX_IMAGE_SIDE, Camera
+from csgs_codec.scene.camera import (
+    MAX_CAMERA_FILE_BYTES,
+    MAX_IMAGE_SIDE,
+    Camera,
+    intrinsics_problem,
+)
 from csgs_codec.scene.colmap_io import is_colmap_path, load_colmap_cameras
 from csgs_codec.scene.llff_io import is_llff_path, load_llff_capture
 from csgs_codec.untrusted import load_json, open_regular, read_regular, refuse_non_regular
@@ -82,6 +87,8 @@ def cameras_from_inria_json(entries: list, *, source: str | Path | None = None
         height = _image_side(entry, "height", source, where)
         fx = _positive(entry, "fx", source, where)
         fy = _positive(entry, "fy", source, where)
+        _check_intrinsics(width, height, (fx, fy, width / 2, height / 2),
+                          ("fx", "fy", "width", "height"), source, where)
         position = _float_array(entry, "position", (3,), source, where)
         rotation = _float_array(entry, "rotation", (3, 3), source, where)
         _check_rotation(rotation, source, f"{where}.rotation")
@@ -116,6 +123,10 @@ def cameras_from_transforms_json(document: dict, *, source: str | Path | None = 
         fx, fy = _transforms_focals(merged, width, height, source, where)
         cx = _finite(merged, "cx", source, where) if "cx" in merged else width / 2
         cy = _finite(merged, "cy", source, where) if "cy" in merged else height / 2
+        focal_names = ("fl_x" if "fl_x" in merged else "camera_angle_x",
+                       "fl_y" if "fl_y" in merged else "camera_angle_y")
+        _check_intrinsics(width, height, (fx, fy, cx, cy), (*focal_names, "cx", "cy"), source,
+                          where)
         distorted |= any(_nonzero_number(merged.get(k)) for k in _DISTORTION_KEYS)
         distorted |= "FISHEYE" in str(merged.get("camera_model", "")).upper()
         camera_to_world = _float_array(frame, "transform_matrix", (4, 4), source, where,
@@ -158,6 +169,18 @@ def _read_json(path: Path):
     except UnicodeDecodeError as err:
         raise InputError(f"cannot read camera file: {err}", file=path) from None
     return load_json(text, file=path, what="the camera file")
+
+
+def _check_intrinsics(width: int, height: int, values: tuple[float, float, float, float],
+                      names: tuple[str, str, str, str], source, where: str) -> None:
+    """InputError naming the file's field when (fx, fy, cx, cy) = ``values`` are not sane
+    for the image (:func:`~csgs_codec.scene.camera.intrinsics_problem`); ``names`` are the
+    file's names of the four."""
+    problem = intrinsics_problem(width, height, *values)
+    if problem is not None:
+        field, message = problem
+        name = names[("fx", "fy", "cx", "cy").index(field)]
+        raise InputError(message, file=source, property=f"{where}.{name}")
 
 
 def _field(entry: dict, key: str, source, where: str):

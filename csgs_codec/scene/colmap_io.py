@@ -17,7 +17,12 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.errors import CsgsWarning, InputError, UnsupportedError
-from csgs_codec.scene.camera import MAX_CAMERA_FILE_BYTES, MAX_IMAGE_SIDE, Camera
+from csgs_codec.scene.camera import (
+    MAX_CAMERA_FILE_BYTES,
+    MAX_IMAGE_SIDE,
+    Camera,
+    intrinsics_problem,
+)
 from csgs_codec.untrusted import read_regular, refuse_non_regular
 
 #: model id -> (name, parameter count, focal layout): "f" = one focal, "fxfy" = two.
@@ -97,6 +102,17 @@ def quaternion_to_matrix(qvec: np.ndarray) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- locating files
+def colmap_model_files(path: Path) -> list[Path]:
+    """The files of the COLMAP model ``path`` names (cameras, images and, when present,
+    points3D); [] when ``path`` is no COLMAP model. Nothing is read."""
+    files = _model_files(Path(path))
+    if files is None:
+        return []
+    cameras_file, images_file, binary = files
+    points = cameras_file.parent / f"points3D{'.bin' if binary else '.txt'}"
+    return [cameras_file, images_file] + ([points] if points.is_file() else [])
+
+
 def _model_files(path: Path) -> tuple[Path, Path, bool] | None:
     """(cameras file, images file, is_binary) for a model folder or one of its files."""
     if path.is_file():
@@ -143,10 +159,14 @@ def _check_intrinsics(camera_id: int, model_id: int, width: int, height: int,
                          file=source, property="WIDTH/HEIGHT")
     if not np.all(np.isfinite(params)):
         raise InputError(f"{where}: non-finite parameter", file=source, property="PARAMS")
-    fx, fy, _, _ = _pinhole(model_id, params)
+    fx, fy, cx, cy = _pinhole(model_id, params)
     if fx <= 0 or fy <= 0:
         raise InputError(f"{where}: focal length must be positive", file=source,
                          property="PARAMS")
+    problem = intrinsics_problem(width, height, fx, fy, cx, cy)
+    if problem is not None:
+        raise InputError(f"{where}: {problem[1]}", file=source,
+                         property=f"PARAMS ({problem[0]})")
 
 
 def _read_cameras_txt(path: Path) -> dict[int, tuple[int, int, int, np.ndarray]]:

@@ -16,6 +16,9 @@ import numpy as np
 
 from csgs_codec.errors import InputError
 
+#: Largest magnitude of an embedding value: binary16's largest finite number, as the
+#: format stores them (FORMAT §12.23); larger ones would decode as infinity.
+MAX_EMBEDDING_VALUE = 65504.0
 #: Longest embedding a table holds (CLIP's are 512 to 1,024 values).
 MAX_EMBEDDING_DIM = 4096
 
@@ -36,8 +39,9 @@ class InstanceTable:
         """Check shapes and values; ``channels`` is the scene's semantic width S.
 
         Raises:
-            InputError: shapes that disagree, non-finite values, repeated prototypes or an
-                embedding longer than :data:`MAX_EMBEDDING_DIM`.
+            InputError: shapes that disagree, non-finite values, repeated prototypes, an
+                embedding longer than :data:`MAX_EMBEDDING_DIM` or a value binary16 cannot
+                hold (:data:`MAX_EMBEDDING_VALUE`).
         """
         p, e = self.prototypes, self.embeddings
         if p.ndim != 2 or e.ndim != 2 or len(p) != len(e) or p.dtype != np.float32 \
@@ -54,6 +58,11 @@ class InstanceTable:
         if not (np.isfinite(p).all() and np.isfinite(e).all()):
             raise InputError("instance table holds a value that is not finite",
                              property="instances")
+        if e.size and float(np.abs(e).max()) > MAX_EMBEDDING_VALUE:
+            row, col = np.unravel_index(int(np.argmax(np.abs(e))), e.shape)
+            raise InputError(f"embedding value {e[row, col]:g} (instance {row}, value {col}) "
+                             f"exceeds binary16's {MAX_EMBEDDING_VALUE:g}, the format's "
+                             "storage (scale the embeddings down)", property="embeddings")
         if len(np.unique(p.view(np.uint32), axis=0)) != len(p):
             raise InputError("instance prototypes repeat", property="instances")
 

@@ -24,7 +24,12 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.errors import InputError
-from csgs_codec.scene.camera import MAX_CAMERA_FILE_BYTES, MAX_IMAGE_SIDE, Camera
+from csgs_codec.scene.camera import (
+    MAX_CAMERA_FILE_BYTES,
+    MAX_IMAGE_SIDE,
+    Camera,
+    intrinsics_problem,
+)
 from csgs_codec.untrusted import open_regular, read_regular
 
 #: The pose file of an LLFF capture.
@@ -236,6 +241,10 @@ def _capture(poses: LlffPoses, source: Path, folder: Path, scale: float,
                              f"{full_width:g}x{full_height:g}: a different aspect ratio",
                              file=folder / name)
         sx, sy = width / full_width, height / full_height
+        problem = intrinsics_problem(width, height, focal * sx, focal * sy, width / 2,
+                                     height / 2)
+        if problem is not None:
+            raise InputError(f"row {row}: {problem[1]}", file=source, property="focal")
         camera_to_world = poses.camera_to_world[row]
         world_to_camera = np.eye(4)
         world_to_camera[:3, :3] = camera_to_world[:3, :3].T

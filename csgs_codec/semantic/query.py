@@ -60,6 +60,9 @@ def query_instances(scene: GaussianScene, embedding: np.ndarray) -> QueryResult:
     if query.shape != (width,) or not np.isfinite(query).all() or not np.any(query):
         raise InputError(f"the query must be a finite, non-zero vector of {width} values, got "
                          f"shape {np.asarray(embedding).shape}", property="embedding")
+    # Cosine similarity ignores scale: bring the largest value to 1 first, so the norm of a
+    # query of 1e300s does not overflow (inf, then NaN scores) nor one of 1e-310s underflow.
+    query = query / np.max(np.abs(query))
     vectors = table.embeddings.astype(np.float64)
     norms = np.linalg.norm(vectors, axis=1)
     scores = np.where(norms > 0, vectors @ query / np.where(norms > 0, norms, 1.0), 0.0)

@@ -23,6 +23,7 @@ and is then not read as instance masks.
 
 from __future__ import annotations
 
+import contextlib
 import numbers
 import warnings
 from dataclasses import dataclass
@@ -33,7 +34,7 @@ import numpy as np
 from csgs_codec.errors import CsgsWarning, InputError
 from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.cameras_io import load_cameras, resize_camera
-from csgs_codec.scene.colmap_io import is_colmap_path
+from csgs_codec.scene.colmap_io import colmap_model_files, is_colmap_path
 from csgs_codec.scene.llff_io import POSES_FILE, is_llff_path, load_llff_capture
 from csgs_codec.train.foreground import (
     composite_foreground,
@@ -48,6 +49,7 @@ from csgs_codec.train.image_files import (
     resize_mask,
 )
 from csgs_codec.train.segmentation import segment_image
+from csgs_codec.train.semantic_batch import MAX_MASKS_PER_VIEW
 from csgs_codec.train.views import TrainingView
 from csgs_codec.untrusted import open_regular
 
@@ -109,7 +111,7 @@ def load_dataset(path: str | Path, *, downscale: float = 1.0, masks: str | Path 
     views = []
     for camera, name in zip(files.cameras, files.names):
         image_path = find_image(files.image_root, name)
-        image = read_image(image_path, background)
+        image = read_image(image_path, background, size=(camera.width, camera.height))
         if (image.shape[1], image.shape[0]) != (camera.width, camera.height):
             raise InputError(f"image is {image.shape[1]}x{image.shape[0]} but its camera is "
                              f"{camera.width}x{camera.height}", file=image_path)
@@ -203,6 +205,30 @@ def find_camera_file(path: Path) -> Path:
                      f"COLMAP model (sparse/0) or an LLFF {POSES_FILE}", file=path)
 
 
+def dataset_files(path: str | Path, *, masks: str | Path | None = None,
+                  images: str | Path | None = None,
+                  foreground: str | Path | None = None) -> list[Path]:
+    """The files :func:`load_dataset` (same arguments) would read: the camera file (or the
+    COLMAP model's files), each view's image, and each instance or foreground mask it finds.
+    Files that are missing are left out (loading reports them); no image is opened.
+
+    Raises:
+        InputError: as :func:`load_dataset` for a missing or malformed camera file.
+    """
+    camera_path = find_camera_file(Path(path))
+    views = _view_files(Path(path), 1.0, images)
+    files = colmap_model_files(camera_path) if camera_path.is_dir() else [camera_path]
+    foreground_root = None if foreground is None else Path(foreground)
+    roots = [(views.image_root, False), (_mask_folder(views.image_root, masks, foreground_root),
+                                         True), (foreground_root, True)]
+    for name in views.names:
+        for root, by_stem in roots:
+            if root is not None:
+                with contextlib.suppress(InputError, OSError, ValueError):
+                    files.append(find_image(root, Path(name).stem if by_stem else name))
+    return files
+
+
 def _image_locations(camera_path: Path, cameras: list[Camera], images: str | Path | None
                      ) -> tuple[Path, list[str]]:
     """(folder the names are relative to, image name per camera)."""
@@ -263,7 +289,14 @@ def _read_view_mask(mask_root: Path, image_name: str, image_path: Path,
     """The (H, W) = ``shape`` instance mask of an image; a mask ``scale`` times the image's
     size (one of a full-size LLFF image read from ``images_N/``) is resized to it."""
     mask_path = _view_mask_path(mask_root, image_name)
-    mask = read_mask(mask_path)
+    # Sizes are checked before decoding, except a full-size LLFF mask's (resized below).
+    mask = read_mask(mask_path, size=(shape[1], shape[0]) if scale == 1.0 else None,
+                     owner=f"its image {image_path}")
+    ids = len(np.unique(mask))
+    if ids > MAX_MASKS_PER_VIEW:
+        raise InputError(f"mask holds {ids:,} ids, more than the {MAX_MASKS_PER_VIEW:,} a "
+                         "view may hold (every pair of a view's masks is compared)",
+                         file=mask_path)
     return fit_mask_to_image(mask, mask_path, image_path, shape, scale)
 
 

@@ -9,6 +9,7 @@ images (the id is ``r << 16 | g << 8 | b``, alpha ignored), as SAM exporters wri
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +20,10 @@ from csgs_codec.errors import InputError
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".JPG", ".JPEG", ".PNG", ".tif", ".tiff", ".webp",
                   ".bmp")
 _GREY_16_MODES = ("I;16", "I;16B", "I;16L", "I;16N")
+#: Most pixels one training image or mask may hold (an 8K frame is 33 M): the size in its
+#: header is checked before any pixel is decoded, so a small file claiming a huge image
+#: never reaches memory.
+MAX_IMAGE_PIXELS = 1 << 27
 
 
 def find_image(folder: Path, name: str) -> Path:
@@ -26,9 +31,17 @@ def find_image(folder: Path, name: str) -> Path:
     when the named file is missing (COLMAP and INRIA files often drop the suffix).
 
     Raises:
-        InputError: naming the expected path when no candidate exists.
+        InputError: naming the expected path when no candidate exists, or when the system
+            refuses the name (longer than the file system allows, say).
     """
     path = folder / name
+    try:
+        return _find_image(path)
+    except OSError as exc:
+        raise InputError(f"cannot look up the image: {exc.strerror or exc}", file=path) from None
+
+
+def _find_image(path: Path) -> Path:
     if path.is_file():
         return path
     for suffix in IMAGE_SUFFIXES:
@@ -41,30 +54,50 @@ def find_image(folder: Path, name: str) -> Path:
     raise InputError("image file not found", file=path)
 
 
-def _open(path: Path):
+def _open(path: Path, size: tuple[int, int] | None = None, what: str = "image",
+          owner: str = "its camera"):
+    """The decoded image at ``path``; its header's (width, height) is checked against
+    ``size`` (and :data:`MAX_IMAGE_PIXELS`) before the pixels are decoded."""
     from PIL import Image
 
     try:
-        handle = Image.open(path)
-        handle.load()
+        with warnings.catch_warnings():  # csgs's own bound below says it better
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            handle = Image.open(path)  # reads the header only
     except (OSError, ValueError, Image.DecompressionBombError) as exc:
         raise InputError(f"cannot read image: {exc}", file=path) from None
+    try:
+        width, height = handle.size
+        if size is not None and (width, height) != tuple(size):
+            raise InputError(f"{what} is {width}x{height} but {owner} is "
+                             f"{size[0]}x{size[1]}", file=path)
+        if width * height > MAX_IMAGE_PIXELS:
+            raise InputError(f"{what} is {width}x{height}, more than the {MAX_IMAGE_PIXELS:,} "
+                             "pixels csgs reads", file=path)
+        handle.load()
+    except (OSError, ValueError, Image.DecompressionBombError) as exc:
+        handle.close()
+        raise InputError(f"cannot read image: {exc}", file=path) from None
+    except BaseException:
+        handle.close()
+        raise
     return handle
 
 
-def read_image(path: str | Path, background: tuple[float, float, float] = (0.0, 0.0, 0.0)
-               ) -> np.ndarray:
+def read_image(path: str | Path, background: tuple[float, float, float] = (0.0, 0.0, 0.0),
+               size: tuple[int, int] | None = None) -> np.ndarray:
     """(H, W, 3) float32 RGB in [0, 1] from an image file.
 
     Args:
         path: the image file.
         background: RGB in [0, 1] behind transparent pixels.
+        size: the (width, height) its camera expects, checked before decoding, or None.
 
     Raises:
-        InputError: naming the file when it cannot be read.
+        InputError: naming the file when it cannot be read or its size is not ``size``.
     """
     path = Path(path)
-    with _open(path) as handle:
+    with _open(path, size) as handle:
         if handle.mode in _GREY_16_MODES or handle.mode == "I":
             grey = np.asarray(handle, dtype=np.float32) / 65535.0
             return np.repeat(np.clip(grey, 0.0, 1.0)[..., None], 3, axis=2)
@@ -78,14 +111,21 @@ def read_image(path: str | Path, background: tuple[float, float, float] = (0.0, 
     return np.ascontiguousarray(pixels[..., :3] * alpha + bg * (1.0 - alpha))
 
 
-def read_mask(path: str | Path) -> np.ndarray:
+def read_mask(path: str | Path, size: tuple[int, int] | None = None,
+              owner: str = "its image") -> np.ndarray:
     """(H, W) int32 instance ids from a mask image (see the module notes for the encodings).
 
+    Args:
+        path: the mask file.
+        size: the (width, height) of its image, checked before decoding, or None.
+        owner: how the size error names the image (e.g. with its path).
+
     Raises:
-        InputError: naming the file when it cannot be read or holds no integer ids.
+        InputError: naming the file when it cannot be read, its size is not ``size``, or it
+            holds no integer ids.
     """
     path = Path(path)
-    with _open(path) as handle:
+    with _open(path, size, "mask", owner) as handle:
         mode = handle.mode
         if mode in ("1", "L", "P", "I") or mode in _GREY_16_MODES:
             ids = np.asarray(handle).astype(np.int64)

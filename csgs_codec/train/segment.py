@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
-from csgs_codec.errors import InputError
+from csgs_codec.errors import InputError, require_type
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.scene.instance_table import MAX_EMBEDDING_DIM, InstanceTable
 from csgs_codec.train import defaults
@@ -48,6 +48,11 @@ from csgs_codec.train.views import TrainingView
 
 #: Feature channel names written by :func:`segment_scene` (channel i is ``ins_feat_i``).
 FEATURE_PREFIX = "ins_feat_"
+#: Most stage-2 steps (the default is 150; a million already takes days).
+MAX_ITERATIONS = 1_000_000
+#: Largest contrastive margin, feature units (the default is 4: features a margin of 1e300
+#: apart overflow float32).
+MAX_MARGIN = 1000.0
 
 
 @dataclass(frozen=True)
@@ -84,6 +89,16 @@ class SegmentSettings:
         if self.dim > 255:
             raise InputError(f"dim must be at most 255 channels, got {self.dim}",
                              property="dim")
+        if self.iterations > MAX_ITERATIONS:
+            raise InputError(f"iterations must be at most {MAX_ITERATIONS:,}, got "
+                             f"{self.iterations:,}", property="iterations")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) \
+                or not 0 <= self.seed < 2**63:
+            raise InputError(f"seed must be an integer in 0..2^63-1, got {self.seed!r}",
+                             property="seed")
+        if isinstance(self.margin, int | float) and self.margin > MAX_MARGIN:
+            raise InputError(f"margin must be at most {MAX_MARGIN:g}, got {self.margin!r}",
+                             property="margin")
         for name in ("margin", "learning_rate"):
             value = getattr(self, name)
             if not (isinstance(value, int | float) and np.isfinite(value) and value > 0):
@@ -138,8 +153,11 @@ def segment_scene(scene: GaussianScene, views: list[TrainingView],
     if not isinstance(scene, GaussianScene) or len(scene) == 0:
         raise InputError("segmenting needs a standard scene with at least one Gaussian",
                          property="scene")
-    if not views:
-        raise InputError("segmenting needs at least one view with a mask", property="views")
+    if not isinstance(views, list | tuple) or not views:
+        raise InputError("segmenting needs a list of at least one view with a mask",
+                         property="views")
+    for view in views:
+        require_type(view, TrainingView, "views")
     report = progress or (lambda phase, done, total: None)
     seconds = {}
     began = time.perf_counter()

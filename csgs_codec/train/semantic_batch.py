@@ -22,6 +22,13 @@ import torch
 
 from csgs_codec.errors import InputError
 
+#: Most mask ids one view may hold: the contrastive term compares every pair of a view's
+#: masks, so its memory grows as the square (12,695 ids in one view took 6.9 GB). SAM gives
+#: tens to hundreds per image, the built-in segmenter at most about 1,000.
+MAX_MASKS_PER_VIEW = 2048
+#: Most same-view mask pairs over all views (each costs about 100 bytes per training step).
+MAX_MASK_PAIRS = 1 << 25
+
 
 class _SparseProduct(torch.autograd.Function):
     """A @ values with the gradient A^T @ grad from a transpose built once."""
@@ -85,7 +92,7 @@ class ViewBatch:
         """
         rows, cols, values, mask_parts, sizes, mask_view, ids = [], [], [], [], [], [], []
         masks_per_view, firsts, seconds, pair_views, pairs_per_view = [], [], [], [], []
-        row_offset = mask_offset = 0
+        row_offset = mask_offset = total_pairs = 0
         for v, (matrix, mask) in enumerate(zip(contributions, masks)):
             pixels = mask.shape[0] * mask.shape[1] if mask.ndim == 2 else -1
             if tuple(matrix.shape) != (pixels, group_count):
@@ -98,6 +105,15 @@ class ViewBatch:
             view_ids, index = torch.unique(flat[kept], return_inverse=True)
             ids.append(view_ids.to(torch.int64))
             count = int(index.max()) + 1 if index.numel() else 0
+            if count > MAX_MASKS_PER_VIEW:
+                raise InputError(f"view {v}: {count:,} mask ids, more than the "
+                                 f"{MAX_MASKS_PER_VIEW:,} a view may hold (every pair of a "
+                                 "view's masks is compared)", index=v, property="masks")
+            total_pairs += count * (count - 1) // 2
+            if total_pairs > MAX_MASK_PAIRS:
+                raise InputError(f"views 0..{v}: {total_pairs:,} pairs of same-view masks, "
+                                 f"more than {MAX_MASK_PAIRS:,}: use fewer views or fewer "
+                                 "masks per view", property="masks")
             mask_of_pixel = torch.full((pixels,), -1, dtype=torch.int64, device=device)
             mask_of_pixel[kept] = index
             coo = matrix.to(device).coalesce()

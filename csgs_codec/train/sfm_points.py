@@ -18,18 +18,22 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from csgs_codec.errors import InputError, UnsupportedError
+from csgs_codec.errors import CsgsWarning, InputError, UnsupportedError
 from csgs_codec.train.views import TrainingView
+from csgs_codec.untrusted import read_npy
 
 #: Fewer triangulated points than this are not worth starting from (random points then).
 MIN_POINTS = 32
 #: Environment variable that moves the cache root.
 CACHE_ENV = "CSGS_CACHE"
+#: Largest cached points file read (10^8 float64 points).
+MAX_CACHE_BYTES = 24 * 10**8
 
 
 @dataclass(frozen=True)
@@ -93,15 +97,33 @@ def triangulate_views(views: list[TrainingView], *, cache: Path | None = None
                                "'csgs[train]'")
     folder = (cache or cache_root()) / views_key(views)
     stored = folder / "points.npy"
-    if stored.is_file():
-        points = np.load(stored, allow_pickle=False)
-        if points.ndim == 2 and points.shape[1] == 3 and np.isfinite(points).all():
-            return SfmPoints(points.astype(np.float64), True, folder)
+    points = cached_points(stored)
+    if points is not None:
+        return SfmPoints(points, True, folder)
     points = _triangulate(views, folder)
     temporary = folder / "points.tmp.npy"
     np.save(temporary, points)
     os.replace(temporary, stored)
     return SfmPoints(points, False, folder)
+
+
+def cached_points(stored: Path) -> np.ndarray | None:
+    """The (P, 3) float64 points cached in ``stored``, or None when there are none. A damaged
+    cache file (truncated by a crash, say) is warned about and ignored, so the caller
+    triangulates again and replaces it, instead of every later run failing on it."""
+    if not stored.is_file():
+        return None
+    try:
+        points = read_npy(stored, MAX_CACHE_BYTES, what="cached SfM points", kinds="f")
+    except InputError as err:
+        reason = err.message
+    else:
+        if points.ndim == 2 and points.shape[1] == 3 and np.isfinite(points).all():
+            return points.astype(np.float64)
+        reason = f"holds {points.shape} values, not finite (P, 3) points"
+    warnings.warn(f"{stored}: damaged triangulation cache ({reason}); triangulating again",
+                  CsgsWarning, stacklevel=3)
+    return None
 
 
 def _pixels(view: TrainingView) -> np.ndarray:

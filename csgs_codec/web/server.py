@@ -18,8 +18,10 @@ Routes:
 Every request must name this server in its Host header (``127.0.0.1:PORT``,
 ``localhost:PORT``, ``[::1]:PORT`` or the address it listens on): any other name gets 403, so
 a web page whose own name was rebound to this machine's address (DNS rebinding) cannot read
-the scene. A request the handler cannot answer gets 400 or 500 with a one-line body, never a
-traceback.
+the scene; a request with two Host headers gets 400. A request the handler cannot answer
+gets 400 or 500 with a one-line body, never a traceback. A connection silent for
+:data:`CONNECTION_TIMEOUT` seconds is closed, and at most :data:`MAX_CONNECTIONS` are served
+at once (a further one is closed unanswered), so idle or piled-up clients hold no threads.
 
 The server counts the scene bytes it sends (:attr:`ViewerServer.scene_bytes_sent`), which is
 how ``benchmarks/web_viewer.py`` measures what the page fetches.
@@ -56,6 +58,11 @@ _RANGE = re.compile(r"bytes=([0-9]*)-([0-9]*)")
 _VERSIONED = re.compile(r"/v/([0-9a-f]{16})(/.*)")
 _FOREVER = "public, max-age=31536000, immutable"
 _NEVER = "no-store"
+#: Seconds a connection may stay silent (before or between requests, or mid-request) before
+#: the server closes it: a client that connects and sends nothing holds no thread for good.
+CONNECTION_TIMEOUT = 30.0
+#: Connections served at once; more are closed at once (each holds a thread).
+MAX_CONNECTIONS = 64
 
 
 def package_tag(root: Path = PACKAGE_ROOT) -> str:
@@ -134,13 +141,19 @@ class ViewerServer(ThreadingHTTPServer):
         host, port: where to listen; port 0 picks a free one.
         package_root: the folder holding ``web/``, ``js/`` and ``entropy/data/`` (default:
             the installed package's; benchmarks/web_viewer.py serves an older page too).
+        connection_timeout: seconds a connection may stay silent before it is closed.
+        max_connections: connections served at once; a further one is closed unanswered.
     """
 
     daemon_threads = True
 
     def __init__(self, scene: str | Path | None, *, layers: tuple[str, ...] = PAGE_LAYERS,
-                 host: str = "127.0.0.1", port: int = 0, package_root: Path = PACKAGE_ROOT):
+                 host: str = "127.0.0.1", port: int = 0, package_root: Path = PACKAGE_ROOT,
+                 connection_timeout: float = CONNECTION_TIMEOUT,
+                 max_connections: int = MAX_CONNECTIONS):
         self.scene = None if scene is None else Path(scene)
+        self.connection_timeout = connection_timeout
+        self._slots = threading.BoundedSemaphore(max_connections)
         self.package_root = Path(package_root).resolve()
         self.layers = tuple(layers)
         self._lock = threading.Lock()
@@ -189,6 +202,24 @@ class ViewerServer(ThreadingHTTPServer):
         print(f"csgs view: request from {client_address[0]} failed: "
               f"{type(error).__name__}: {error}", file=sys.stderr)
 
+    def process_request(self, request, client_address) -> None:
+        """Serve the connection on its own thread when a slot is free, else close it."""
+        if not self._slots.acquire(blocking=False):
+            self.shutdown_request(request)
+            return
+        try:
+            super().process_request(request, client_address)
+        except BaseException:
+            self._slots.release()
+            raise
+
+    def process_request_thread(self, request, client_address) -> None:
+        """As the base class, then give the connection's slot back."""
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self._slots.release()
+
     def start(self) -> ViewerServer:
         """Serve on a background daemon thread; returns self."""
         self._thread = threading.Thread(target=self.serve_forever, name="csgs-web",
@@ -219,8 +250,11 @@ def package_file(url_path: str, root: Path = PACKAGE_ROOT) -> Path | None:
         return None
     if not relative.startswith(SERVED_FOLDERS) or Path(relative).suffix not in CONTENT_TYPES:
         return None
-    path = (root / relative).resolve()
-    if not path.is_relative_to(root) or not path.is_file():
+    try:  # a name the system refuses (too long: ENAMETOOLONG) is a file that is not there
+        path = (root / relative).resolve()
+        if not path.is_relative_to(root) or not path.is_file():
+            return None
+    except OSError:
         return None
     return path
 
@@ -228,6 +262,11 @@ def package_file(url_path: str, root: Path = PACKAGE_ROOT) -> Path | None:
 class _Handler(BaseHTTPRequestHandler):
     server: ViewerServer
     protocol_version = "HTTP/1.1"
+
+    def setup(self) -> None:
+        """As the base class, with the server's per-connection timeout on the socket."""
+        self.timeout = self.server.connection_timeout
+        super().setup()
 
     def log_message(self, format, *args):  # noqa: A002 - the base class's name
         pass  # quiet: the command prints the address once
@@ -253,9 +292,14 @@ class _Handler(BaseHTTPRequestHandler):
             self._fail(HTTPStatus.INTERNAL_SERVER_ERROR, exc, send_body)
 
     def _host_refused(self, send_body: bool) -> bool:
-        """Answer 400 (no Host header) or 403 (a name not this server's) and return True, or
-        return False for a request that names this server."""
-        host = self.headers.get("Host")
+        """Answer 400 (no Host header, or two) or 403 (a name not this server's) and return
+        True, or return False for a request that names this server."""
+        hosts = self.headers.get_all("Host") or []
+        if len(hosts) > 1:
+            self._send_bytes(b"one Host header, please\n", "text/plain", send_body,
+                             status=HTTPStatus.BAD_REQUEST)
+            return True
+        host = hosts[0] if hosts else None
         if host is None:
             self._send_bytes(b"a Host header is required\n", "text/plain", send_body,
                              status=HTTPStatus.BAD_REQUEST)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import io
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -10,7 +12,12 @@ import pytest
 from csgs_codec.errors import CsgsWarning
 from csgs_codec.metrics.attribute_errors import nearest_neighbours
 from csgs_codec.train.initial_points import RANDOM_POINT_COUNT, find_initial_points
-from csgs_codec.train.sfm_points import pycolmap_available, triangulate_views, views_key
+from csgs_codec.train.sfm_points import (
+    cached_points,
+    pycolmap_available,
+    triangulate_views,
+    views_key,
+)
 from csgs_codec.train.synthetic import write_transforms_dataset
 from csgs_codec.train.views import TrainingView
 
@@ -65,3 +72,31 @@ def test_without_views_random_points_come_with_a_warning(capture, tmp_path):
     with pytest.warns(CsgsWarning, match="random points"):
         points, source = find_initial_points(tmp_path, [v.camera for v in views[:2]])
     assert len(points) == RANDOM_POINT_COUNT and "random" in source
+
+
+@needs_pycolmap
+def test_a_damaged_cache_is_warned_about_once_and_triangulated_again(capture, tmp_path):
+    # issue #52 item 9: a truncated points.npy made every later train of the dataset die
+    _, views = capture
+    views = views[:6]  # 6 neighbouring views: enough to triangulate, quick
+    stored = tmp_path / views_key(views) / "points.npy"
+    stored.parent.mkdir(parents=True)
+    buffer = io.BytesIO()
+    np.save(buffer, np.ones((100, 3)))
+    stored.write_bytes(buffer.getvalue()[:200])  # cut short, as by a crash mid-write
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        found = triangulate_views(views, cache=tmp_path)
+    damaged = [w for w in caught if "damaged triangulation cache" in str(w.message)]
+    assert len(damaged) == 1 and str(stored) in str(damaged[0].message)
+    assert not found.cached and len(found.points) > 0
+    again = triangulate_views(views, cache=tmp_path)
+    assert again.cached and np.array_equal(again.points, found.points)
+
+
+@pytest.mark.parametrize("content", [b"", b"\x93NUMPY\x01\x00", b"not numpy at all"])
+def test_cached_points_ignore_a_damaged_file_with_a_warning(tmp_path, content):
+    stored = tmp_path / "points.npy"
+    stored.write_bytes(content)
+    with pytest.warns(CsgsWarning, match="damaged triangulation cache"):
+        assert cached_points(stored) is None
