@@ -184,23 +184,34 @@ def run(args) -> int:
                    "found: 0/255 masks; --no-foreground-masks trains the whole photos")
             print(f"foreground masks: {foreground} ({how}); training the object alone, its "
                   "background transparent")
-    bar = tqdm(total=args.iterations, desc="stage 1", unit="step", disable=args.quiet,
-               leave=False)
+    bars = [tqdm(total=args.iterations, desc="stage 1", unit="step", disable=args.quiet,
+                 leave=False)]
+    stages = ["stage 1"]
 
     def progress(stage, step) -> None:
-        if step is None:
-            bar.set_description(stage, refresh=False)
+        bar = bars[-1]
+        if step is None:  # a stage starts: stage 1 keeps its bar, later ones get their own
+            if stage.startswith("stage 1") or stages[-1] == stage:
+                bar.set_description(stage)
+                return
+            bar.close()
+            stages.append(stage)
+            bars.append(tqdm(total=None, desc=stage, unit="step", disable=args.quiet,
+                             leave=False))
             return
-        bar.set_postfix(loss=f"{step.loss:.4f}", psnr=f"{step.psnr:.1f}",
-                        bpp=f"{step.bits_per_parameter:.2f}", anchors=step.anchors,
-                        refresh=False)
+        if bar.total != step.iterations:
+            bar.reset(total=step.iterations)
+        if not math.isnan(step.loss):
+            bar.set_postfix(loss=f"{step.loss:.4f}", psnr=f"{step.psnr:.1f}",
+                            bpp=f"{step.bits_per_parameter:.2f}", anchors=step.anchors,
+                            refresh=False)
         bar.update(step.step - bar.n)
 
     try:
         result = train_scene(train_views, points, settings, checkpoint_dir=args.checkpoint_dir,
                              resume=args.resume, progress=progress)
     finally:
-        bar.close()
+        bars[-1].close()
     write_atomically(args.output, result.data)
     scene = result.encode.reconstruction
     share = describe_bitstream(result.data)["semantic_share_percent"]  # as csgs info says
