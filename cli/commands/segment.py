@@ -18,6 +18,7 @@ DEFAULT_RESOLUTION = 640
 
 def add_arguments(parser) -> None:
     """Arguments of ``csgs segment``."""
+    from csgs_cli.dataset_input import add_builtin_segmenter_argument
     from csgs_codec.decisions.presets import DEFAULT_QUALITY, QUALITIES
     from csgs_codec.train import defaults
 
@@ -27,9 +28,12 @@ def add_arguments(parser) -> None:
                         help="the capture: a folder with transforms.json, cameras.json "
                              "(+ images/) or a COLMAP model, in the scene's world frame")
     parser.add_argument("--masks", metavar="DIR",
-                        help="instance masks, one integer label image per view named after "
-                             "its image (e.g. SAM's, as PNG); default: masks/ beside the "
-                             "images, else the built-in segmenter (weaker)")
+                        help="instance masks, one integer id image per view named after "
+                             "its image (encodings, and SAM's per-object masks: "
+                             "docs/masks.md, 'csgs combine-masks'); default: masks/ in or "
+                             "beside the image folder, else the built-in segmenter (weaker, "
+                             "with a warning)")
+    add_builtin_segmenter_argument(parser)
     parser.add_argument("--mask-embeddings", metavar="DIR",
                         help="one .npy per view named after its image, row i an embedding "
                              "of mask id i (e.g. CLIP image embeddings of the masks): the "
@@ -61,7 +65,7 @@ def run(args) -> int:
     import torch
     from tqdm import tqdm
 
-    from csgs_cli.dataset_input import check_output_folder, downscale_for
+    from csgs_cli.dataset_input import check_output_folder, downscale_for, mask_fallback
     from csgs_cli.output_guard import refuse_overwriting_inputs
     from csgs_cli.scene_input import load_scene
     from csgs_codec.atomic_write import check_output, write_atomically
@@ -88,8 +92,9 @@ def run(args) -> int:
         + [("--images", file) for file in dataset_files(args.images, masks=args.masks)])
     check_output(output, [args.scene])
     scene = load_scene(args.scene, command=NAME, layers="color")
-    views = load_dataset(args.images, downscale=downscale_for(args.images, args.resolution),
-                         masks=args.masks, segment_missing=True)
+    with mask_fallback(args):
+        views = load_dataset(args.images, downscale=downscale_for(args.images, args.resolution),
+                             masks=args.masks, segment_missing=True)
     embeddings = None
     if args.mask_embeddings:
         if suffix != ".csgs":
