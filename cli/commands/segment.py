@@ -1,6 +1,7 @@
-"""``csgs segment SCENE --images DATA [--masks DIR] -o OUT.ply|OUT.csgs``: give every Gaussian
-of a trained 3DGS scene an instance (semantic feature), from its capture's cameras and
-instance masks, and write it as a PLY with ``ins_feat_*`` properties or as a .csgs."""
+"""``csgs segment SCENE --images DATA [--cameras FILE] [--masks DIR] -o OUT.ply|OUT.csgs``: give
+every Gaussian of a trained 3DGS scene an instance (semantic feature), from its capture's
+cameras and instance masks, and write it as a PLY with ``ins_feat_*`` properties or as a
+.csgs."""
 
 from __future__ import annotations
 
@@ -26,7 +27,13 @@ def add_arguments(parser) -> None:
                                       "or a .csgs of a standard scene")
     parser.add_argument("--images", required=True, metavar="DATA",
                         help="the capture: a folder with transforms.json, cameras.json "
-                             "(+ images/) or a COLMAP model, in the scene's world frame")
+                             "(+ images/) or a COLMAP model, in the scene's world frame; "
+                             "with --cameras, the folder of the images")
+    parser.add_argument("--cameras", metavar="FILE",
+                        help="the cameras of the images in --images (transforms.json, INRIA "
+                             "cameras.json or a COLMAP model), each image found under the "
+                             "name the file gives it, any image suffix: e.g. the views "
+                             "'csgs render SCENE --cameras FILE -o DIR' wrote")
     parser.add_argument("--masks", metavar="DIR",
                         help="instance masks, one integer id image per view named after "
                              "its image (encodings, and SAM's per-object masks: "
@@ -86,15 +93,19 @@ def run(args) -> int:
     except InputError as error:
         raise InputError(error.message, property=f"--{error.property}") from None
     check_output_folder(output)
+    # With --cameras, --images is the folder the cameras' image names are relative to.
+    data, images = (args.cameras, args.images) if args.cameras else (args.images, None)
     refuse_overwriting_inputs(
         [("-o", output)],
-        [("the scene", args.scene), ("--mask-embeddings", args.mask_embeddings)]
-        + [("--images", file) for file in dataset_files(args.images, masks=args.masks)])
+        [("the scene", args.scene), ("--mask-embeddings", args.mask_embeddings),
+         ("--cameras", args.cameras)]
+        + [("--images", file) for file in dataset_files(data, masks=args.masks,
+                                                        images=images)])
     check_output(output, [args.scene])
     scene = load_scene(args.scene, command=NAME, layers="color")
     with mask_fallback(args):
-        views = load_dataset(args.images, downscale=downscale_for(args.images, args.resolution),
-                             masks=args.masks, segment_missing=True)
+        views = load_dataset(data, downscale=downscale_for(data, args.resolution),
+                             masks=args.masks, images=images, segment_missing=True)
     embeddings = None
     if args.mask_embeddings:
         if suffix != ".csgs":

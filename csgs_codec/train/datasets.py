@@ -76,9 +76,9 @@ def load_dataset(path: str | Path, *, downscale: float = 1.0, masks: str | Path 
             scaled to match); images are area-averaged, masks take the nearest id.
         masks: folder of instance-id images; default ``masks/`` beside the images when present
             (unless it is the ``foreground`` folder).
-        images: folder of the images for INRIA, COLMAP and LLFF layouts (default: found as
-            described in the module notes); ignored for transforms.json, whose paths are
-            explicit.
+        images: folder of the images (default: found as described in the module notes);
+            a transforms.json's ``file_path`` values are then relative to it instead of to
+            the JSON file's folder (renders of the cameras made elsewhere, say).
         segment_missing: without a masks folder, make masks with the built-in segmenter
             (warning that quality depends on masks); False leaves ``mask`` None.
         background: RGB behind transparent image pixels, and behind the object where
@@ -243,7 +243,7 @@ def _image_locations(camera_path: Path, cameras: list[Camera], images: str | Pat
                      ) -> tuple[Path, list[str]]:
     """(folder the names are relative to, image name per camera)."""
     names = [camera.name for camera in cameras]
-    if _is_transforms_file(camera_path):
+    if _is_transforms_file(camera_path) and images is None:
         return camera_path.parent, names
     if images is not None:
         folder = Path(images)
