@@ -144,7 +144,7 @@ def _fallback_message(path, image_root: Path, foreground_root: Path | None) -> s
     why = (f"no instance masks: none given and no folder {looked}" if foreground_root is None
            else f"no instance masks besides the foreground masks in '{foreground_root}'")
     return (f"{path}: {why}; making them with the built-in graph segmenter, which is much "
-            "weaker than SAM-style masks (mIoU often 0.1-0.4). Give your masks with --masks DIR "
+            "weaker than SAM-style masks. Give your masks with --masks DIR "
             "(docs/masks.md), or pass --builtin-segmenter to use the built-in one without "
             "this warning")
 
