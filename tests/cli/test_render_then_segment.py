@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import json
 from types import SimpleNamespace
 
 import numpy as np
@@ -25,13 +26,30 @@ def capture(tmp_path_factory):
     return dataset, folder
 
 
-def test_segment_finds_what_render_wrote_with_the_same_cameras_file(capture, tmp_path):
+def _inria_cameras(dataset, path):
+    """The capture's cameras as an INRIA cameras.json naming each image by its stem."""
+    entries = []
+    for i, view in enumerate(dataset.views):
+        camera, pose = view.camera, view.camera.camera_to_world
+        entries.append({"id": i, "img_name": view.name.split("/")[-1].removesuffix(".png"),
+                        "width": camera.width, "height": camera.height, "fx": camera.fx,
+                        "fy": camera.fy, "position": pose[:3, 3].tolist(),
+                        "rotation": pose[:3, :3].tolist()})
+    path.write_text(json.dumps(entries))
+    return path
+
+
+@pytest.mark.parametrize("layout", ["transforms", "inria"])
+def test_segment_finds_what_render_wrote_with_the_same_cameras_file(capture, tmp_path, layout):
     dataset, folder = capture
-    cameras, renders = folder / "transforms.json", tmp_path / "renders"
+    renders = tmp_path / "renders"
+    cameras = (folder / "transforms.json" if layout == "transforms"
+               else _inria_cameras(dataset, tmp_path / "cameras.json"))
     assert main(["render", "-q", str(folder / "scene.ply"), "--cameras", str(cameras),
                  "-o", str(renders)]) == 0
     written = sorted(p.relative_to(renders).as_posix() for p in renders.rglob("*.png"))
-    assert written == [f"images/view_{i:03d}.png" for i in range(6)]
+    prefix = "images/" if layout == "transforms" else ""
+    assert written == [f"{prefix}view_{i:03d}.png" for i in range(6)]
     out = tmp_path / "segmented.ply"
     assert main(["segment", "-q", str(folder / "scene.ply"), "--images", str(renders),
                  "--cameras", str(cameras), "--masks", str(folder / "masks"), "-o", str(out),
