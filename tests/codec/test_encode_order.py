@@ -46,3 +46,18 @@ def test_order_maps_each_decoded_gaussian_to_its_input_row(quality, tile_size, p
         assert 0 < result.pruned == len(scene) - len(decoded)
     check_order(scene, result.order, decoded, quality, prune)
 
+
+
+@pytest.mark.slow  # view pruning's probe renders: about 10 s on 2 cores
+def test_order_composes_view_pruning_with_opacity_pruning():
+    scene = random_scene(1400, sh_degree=0, labels=True, seed=7)
+    result = Encoder(quality=5, prune_opacity=0.1, view_pruning=True, hyperprior=False,
+                     step_allocation=False).encode_with_report(scene)
+    decoded = Decoder().decode(result.data, layers="color,semantic")
+    assert result.view_pruned > 0 and len(decoded) == 1400 - result.pruned - result.view_pruned
+    kept = np.flatnonzero(_opacity(scene) >= 0.1)
+    assert np.isin(result.order, kept).all() and len(np.unique(result.order)) == len(decoded)
+    cell = PositionGrid.fit(scene.positions[kept], preset(5).position_bits).cell
+    error = np.abs(decoded.positions.astype(np.float64) - scene.positions[result.order]).max()
+    assert error <= 0.5 * cell * 1.001 + 1e-7
+    assert np.array_equal(decoded.labels, scene.labels[result.order])
