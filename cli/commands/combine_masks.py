@@ -46,6 +46,6 @@ def run(args) -> int:
     for view, target in zip(views, targets):
         write_atomically(target, id_png(combine_object_masks(view.files)))
         most = max(most, len(view.files))
-    print(f"{output}: {len(views)} id masks, up to {most} objects a view; give them to "
+    print(f"{output}: {len(views)} id mask(s), up to {most} objects a view; give them to "
           f"'csgs segment ... --masks {output} --ignore-id 0' (0: no object)")
     return 0

@@ -3,12 +3,12 @@ generator writes one such folder per image).
 
 Layout read: ``SOURCE/<view stem>/<object>.<image suffix>``, one folder per view named after
 its image's stem, one file per object in it; a pixel belongs to an object where its mask is
-non-zero (0/255 grey, 0/1, palette or RGB alike). Other files (SAM's ``metadata.csv``) are
-ignored. Objects are numbered 1, 2, ... in natural file-name order (``2.png`` before
-``10.png``); id 0 is a pixel no object covers. Where objects overlap, the smaller object
-(fewer pixels) wins, since SAM's masks nest parts inside wholes; of two the same size, the
-later one. Written: ``TARGET/<view stem>.png``, 8-bit grey when every id is at most 255,
-else 16-bit (docs/masks.md).
+non-zero (0/255 grey, 0/1, palette or RGB alike; a mask of more than 0 and one other value
+is refused). Other files (SAM's ``metadata.csv``) are ignored. Objects are numbered 1, 2,
+... in natural file-name order (``2.png`` before ``10.png``); id 0 is a pixel no object
+covers. Where objects overlap, the smaller object (fewer pixels) wins, since SAM's masks
+nest parts inside wholes; of two the same size, the later one. Written: ``TARGET/<view
+stem>.png``, 8-bit grey when every id is at most 255, else 16-bit (docs/masks.md).
 """
 
 from __future__ import annotations
@@ -67,21 +67,32 @@ def combine_object_masks(files: list[Path]) -> np.ndarray:
     none; overlaps as in the module notes).
 
     Raises:
-        InputError: an unreadable mask, or one whose size differs from the first (naming
-            both files and sizes).
+        InputError: an unreadable mask, one that is not binary (0 and one other value), or
+            one whose size differs from the first (naming both files and sizes).
     """
-    first = read_mask(files[0]) != 0
+    first = _object(files[0], read_mask(files[0]))
     objects = [first]
     for path in files[1:]:
         mask = read_mask(path, size=(first.shape[1], first.shape[0]),
                          owner=f"the view's first object mask {files[0]}")
-        objects.append(mask != 0)
+        objects.append(_object(path, mask))
     areas = [int(obj.sum()) for obj in objects]
     ids = np.zeros(first.shape, dtype=np.int32)
     # Paint largest first so smaller objects land on top; equal areas keep file order.
     for k in sorted(range(len(objects)), key=lambda k: (-areas[k], k)):
         ids[objects[k]] = k + 1
     return ids
+
+
+def _object(path: Path, mask: np.ndarray) -> np.ndarray:
+    """The (H, W) bool pixels of one object's mask (non-zero), refusing a mask of more than
+    two values: a photo or an id image is no one object's mask."""
+    values = np.unique(mask)
+    if len(values) > 2 or (len(values) == 2 and values[0] != 0):
+        raise InputError(f"not a binary object mask: {len(values)} distinct values "
+                         f"{values[:4].tolist()}{'...' if len(values) > 4 else ''} (expected "
+                         "0 and one other value)", file=path)
+    return mask != 0
 
 
 def id_png(ids: np.ndarray) -> bytes:

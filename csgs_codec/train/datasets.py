@@ -140,7 +140,8 @@ def load_dataset(path: str | Path, *, downscale: float = 1.0, masks: str | Path 
 def _fallback_message(path, image_root: Path, foreground_root: Path | None) -> str:
     """What the built-in segmenter's warning says: where masks were looked for, how to give
     them, how to accept the fallback."""
-    looked = " or ".join(f"'{folder}'" for folder in mask_folder_candidates(image_root))
+    looked = " or ".join(f"'{folder.absolute()}'"
+                         for folder in mask_folder_candidates(image_root))
     why = (f"no instance masks: none given and no folder {looked}" if foreground_root is None
            else f"no instance masks besides the foreground masks in '{foreground_root}'")
     return (f"{path}: {why}; making them with the built-in graph segmenter, which is much "

@@ -62,6 +62,16 @@ def test_mismatched_sizes_are_refused_naming_both_files(tmp_path, capsys):
     assert err.count("\n") == 1 and not (tmp_path / "m" / "v.png").exists()
 
 
+def test_a_mask_that_is_no_single_object_is_refused(tmp_path, capsys):
+    """A photo or an id image in a view folder (the capture folder given by mistake)."""
+    _binary(tmp_path / "sam" / "v" / "0.png", np.ones((4, 4), dtype=bool))
+    Image.fromarray(np.arange(16, dtype=np.uint8).reshape(4, 4)).save(
+        tmp_path / "sam" / "v" / "1.png")
+    assert main(["combine-masks", "-q", str(tmp_path / "sam"), "-o", str(tmp_path / "m")]) == 2
+    err = capsys.readouterr().err
+    assert "not a binary object mask: 16 distinct values" in err and "1.png" in err
+
+
 @pytest.mark.parametrize("layout", ["missing", "empty"])
 def test_a_folder_without_view_folders_is_refused(tmp_path, capsys, layout):
     source = tmp_path / "sam"
