@@ -185,11 +185,21 @@ export function decodeSemantic(container, header, scene, family) {
     scene.instances = codebook.instances;
     ids = { ids: codebook.ids, instanceCount: codebook.instanceCount };
   }
+  const labels = readAnyLabels(container, header.count, family, ids);
+  if (labels) scene.labels = labels;
+}
+
+/** The ``count`` int32 labels of the container's SEML or SEMR (a tile's Gaussians or an
+ * anchor scene's anchors), or null when it holds neither; ``ids`` = { ids, instanceCount }
+ * of the tile's SEMC, or null. */
+export function readAnyLabels(container, count, family, ids = null) {
+  const present = new Set(container.toc.entries.map((e) => e.type));
   if (present.has('SEMR')) {
     const [data, offset] = single(container, 'SEMR');
     if (present.has('SEML')) throw new FormatError('a tile holds both SEML and SEMR', { chunk: 'SEMR', offset });
-    scene.labels = readLabelRuns(new ByteReader(data, offset, 'SEMR'), header.count, ids);
-  } else if (present.has('SEML')) scene.labels = readLabels(container, header.count, family);
+    return readLabelRuns(new ByteReader(data, offset, 'SEMR'), count, ids);
+  }
+  return present.has('SEML') ? readLabels(container, count, family) : null;
 }
 
 /** The ``count`` int32 labels of the container's SEML (§12.17; a tile's Gaussians or an
