@@ -197,3 +197,27 @@ def test_a_tile_with_both_seml_and_semr_is_invalid():
 
     with pytest.raises(FormatError, match="both SEML and SEMR"):
         read_labels(Container(), 2)
+
+
+def test_tiles_of_one_file_may_pick_different_codings():
+    """§12.22: each tile keeps its own smaller coding; the file decodes every label."""
+    scene = labelled_blob_scene(n_objects=4, per_object=400)
+    scene.semantic = scene.semantic_names = None
+    east = scene.positions[:, 0] > np.rint(scene.positions[:, 0])
+    scene.labels = (2 * scene.labels + east).astype(np.int32)  # two runs-friendly halves
+    noisy = scene.labels < 2  # blob 0: labels with no runs, where SEML is smaller
+    scene.labels[noisy] = np.random.default_rng(1).integers(0, 7, int(noisy.sum()))
+    data = Encoder(quality=3, tile_size=400).encode(scene)
+    codes = {e.tile: e.type for e in read_layers(data, "semantic").toc
+             if e.type in ("SEML", "SEMR")}
+    assert sorted(codes.values()) == ["SEML", "SEMR", "SEMR", "SEMR"]
+    decoded = Decoder().decode(data, layers="color,semantic")
+    assert np.array_equal(np.bincount(decoded.labels), np.bincount(scene.labels))
+    # Every Gaussian keeps its own label: outside blob 0 they follow the decoded positions
+    # (away from a blob's centre line, which quantized positions may cross).
+    cell = np.rint(decoded.positions[:, :2]).astype(np.int64)
+    blob = cell[:, 0] + 2 * cell[:, 1]
+    offset = decoded.positions[:, 0] - cell[:, 0]
+    clear = (blob > 0) & (np.abs(offset) > 0.02)
+    assert clear.sum() > 1000
+    assert np.array_equal(decoded.labels[clear], (2 * blob + (offset > 0))[clear])
