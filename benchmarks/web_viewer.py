@@ -4,6 +4,7 @@ bytes the page fetches with ``--layers color`` against the whole file.
 
     .venv/bin/python benchmarks/web_viewer.py [--quality 5] [--rounds 3] [--size 800x600]
         [--scenes donut,playbot,objects] [--baseline REF] [--lanes N] [--out FILE]
+        [--anchor-files trained.csgs,...]
 
 Scenes: ``donut`` (samples/donut.ply, the sample), ``playbot`` (../shared/data/scenes, 248k
 Gaussians, SH degree 2) and ``objects`` (a synthetic labelled scene, 5 objects x 4,000
@@ -19,6 +20,10 @@ splats' base color where SH bands are still decoding), ``color_frame_ms`` (the f
 with the whole color layer), ``color_decode_ms`` (the decode of base + color layers until
 the first frame's data) and the page's timeline (when its decode worker started, read the
 TOC and the color layer, started and ended decoding; when the renderer was ready).
+
+``--anchor-files``: also open these anchor files (what ``csgs train`` writes); their
+``first_frame_ms`` is the frame of the page's preview bake (4 view origins, base color) and
+``color_frame_ms`` that of the reference bake (every stored origin, SH degree 3).
 
 ``--baseline REF``: also open, in the same run, the page as it was at git commit REF (its
 web/, js/ and entropy/data/ folders, served by today's server) on the same scenes encoded
@@ -129,7 +134,7 @@ def measure_file(name: str, source: str, encode: str, path: Path, page: str,
     decode = [r["colorDecodeMs"] for r in rows]
     timeline = {key: _median([r.get("timeline", {}).get(key) for r in rows])
                 for key in ("workerStarted", "tocRead", "colorBytesRead", "decodeStarted",
-                            "colorDecoded", "rendererReady")}
+                            "anchorsDecoded", "colorDecoded", "rendererReady")}
     semantic = [r["semanticMs"] for r in rows if r["semanticMs"] is not None]
     return {
         "scene": name, "source": source, "full_precision_scene": name in FULL_PRECISION,
@@ -179,6 +184,23 @@ def measure(name: str, quality: int, rounds: int, size: str, browser, tmp: Path,
     return out
 
 
+def measure_anchor_file(path: Path, rounds: int, size: str, browser) -> dict:
+    """The row of a trained anchor file (what ``csgs train`` writes): the page decodes the
+    anchors, draws a preview bake, then the reference bake (as many splats as Python's)."""
+    from csgs_codec.bake.anchor_bake import bake_anchor_scene
+    from csgs_codec.codec.anchor_decoder import AnchorDecoder
+
+    anchors = AnchorDecoder().decode(path)
+    baked = bake_anchor_scene(anchors)
+    row = measure_file(path.stem, str(path), "csgs train (anchor scene)", path, "current",
+                       PACKAGE_ROOT, rounds, size, browser, len(baked),
+                       baked.sh_degree_stored, None)
+    row.update({"anchors": len(anchors), "anchor_slots": anchors.active_offsets()})
+    print(f"{path.name} [anchors]: first frame {row['first_frame_ms']} ms, "
+          f"baked {row['color_frame_ms']} ms", file=sys.stderr)
+    return row
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenes", default="donut,playbot,objects")
@@ -191,6 +213,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="today's page decodes on this many Web Workers (default: its own "
                              "choice, one per core but one, up to 4; 0: in its decode "
                              "worker)")
+    parser.add_argument("--anchor-files", default="",
+                        help="comma-separated anchor .csgs files (csgs train output) to open "
+                             "too")
     parser.add_argument("--out")
     args = parser.parse_args(argv)
     reason = unavailable_reason()
@@ -206,9 +231,12 @@ def main(argv: list[str] | None = None) -> int:
             baseline = None
             if args.baseline:
                 baseline = (args.baseline, baseline_package(args.baseline, Path(tmp) / "base"))
-            for name in args.scenes.split(","):
+            for name in filter(None, args.scenes.split(",")):
                 results += measure(name.strip(), args.quality, args.rounds, args.size, browser,
                                    Path(tmp), baseline, args.lanes)
+            for name in filter(None, args.anchor_files.split(",")):
+                results.append(measure_anchor_file(Path(name.strip()), args.rounds,
+                                                   args.size, browser))
     finally:
         browser.quit()
     commit = subprocess.run(["git", "-C", str(REPO), "describe", "--always", "--dirty"],

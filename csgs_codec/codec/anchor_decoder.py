@@ -34,6 +34,16 @@ from csgs_codec.errors import FormatError
 from csgs_codec.format import read_layers
 from csgs_codec.scene.anchor_scene import AnchorScene
 
+#: Decoder limit against decompression bombs (FORMAT §10.1): a file may declare at most this
+#: many anchor values (M x (F + 3K + 6)) per byte present. Trained files hold 2-3 values a
+#: byte; the encoder pads a file that codes smaller with a ``fill`` chunk.
+MAX_ANCHOR_VALUES_PER_BYTE = 256
+
+
+def anchor_values(header: AnchorHeader) -> int:
+    """M x (F + 3K + 6): the values the header's anchors carry (FORMAT §10.1)."""
+    return header.count * (header.feat_dim + 3 * header.n_offsets + 6)
+
 
 def is_anchor_file(source) -> bool:
     """True when the container's TOC lists an ``ANCH`` chunk (reads header and TOC only)."""
@@ -41,7 +51,15 @@ def is_anchor_file(source) -> bool:
 
 
 class AnchorDecoder:
-    """Decodes anchor-scene .csgs bitstreams written by ``AnchorEncoder``."""
+    """Decodes anchor-scene .csgs bitstreams written by ``AnchorEncoder``.
+
+    Args:
+        max_values_per_byte: refuse files whose anchors carry more values (M x (F + 3K + 6))
+            per byte present than this (FORMAT §10.1).
+    """
+
+    def __init__(self, *, max_values_per_byte: int = MAX_ANCHOR_VALUES_PER_BYTE) -> None:
+        self.max_values_per_byte = max_values_per_byte
 
     def decode(self, source, layers="color") -> AnchorScene:
         """Decode ``source`` (bytes, a path or a seekable binary file).
@@ -69,7 +87,15 @@ class AnchorDecoder:
             raise
 
     def _decode(self, container, wanted: set[str]) -> AnchorScene:
-        header = AnchorHeader.from_bytes(*container.single_payload("ANCH"))
+        anch, anch_offset = container.single_payload("ANCH")
+        header = AnchorHeader.from_bytes(anch, anch_offset)
+        limit = self.max_values_per_byte * container.source_size
+        if anchor_values(header) > limit:
+            raise FormatError(
+                f"declares {header.count} anchors ({anchor_values(header)} values) in a "
+                f"{container.source_size}-byte file, above this decoder's limit of {limit} "
+                f"values (max_values_per_byte={self.max_values_per_byte})", chunk="ANCH",
+                offset=anch_offset)
         m, f, k = header.count, header.feat_dim, header.n_offsets
         data, offset = container.single_payload("GEOM")
         try:

@@ -44,7 +44,8 @@ from csgs_codec.chunks.anchor_streams import (
 from csgs_codec.chunks.semantic import smallest_label_chunk
 from csgs_codec.chunks.semantic_names import MAX_SEMANTIC_CHANNELS
 from csgs_codec.chunks.view_origins import even_sample, view_origins_payload
-from csgs_codec.codec.encoder_checks import check_semantic_names
+from csgs_codec.codec.anchor_decoder import MAX_ANCHOR_VALUES_PER_BYTE, anchor_values
+from csgs_codec.codec.encoder_checks import check_semantic_names, padded_container
 from csgs_codec.codec.encoder_config import SEMANTIC_MODES
 from csgs_codec.decisions.presets import (
     ANCHOR_BASE_STEPS,
@@ -55,7 +56,8 @@ from csgs_codec.decisions.presets import (
 from csgs_codec.entropy.anchor_attributes import hyper_params, step_values
 from csgs_codec.entropy.geometry import canonical_order, encode_positions
 from csgs_codec.errors import InputError
-from csgs_codec.format import Chunk, write_container
+from csgs_codec.format import Chunk
+from csgs_codec.format.layout import Layer
 from csgs_codec.model.anchor_hyperprior import (
     FAST_FIT,
     AttributeTarget,
@@ -234,7 +236,8 @@ class AnchorEncoder:
             fit_start = time.perf_counter()
             steps.update(self._semantic(s, cells, pos_bits, recon, chunks))
             fit_seconds += time.perf_counter() - fit_start
-        data = write_container(chunks)
+        data = padded_container(chunks, -(-anchor_values(header) // MAX_ANCHOR_VALUES_PER_BYTE),
+                                through=Layer.COLOR)
         return AnchorEncodeReport(data, recon, order.astype(np.int64), steps,
                                   {c.type: len(c.payload) for c in chunks},
                                   time.perf_counter() - start, fit_seconds)

@@ -108,10 +108,23 @@ def decodable_container(chunks: list[Chunk], count: int) -> bytes:
     Gaussians: at least ceil(count / 64) bytes (FORMAT §10.1). Where the coded scene is
     smaller (many identical Gaussians), a ``fill`` chunk is inserted into ``chunks`` at the
     end of the base layer, so every prefix that holds the base layer is large enough."""
+    return padded_container(chunks, -(-count // MAX_GAUSSIANS_PER_BYTE))
+
+
+def padded_container(chunks: list[Chunk], needed: int, through: Layer = Layer.BASE) -> bytes:
+    """The container of ``chunks``, whose every prefix holding the layers up to ``through``
+    is at least ``needed`` bytes long: a ``fill`` chunk is inserted into ``chunks`` at the end
+    of the base layer where it is shorter (FORMAT §10.1)."""
+    from csgs_codec.format.source import open_source
+    from csgs_codec.format.toc import read_toc
+
     data = write_container(chunks)
-    needed = -(-count // MAX_GAUSSIANS_PER_BYTE)
-    if len(data) >= needed:
+    toc = read_toc(open_source(data))
+    prefix = max([toc.header_and_toc_size] + [e.end for e in toc.entries if e.layer <= through])
+    if through == Layer.BASE:
+        prefix = len(data)  # the Gaussian scenes' rule: the whole file (FORMAT §10.1)
+    if prefix >= needed:
         return data
     at = sum(1 for c in chunks if c.layer == Layer.BASE)
-    chunks.insert(at, Chunk("fill", Layer.BASE, bytes(needed - len(data))))
+    chunks.insert(at, Chunk("fill", Layer.BASE, bytes(needed - prefix)))
     return write_container(chunks)  # the fill's frame and TOC entry only add bytes

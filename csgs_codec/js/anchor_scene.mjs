@@ -21,6 +21,9 @@ import { forwardIntNet, parseIntNet } from './intnet.mjs';
 import { readAnyLabels, readNames } from './semantic_layer.mjs';
 
 const MAX_SEMANTIC_CHANNELS = 4096;
+/** Most anchor values (M x (F + 3K + 6)) a file may declare per byte present (§10.1), as
+ * the reference decoder's limit. */
+const MAX_ANCHOR_VALUES_PER_BYTE = 256;
 
 /** Whether the file's TOC lists an ANCH chunk (reads the header and TOC only; a FormatError
  * when they are invalid). */
@@ -123,9 +126,15 @@ export async function decodeAnchorScene(data, options) {
   const { family, sine } = options.tables;
   const layers = new Set(['color', ...(options.layers || [])]);
   const container = readLayers(data, layers);
-  const header = readAnchorHeader(...single(container, 'ANCH'));
+  const [anch, anchOffset] = single(container, 'ANCH');
+  const header = readAnchorHeader(anch, anchOffset);
   const m = header.count;
   const k = header.nOffsets;
+  const values = m * (header.featDim + 3 * k + 6);
+  const limit = (options.maxValuesPerByte ?? MAX_ANCHOR_VALUES_PER_BYTE) * data.length;
+  if (values > limit) {
+    throw new FormatError(`declares ${m} anchors (${values} values) in a ${data.length}-byte file, above this decoder's limit of ${limit} values`, { chunk: 'ANCH', offset: anchOffset });
+  }
   const cells = anchorCells(container, header);
   const positions = anchorPositions(cells, header);
   const posBits = Math.max(header.gridBits, 1);

@@ -1,4 +1,4 @@
-"""Scene vectors of ``SEMR`` (FORMAT §12.25, spec revision 26): labels coded as runs, and as a
+"""Scene vectors of ``SEMR`` (FORMAT §12.25, spec revision 27): labels coded as runs, and as a
 map of the tile's ``SEMC`` instances, with damaged copies for each invalid-if rule.
 
 Called by :func:`tests.conformance.scenes.generate`; the leading underscore keeps it out of

@@ -279,7 +279,7 @@ def _codebook_embedding_vectors(out_dir: Path, scene: GaussianScene,
 
 def _seml_as_landed(data: bytes) -> bytes:
     """``data`` (one tile) with its SEMR chunk written back as the SEML of the same labels:
-    the semantic_codebook vectors landed before revision 26, when the encoder wrote SEML
+    the semantic_codebook vectors landed before revision 27, when the encoder wrote SEML
     only, and stay byte for byte as they landed."""
     from csgs_codec.chunks.semantic import label_payload
 

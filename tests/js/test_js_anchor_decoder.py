@@ -178,3 +178,32 @@ def test_what_csgs_train_writes_decodes_as_in_python(tmp_path):
         (js,) = _compare([out], layers)
         assert "view_origins" in js["arrays"] and "mlp.opacity.w1" in js["arrays"]
     assert "semantic" in js["arrays"]
+
+
+def test_anchor_counts_are_bounded_by_the_bytes_present_in_both_decoders(tmp_path):
+    """FORMAT §10.1: a file declaring more anchor values than 256 a byte is refused at ANCH
+    (by both decoders alike) before anything is allocated for them; the encoder pads a scene
+    that codes smaller (32,768 constant anchors on a dense grid) with a `fill` chunk, so
+    what it writes decodes, and the same file without the padding is refused."""
+    import numpy as np
+
+    from csgs_codec.codec.anchor_decoder import MAX_ANCHOR_VALUES_PER_BYTE
+    from csgs_codec.scene.anchor_scene import AnchorScene
+
+    grid = np.stack(np.meshgrid(*[np.arange(32)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    m = len(grid)
+    scene = AnchorScene(grid.astype(np.float32) * 0.1, np.zeros((m, 4), np.float32),
+                        np.zeros((m, 2, 3), np.float32), np.full((m, 6), -2, np.float32),
+                        np.ones((m, 2), bool))
+    report = AnchorEncoder(fit=FAST_FIT).encode_with_report(scene)
+    assert report.chunk_bytes.get("fill", 0) > 0
+    assert len(report.data) >= m * (4 + 6 + 6) / MAX_ANCHOR_VALUES_PER_BYTE
+    padded, unpadded = tmp_path / "padded.csgs", tmp_path / "unpadded.csgs"
+    padded.write_bytes(report.data)
+    container = read_layers(report.data, layers="color,semantic")
+    unpadded.write_bytes(write_container([
+        Chunk(e.type, e.layer, container.payloads[e.index]) for e in container.toc
+        if e.type != "fill"]))
+    js_padded, js_unpadded = _compare([padded, unpadded], "color", threads=1)
+    assert js_padded["ok"] and not js_unpadded["ok"]
+    assert js_unpadded["chunk"] == "ANCH"

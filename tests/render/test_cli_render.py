@@ -75,7 +75,7 @@ def test_render_rejects_cameras_with_orbit(blob_path, tmp_path, capsys):
 @pytest.mark.parametrize(("options", "message"), [
     (["--size", "64by48"], "size must look like 800x600"),
     (["--size", "0x48"], "size must look like 800x600"),
-    (["--orbit", "0"], "at least 1 view"),
+    (["--orbit", "0"], "1..10,000 views"),
     (["--up", "sideways"], "up axis must be one of"),
     (["--cameras", "missing.json"], "no such file"),
 ])
