@@ -7,8 +7,8 @@ streams (same-as-previous flags, and the indices where they change). When every 
 the tile's ``SEMC`` has one label, ``SEMR`` instead holds just that mapping (one label per
 instance) and no stream at all.
 
-``SEML`` (§12.17) stays: :func:`label_chunk` measures both codings and keeps the smaller, so
-no file grows.
+``SEML`` (§12.17) stays: :func:`csgs_codec.chunks.semantic.smallest_label_chunk` measures
+every coding and keeps the smallest, so no file grows.
 """
 
 from __future__ import annotations
