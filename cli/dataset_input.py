@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import warnings
 from pathlib import Path
 
 from csgs_codec.errors import InputError
@@ -40,3 +42,23 @@ def check_output_folder(output: Path) -> None:
         raise InputError("the output's folder is not writable", file=output)
     if output.is_dir():
         raise InputError("the output is a folder", file=output)
+
+
+def add_builtin_segmenter_argument(parser) -> None:
+    """``--builtin-segmenter``: accept the built-in segmenter's masks without the warning."""
+    parser.add_argument("--builtin-segmenter", action="store_true",
+                        help="when no instance masks are found, segment the images with the "
+                             "built-in segmenter without warning (it is much weaker than "
+                             "SAM-style masks; see docs/masks.md)")
+
+
+@contextlib.contextmanager
+def mask_fallback(args):
+    """Within: the built-in segmenter's FallbackWarning is silent when ``args`` ask for it
+    (``--builtin-segmenter``); otherwise it shows, even under ``--quiet``."""
+    from csgs_codec.errors import FallbackWarning
+
+    with warnings.catch_warnings():
+        if args.builtin_segmenter:
+            warnings.simplefilter("ignore", FallbackWarning)
+        yield

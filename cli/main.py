@@ -12,7 +12,7 @@ import warnings
 
 from csgs_codec import __version__
 from csgs_codec.atomic_write import sigterm_as_interrupt
-from csgs_codec.errors import CsgsError, CsgsWarning, DataLossWarning
+from csgs_codec.errors import CsgsError, CsgsWarning, DataLossWarning, FallbackWarning
 from csgs_codec.extras import missing_extra_message
 
 EXIT_OK = 0
@@ -143,6 +143,8 @@ def main(argv: list[str] | None = None) -> int:
             warnings.simplefilter("ignore")
             # Dropped data is reported even when quiet: it changes the output.
             warnings.simplefilter("always", DataLossWarning)
+            # So is a fallback that changes the results (missing masks, say).
+            warnings.simplefilter("always", FallbackWarning)
         else:
             warnings.simplefilter("always", CsgsWarning)
         try:

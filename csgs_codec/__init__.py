@@ -21,6 +21,7 @@ from csgs_codec.errors import (
     CsgsError,
     CsgsWarning,
     DataLossWarning,
+    FallbackWarning,
     FormatError,
     InputError,
     ModelError,
@@ -76,7 +77,7 @@ __all__ = [
     "bake_anchor_scene",
     "select_at_click", "read_scene", "read_scene_with_report", "write_scene",
     "CsgsError", "InputError", "FormatError", "UnsupportedError", "ModelError",
-    "CsgsWarning", "DataLossWarning", "CompoundedLossWarning",
+    "CsgsWarning", "DataLossWarning", "CompoundedLossWarning", "FallbackWarning",
 ]
 
 

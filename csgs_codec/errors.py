@@ -92,6 +92,11 @@ class DataLossWarning(CsgsWarning):
     properties): the CLI prints it even with ``--quiet``."""
 
 
+class FallbackWarning(CsgsWarning):
+    """A fallback that changes the results took the place of missing input (the built-in
+    segmenter for absent instance masks): the CLI prints it even with ``--quiet``."""
+
+
 class CompoundedLossWarning(DataLossWarning):
     """The input was itself lossily coded (SPZ, SOG, .splat, ...): encoding it again adds a
     second quantization to the first. Shown even with ``--quiet``."""

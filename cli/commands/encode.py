@@ -94,6 +94,12 @@ def add_arguments(parser) -> None:
                              "for a scene walked through from inside")
     parser.add_argument("--sanitize", action="store_true",
                         help="drop Gaussians with NaN/Inf values instead of failing")
+    parser.add_argument("--order-out", default=None, metavar="FILE.npy",
+                        help="3DGS scenes: also write the decoded order as an int64 .npy: "
+                             "entry i is the input Gaussian (row of the input file) that "
+                             "decoded Gaussian i came from; pruned ones appear nowhere. "
+                             "Per-Gaussian data x of the input lines up with the decoded "
+                             "scene as x[order]. Not stored in the .csgs")
     parser.add_argument("--tile-size", type=int, default=None, metavar="N",
                         help="3DGS scenes: split into spatial tiles of at most N Gaussians, "
                              "each coded on its own (region decode reads only the tiles it "
@@ -121,11 +127,17 @@ def run(args) -> int:
     from csgs_codec.interchange import warn_if_lossy
 
     _check_exclusive(args)
-    refuse_overwriting_inputs([("-o", args.output)],
+    refuse_overwriting_inputs([("-o", args.output), ("--order-out", args.order_out)],
                               [("the scene", args.scene), ("--cameras", args.cameras)])
     inria = inria_output(args.scene)
     # Before a long encode, not after it.
     check_output(args.output, [args.scene] + ([str(inria[0])] if inria else []))
+    if args.order_out is not None:
+        if args.sanitize:
+            raise InputError("--order-out numbers the input file's rows, and --sanitize drops "
+                             "rows before encoding: fix the NaN/Inf values or leave out "
+                             "--order-out", property="--order-out")
+        check_output(args.order_out, [args.scene])
     if is_anchor_input(args.scene):
         return _encode_anchors(args, write_atomically)
     scene_path, cameras_path = args.scene, args.cameras
@@ -189,6 +201,8 @@ def run(args) -> int:
         bar.close()
     seconds = perf_counter() - start
     write_atomically(args.output, result.data, [args.scene, scene_path])
+    if args.order_out is not None:
+        write_atomically(args.order_out, order_npy(result.order), [args.scene, scene_path])
     n = len(result.order)
     in_bytes = _input_bytes(scene_path)
     bits = 8 * len(result.data) / max(n, 1)
@@ -217,10 +231,11 @@ def _encode_anchors(args, write_atomically) -> int:
     if (args.prune_opacity is not None or args.sanitize or args.target_psnr is not None
             or args.cameras is not None or args.view_pruning or args.tile_size is not None
             or args.workers != 1 or args.ray is not None
-            or args.rotation_steps != DEFAULT_ROTATION_STEPS or args.refine):
+            or args.rotation_steps != DEFAULT_ROTATION_STEPS or args.refine
+            or args.order_out is not None):
         raise InputError("--prune-opacity, --sanitize, --target-psnr, --cameras, "
-                         "--view-prune, --tile-size, --workers, --ray, --rotation-steps "
-                         "and --refine apply to 3DGS PLY input, not to "
+                         "--view-prune, --tile-size, --workers, --ray, --rotation-steps, "
+                         "--refine and --order-out apply to 3DGS PLY input, not to "
                          "anchor scenes",
                          file=args.scene)
     encoder = AnchorEncoder(quality=args.quality, lambda_=args.lambda_, fast=args.fast,
@@ -234,6 +249,17 @@ def _encode_anchors(args, write_atomically) -> int:
           f"{8 * len(result.data) / max(m, 1):.1f} bits/anchor, {result.seconds:.2f} s "
           f"(fit {result.fit_seconds:.2f} s)")
     return 0
+
+
+def order_npy(order) -> bytes:
+    """The bytes of a .npy file holding ``order`` as (M,) little-endian int64 (no pickles)."""
+    import io
+
+    import numpy as np
+
+    buffer = io.BytesIO()
+    np.save(buffer, np.ascontiguousarray(order, dtype="<i8"), allow_pickle=False)
+    return buffer.getvalue()
 
 
 def _input_bytes(path: str) -> int:

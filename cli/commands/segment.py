@@ -1,6 +1,7 @@
-"""``csgs segment SCENE --images DATA [--masks DIR] -o OUT.ply|OUT.csgs``: give every Gaussian
-of a trained 3DGS scene an instance (semantic feature), from its capture's cameras and
-instance masks, and write it as a PLY with ``ins_feat_*`` properties or as a .csgs."""
+"""``csgs segment SCENE --images DATA [--cameras FILE] [--masks DIR] -o OUT.ply|OUT.csgs``: give
+every Gaussian of a trained 3DGS scene an instance (semantic feature), from its capture's
+cameras and instance masks, and write it as a PLY with ``ins_feat_*`` properties or as a
+.csgs."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ DEFAULT_RESOLUTION = 640
 
 def add_arguments(parser) -> None:
     """Arguments of ``csgs segment``."""
+    from csgs_cli.dataset_input import add_builtin_segmenter_argument
     from csgs_codec.decisions.presets import DEFAULT_QUALITY, QUALITIES
     from csgs_codec.train import defaults
 
@@ -25,11 +27,20 @@ def add_arguments(parser) -> None:
                                       "or a .csgs of a standard scene")
     parser.add_argument("--images", required=True, metavar="DATA",
                         help="the capture: a folder with transforms.json, cameras.json "
-                             "(+ images/) or a COLMAP model, in the scene's world frame")
+                             "(+ images/) or a COLMAP model, in the scene's world frame; "
+                             "with --cameras, the folder of the images")
+    parser.add_argument("--cameras", metavar="FILE",
+                        help="the cameras of the images in --images (transforms.json, INRIA "
+                             "cameras.json or a COLMAP model), each image found under the "
+                             "name the file gives it, any image suffix: e.g. the views "
+                             "'csgs render SCENE --cameras FILE -o DIR' wrote")
     parser.add_argument("--masks", metavar="DIR",
-                        help="instance masks, one integer label image per view named after "
-                             "its image (e.g. SAM's, as PNG); default: masks/ beside the "
-                             "images, else the built-in segmenter (weaker)")
+                        help="instance masks, one integer id image per view named after "
+                             "its image (encodings, and SAM's per-object masks: "
+                             "docs/masks.md, 'csgs combine-masks'); default: masks/ in or "
+                             "beside the image folder, else the built-in segmenter (weaker, "
+                             "with a warning)")
+    add_builtin_segmenter_argument(parser)
     parser.add_argument("--mask-embeddings", metavar="DIR",
                         help="one .npy per view named after its image, row i an embedding "
                              "of mask id i (e.g. CLIP image embeddings of the masks): the "
@@ -61,7 +72,7 @@ def run(args) -> int:
     import torch
     from tqdm import tqdm
 
-    from csgs_cli.dataset_input import check_output_folder, downscale_for
+    from csgs_cli.dataset_input import check_output_folder, downscale_for, mask_fallback
     from csgs_cli.output_guard import refuse_overwriting_inputs
     from csgs_cli.scene_input import load_scene
     from csgs_codec.atomic_write import check_output, write_atomically
@@ -82,14 +93,19 @@ def run(args) -> int:
     except InputError as error:
         raise InputError(error.message, property=f"--{error.property}") from None
     check_output_folder(output)
+    # With --cameras, --images is the folder the cameras' image names are relative to.
+    data, images = (args.cameras, args.images) if args.cameras else (args.images, None)
     refuse_overwriting_inputs(
         [("-o", output)],
-        [("the scene", args.scene), ("--mask-embeddings", args.mask_embeddings)]
-        + [("--images", file) for file in dataset_files(args.images, masks=args.masks)])
+        [("the scene", args.scene), ("--mask-embeddings", args.mask_embeddings),
+         ("--cameras", args.cameras)]
+        + [("--images", file) for file in dataset_files(data, masks=args.masks,
+                                                        images=images)])
     check_output(output, [args.scene])
     scene = load_scene(args.scene, command=NAME, layers="color")
-    views = load_dataset(args.images, downscale=downscale_for(args.images, args.resolution),
-                         masks=args.masks, segment_missing=True)
+    with mask_fallback(args):
+        views = load_dataset(data, downscale=downscale_for(data, args.resolution),
+                             masks=args.masks, images=images, segment_missing=True)
     embeddings = None
     if args.mask_embeddings:
         if suffix != ".csgs":

@@ -20,6 +20,7 @@ HELP = ("train a scene from images + cameras (+ instance masks) through the thre
 
 def add_arguments(parser) -> None:
     """Arguments of ``csgs train``."""
+    from csgs_cli.dataset_input import add_builtin_segmenter_argument
     from csgs_codec.train import defaults
     from csgs_codec.train.defaults import RATE_WEIGHT_PRESETS
     parser.add_argument("data", help="dataset: a folder with transforms.json, cameras.json "
@@ -65,7 +66,9 @@ def add_arguments(parser) -> None:
                         help="initial point cloud (default: the dataset's, else random)")
     parser.add_argument("--masks", metavar="DIR",
                         help="instance-mask folder (default: masks/ beside the images; "
-                             "without one a built-in segmenter makes masks, with a warning)")
+                             "without one a built-in segmenter makes masks, with a warning; "
+                             "docs/masks.md)")
+    add_builtin_segmenter_argument(parser)
     parser.add_argument("--foreground-masks", metavar="DIR",
                         help="folder of object masks (255 object, 0 background; one per "
                              "image, named by its stem): train the object alone with a "
@@ -102,7 +105,7 @@ def run(args) -> int:
     import torch
     from tqdm import tqdm
 
-    from csgs_cli.dataset_input import check_output_folder, downscale_for
+    from csgs_cli.dataset_input import check_output_folder, downscale_for, mask_fallback
     from csgs_cli.output_guard import refuse_overwriting_inputs
     from csgs_codec.atomic_write import write_atomically
     from csgs_codec.codec.describe import describe_bitstream
@@ -163,10 +166,11 @@ def run(args) -> int:
         [("--points", args.points)]
         + [("the dataset", file)
            for file in dataset_files(args.data, masks=masks, foreground=foreground)])
-    views = load_dataset(args.data, downscale=downscale_for(args.data, args.resolution),
-                         masks=None if args.no_semantic else args.masks,
-                         segment_missing=not args.no_semantic,
-                         read_masks=not args.no_semantic, foreground=foreground)
+    with mask_fallback(args):
+        views = load_dataset(args.data, downscale=downscale_for(args.data, args.resolution),
+                             masks=None if args.no_semantic else args.masks,
+                             segment_missing=not args.no_semantic,
+                             read_masks=not args.no_semantic, foreground=foreground)
     train_views, test_views = split_views(views, args.test_every)
     points, source = find_initial_points(args.data, [v.camera for v in train_views],
                                          points=args.points, seed=args.seed,
@@ -184,23 +188,34 @@ def run(args) -> int:
                    "found: 0/255 masks; --no-foreground-masks trains the whole photos")
             print(f"foreground masks: {foreground} ({how}); training the object alone, its "
                   "background transparent")
-    bar = tqdm(total=args.iterations, desc="stage 1", unit="step", disable=args.quiet,
-               leave=False)
+    bars = [tqdm(total=args.iterations, desc="stage 1", unit="step", disable=args.quiet,
+                 leave=False)]
+    stages = ["stage 1"]
 
     def progress(stage, step) -> None:
-        if step is None:
-            bar.set_description(stage, refresh=False)
+        bar = bars[-1]
+        if step is None:  # a stage starts: stage 1 keeps its bar, later ones get their own
+            if stage.startswith("stage 1") or stages[-1] == stage:
+                bar.set_description(stage)
+                return
+            bar.close()
+            stages.append(stage)
+            bars.append(tqdm(total=None, desc=stage, unit="step", disable=args.quiet,
+                             leave=False))
             return
-        bar.set_postfix(loss=f"{step.loss:.4f}", psnr=f"{step.psnr:.1f}",
-                        bpp=f"{step.bits_per_parameter:.2f}", anchors=step.anchors,
-                        refresh=False)
+        if bar.total != step.iterations:
+            bar.reset(total=step.iterations)
+        if not math.isnan(step.loss):
+            bar.set_postfix(loss=f"{step.loss:.4f}", psnr=f"{step.psnr:.1f}",
+                            bpp=f"{step.bits_per_parameter:.2f}", anchors=step.anchors,
+                            refresh=False)
         bar.update(step.step - bar.n)
 
     try:
         result = train_scene(train_views, points, settings, checkpoint_dir=args.checkpoint_dir,
                              resume=args.resume, progress=progress)
     finally:
-        bar.close()
+        bars[-1].close()
     write_atomically(args.output, result.data)
     scene = result.encode.reconstruction
     share = describe_bitstream(result.data)["semantic_share_percent"]  # as csgs info says

@@ -17,7 +17,10 @@ class EncodeReport:
         data: the .csgs bytes.
         reconstruction: the scene the decoder will output (all layers written), in the
             decoder's order.
-        order: (N,) int64 index of each decoded Gaussian in the (pruned) input scene.
+        order: (M,) int64: for each decoded Gaussian, the index of the Gaussian of the
+            scene given to the encoder that it came from; Gaussians left out (``pruned``,
+            ``view_pruned``) appear nowhere. The order is a deterministic function of the
+            scene and the settings and is not stored in the bitstream.
         pruned: Gaussians removed by ``prune_opacity``.
         stream_bytes: chunk type -> payload bytes.
         seconds: encode wall time.

@@ -192,20 +192,25 @@ class Encoder:
         return self.encode_with_report(scene).data
 
     def encode_with_report(self, scene: GaussianScene) -> EncodeReport:
-        """Encode ``scene`` and report the reconstruction, order and bytes per chunk."""
+        """Encode ``scene`` and report the reconstruction, order and bytes per chunk.
+
+        ``report.order`` (M,) int64 gives, for each decoded Gaussian, the row of ``scene`` it
+        came from (pruned Gaussians appear nowhere): per-Gaussian data kept beside the scene,
+        ``extra`` (N, ...), lines up with the decoded scene as ``extra[report.order]``."""
         start = time.perf_counter()
         require_type(scene, GaussianScene, "scene",
                      "read a file with csgs_codec.codec.files.read_scene(path) first")
         scene.validate()
         # What the format cannot carry is refused here, before any coding.
         check_encodable(scene, semantic=self.config.semantic != "none")
-        pruned = 0
+        pruned, kept = 0, None
         if self.config.prune_opacity is not None and len(scene):
             with np.errstate(over="ignore"):  # exp(-logit) is inf below -709: alpha 0
                 alpha = 1.0 / (1.0 + np.exp(-scene.opacity.astype(np.float64)))
             keep = alpha >= self.config.prune_opacity
             pruned = int((~keep).sum())
             original, scene = scene, scene.subset(keep)
+            kept = np.flatnonzero(keep)
         else:
             original = scene
         if len(scene) <= effective_tile_size(len(scene), self.config.tile_size):
@@ -219,6 +224,8 @@ class Encoder:
         else:
             result = self._search(scene, original)
         result.pruned = pruned
+        if kept is not None:  # the order indexes the scene given, not the pruned one
+            result.order = kept[result.order]
         result.seconds = time.perf_counter() - start
         return result
 

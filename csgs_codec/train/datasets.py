@@ -16,9 +16,10 @@ stem (``masks/frame_001.png`` for ``images/frame_001.jpg``), from the ``masks/``
 the images unless another folder is given. A mask may also have the size of the full-size
 image when an LLFF ``images_N/`` copy is read: it is then resized like the image. Without
 masks, the built-in segmenter (:mod:`csgs_codec.train.segmentation`) makes them, with a
-:class:`CsgsWarning`. Foreground masks (object vs background, :mod:`.foreground`) are named
-the same way; a capture's ``masks/`` folder of 0/255 images is one (:func:`find_foreground_masks`),
-and is then not read as instance masks.
+:class:`~csgs_codec.errors.FallbackWarning` (the CLI shows it even under ``--quiet``).
+Foreground masks (object vs background, :mod:`.foreground`) are named the same way; a
+capture's ``masks/`` folder of 0/255 images is one (:func:`find_foreground_masks`), and is
+then not read as instance masks.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from csgs_codec.errors import CsgsWarning, InputError
+from csgs_codec.errors import FallbackWarning, InputError
 from csgs_codec.scene.camera import Camera
 from csgs_codec.scene.cameras_io import load_cameras, resize_camera
 from csgs_codec.scene.colmap_io import colmap_model_files, is_colmap_path
@@ -75,9 +76,9 @@ def load_dataset(path: str | Path, *, downscale: float = 1.0, masks: str | Path 
             scaled to match); images are area-averaged, masks take the nearest id.
         masks: folder of instance-id images; default ``masks/`` beside the images when present
             (unless it is the ``foreground`` folder).
-        images: folder of the images for INRIA, COLMAP and LLFF layouts (default: found as
-            described in the module notes); ignored for transforms.json, whose paths are
-            explicit.
+        images: folder of the images (default: found as described in the module notes);
+            a transforms.json's ``file_path`` values are then relative to it instead of to
+            the JSON file's folder (renders of the cameras made elsewhere, say).
         segment_missing: without a masks folder, make masks with the built-in segmenter
             (warning that quality depends on masks); False leaves ``mask`` None.
         background: RGB behind transparent image pixels, and behind the object where
@@ -129,14 +130,24 @@ def load_dataset(path: str | Path, *, downscale: float = 1.0, masks: str | Path 
             keep = resize_mask(keep, camera.width, camera.height)
         views.append(TrainingView(image, camera, mask, name=name, foreground=keep))
     if mask_root is None and segment_missing and read_masks:
-        why = ("no masks folder" if foreground_root is None else
-               f"no instance masks besides the foreground masks in {foreground_root}")
-        warnings.warn(f"{path}: {why}; making instance masks with the built-in graph "
-                      "segmenter. Semantic quality depends on the masks: give SAM-style masks "
-                      "(--masks) for good results", CsgsWarning, stacklevel=2)
+        warnings.warn(_fallback_message(path, files.image_root, foreground_root),
+                      FallbackWarning, stacklevel=2)
         for view in views:
             view.mask = segment_image(view.image)
     return views
+
+
+def _fallback_message(path, image_root: Path, foreground_root: Path | None) -> str:
+    """What the built-in segmenter's warning says: where masks were looked for, how to give
+    them, how to accept the fallback."""
+    looked = " or ".join(f"'{folder.absolute()}'"
+                         for folder in mask_folder_candidates(image_root))
+    why = (f"no instance masks: none given and no folder {looked}" if foreground_root is None
+           else f"no instance masks besides the foreground masks in '{foreground_root}'")
+    return (f"{path}: {why}; making them with the built-in graph segmenter, which is much "
+            "weaker than SAM-style masks. Give your masks with --masks DIR "
+            "(docs/masks.md), or pass --builtin-segmenter to use the built-in one without "
+            "this warning")
 
 
 def find_foreground_masks(path: str | Path, *, images: str | Path | None = None
@@ -233,7 +244,7 @@ def _image_locations(camera_path: Path, cameras: list[Camera], images: str | Pat
                      ) -> tuple[Path, list[str]]:
     """(folder the names are relative to, image name per camera)."""
     names = [camera.name for camera in cameras]
-    if _is_transforms_file(camera_path):
+    if _is_transforms_file(camera_path) and images is None:
         return camera_path.parent, names
     if images is not None:
         folder = Path(images)
@@ -266,12 +277,18 @@ def _mask_folder(image_root: Path, masks: str | Path | None,
         if not folder.is_dir():
             raise InputError("masks folder not found", file=folder)
         return folder
-    for folder in (image_root / MASKS_FOLDER, image_root.parent / MASKS_FOLDER):
+    for folder in mask_folder_candidates(image_root):
         if folder.is_dir():
             if foreground is not None and folder.resolve() == foreground.resolve():
                 return None
             return folder
     return None
+
+
+def mask_folder_candidates(image_root: Path) -> tuple[Path, Path]:
+    """The folders looked in, in order, for instance masks that are not given: ``masks/``
+    in the image folder, then beside it."""
+    return image_root / MASKS_FOLDER, image_root.parent / MASKS_FOLDER
 
 
 def _view_mask_path(mask_root: Path, image_name: str, what: str = "mask") -> Path:

@@ -33,6 +33,7 @@ from csgs_codec.errors import CsgsWarning, InputError, ModelError
 from csgs_codec.model.anchor_hyperprior import STEP_RANGE, FitSettings
 from csgs_codec.model.scaffold import ScaffoldDecoder
 from csgs_codec.scene.anchor_scene import AnchorScene, default_semantic_names
+from csgs_codec.scene.cameras_io import resize_camera
 from csgs_codec.train import defaults
 from csgs_codec.train.anchor_rate import cell_embedding
 from csgs_codec.train.checkpoint import load_checkpoint, save_checkpoint
@@ -43,6 +44,7 @@ from csgs_codec.train.color_stage import (
     initial_state,
     train_color_stage,
 )
+from csgs_codec.train.image_files import resize_mask
 from csgs_codec.train.losses import CONTRASTIVE_MARGIN
 from csgs_codec.train.semantic_stage import (
     SEMANTIC_DIM,
@@ -171,6 +173,7 @@ def train_scene(views: list[TrainingView], points: np.ndarray, settings: TrainSe
     if len(anchors) == 0:
         raise ModelError("stage 1 masked every Gaussian slot, leaving no anchor to encode: "
                          "train with a smaller rate weight (--lambda)", property="lambda")
+    report("encoding the color layer", None)
     began = time.perf_counter()
     color = AnchorEncoder(quality, semantic="none",
                           fit=settings.encoder_fit).encode_with_report(anchors)
@@ -185,13 +188,14 @@ def train_scene(views: list[TrainingView], points: np.ndarray, settings: TrainSe
     if views and with_masks == len(views):
         report("stages 2-3: semantics", None)
         began = time.perf_counter()
-        semantic = _semantic_stages(views, color, settings)
+        semantic = _semantic_stages(views, color, settings, report)
         seconds["stages2_3"] = time.perf_counter() - began
         step = ANCHOR_BASE_STEPS["semantic"] * MULTIPLIERS[quality]
         values = np.zeros((len(anchors), settings.semantic_dim), np.float32)
         values[color.order] = semantic.features * np.float32(step)
         anchors.semantic = values
         anchors.semantic_names = default_semantic_names(settings.semantic_dim)
+    report("encoding the file", None)
     began = time.perf_counter()
     final = AnchorEncoder(quality, fit=settings.encoder_fit).encode_with_report(anchors)
     seconds["encode"] = time.perf_counter() - began
@@ -215,28 +219,54 @@ def _check_resumable(saved: ColorStageSettings, asked: ColorStageSettings,
                          "again without --resume", file=checkpoint)
 
 
+#: Longest image side the semantic stages see (larger views are downscaled for them, masks by
+#: nearest neighbour): their contribution matrices grow with the pixels, and instance
+#: features need no finer masks (mary_rose at 384 px: 12 GB and 11 minutes in stage 2).
+SEMANTIC_MAX_SIDE = 160
+
+
+def _semantic_view_size(width: int, height: int) -> tuple[int, int]:
+    """(width, height) of a view for the semantic stages (:data:`SEMANTIC_MAX_SIDE`)."""
+    side = max(width, height)
+    if side <= SEMANTIC_MAX_SIDE:
+        return width, height
+    return (max(1, round(width * SEMANTIC_MAX_SIDE / side)),
+            max(1, round(height * SEMANTIC_MAX_SIDE / side)))
+
+
 def _semantic_stages(views: list[TrainingView], color: AnchorEncodeReport,
-                     settings: TrainSettings) -> SemanticResult:
+                     settings: TrainSettings, report: Callable) -> SemanticResult:
     threads = torch.get_num_threads()
     torch.set_num_threads(settings.color.threads)
     try:
-        return _semantic_steps(views, color, settings)
+        return _semantic_steps(views, color, settings, report)
     finally:
         torch.set_num_threads(threads)
 
 
 def _semantic_steps(views: list[TrainingView], color: AnchorEncodeReport,
-                    settings: TrainSettings) -> SemanticResult:
+                    settings: TrainSettings, report: Callable) -> SemanticResult:
     scene: AnchorScene = color.reconstruction
     decoder = ScaffoldDecoder(scene)
     m = len(scene)
     prepared = []
-    for view in views:
+    report("stages 2-3: preparing the views", None)
+    for done, view in enumerate(views, 1):
         decoded = decoder.decode(view.camera.position)
-        matrix = contribution_matrix(decoded.gaussians, view.camera, decoded.anchor_index,
+        width, height = _semantic_view_size(view.camera.width, view.camera.height)
+        camera, mask = view.camera, view.mask
+        if (width, height) != (camera.width, camera.height):
+            camera, mask = resize_camera(camera, width, height), resize_mask(mask, width, height)
+        matrix = contribution_matrix(decoded.gaussians, camera, decoded.anchor_index,
                                      group_count=m)
-        prepared.append(SemanticView(matrix, torch.as_tensor(view.mask.astype(np.int64),
+        prepared.append(SemanticView(matrix, torch.as_tensor(mask.astype(np.int64),
                                                              device=matrix.device)))
+        report("stages 2-3: preparing the views", _count(done, len(views), m))
+
+    def steps(stage: str, total: int) -> Callable[[int], None]:
+        report(stage, None)
+        return lambda i: report(stage, _count(i + 1, total, m))
+
     device = settings.color.device
     seed = settings.color.seed
     base = ANCHOR_BASE_STEPS["f"] * MULTIPLIERS[settings.color.quality]
@@ -245,7 +275,9 @@ def _semantic_steps(views: list[TrainingView], color: AnchorEncodeReport,
                                      dim=settings.semantic_dim,
                                      iterations=settings.semantic_iterations, seed=seed,
                                      device=device, step_range=step_range,
-                                     margin=settings.contrastive_margin)
+                                     margin=settings.contrastive_margin,
+                                     on_step=steps("stage 2: semantics",
+                                                   settings.semantic_iterations))
     if settings.stage3_iterations > 0:
         cells = torch.as_tensor(np.rint((scene.positions - scene.positions.min(axis=0))
                                         / _voxel(scene)).astype(np.int64),
@@ -258,9 +290,15 @@ def _semantic_steps(views: list[TrainingView], color: AnchorEncodeReport,
             prepared, m, color_steps=color.steps["f"], dim=settings.semantic_dim,
             iterations=settings.stage3_iterations, rate_weight=settings.feature_rate_weight,
             rate_model=prior, seed=seed + 1, device=device, initial_features=result.features,
-            step_range=step_range, margin=settings.contrastive_margin)
+            step_range=step_range, margin=settings.contrastive_margin,
+            on_step=steps("stage 3: semantic rate", settings.stage3_iterations))
         result.losses = np.concatenate([stage2_losses, result.losses])
     return result
+
+
+def _count(step: int, iterations: int, anchors: int) -> StageProgress:
+    """Progress of a stage that reports no loss or PSNR (NaN)."""
+    return StageProgress(step, iterations, float("nan"), float("nan"), 0.0, anchors)
 
 
 def _voxel(scene: AnchorScene) -> float:

@@ -89,8 +89,9 @@ def test_encode_output_is_not_the_cameras(files, capsys):
 
 
 def test_render_output_images_are_not_the_cameras(files, tmp_path, capsys):
-    # render names its images NNN_<camera name>.png: a cameras file by that name is an input
-    cameras = tmp_path / "000_0.png"
+    # render names its images after the cameras' (this one's: its index, 0): a cameras file
+    # by that name is an input
+    cameras = tmp_path / "0.png"
     cameras.write_bytes(files["cameras"].read_bytes())
     _refused(["render", str(files["scene"]), "--cameras", str(cameras), "-o", str(tmp_path)],
              cameras, "-o", capsys)

@@ -34,6 +34,7 @@ def test_importing_the_package_stays_light():
 def test_error_classes_are_exported_in_their_hierarchy():
     assert issubclass(FormatError, CsgsError) and issubclass(InputError, CsgsError)
     assert csgs_codec.DataLossWarning.__mro__[1] is csgs_codec.CsgsWarning
+    assert csgs_codec.FallbackWarning.__mro__[1] is csgs_codec.CsgsWarning
 
 
 def test_the_package_is_marked_typed():

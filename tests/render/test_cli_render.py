@@ -42,7 +42,7 @@ def test_render_from_camera_file_uses_its_names_and_size(blob_path, tmp_path):
     assert main(["render", "--quiet", str(blob_path), "--cameras",
                  str(CAMERA_DATA / "inria_cameras.json"), "--size", "80x60", "-o", str(out)]) == 0
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["000_view_a.png", "001_view_b.png"]
+    assert names == ["view_a.png", "view_b.png"]
     for name in names:
         image = load_png(out / name)
         assert image.shape == (60, 80, 3) and lit_fraction(image) > 0.05

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from csgs_codec.errors import CsgsWarning, InputError
+from csgs_codec.errors import FallbackWarning, InputError
 from csgs_codec.render.image_io import save_png
 from csgs_codec.train.datasets import load_dataset
 from csgs_codec.train.image_files import read_mask
@@ -102,7 +102,7 @@ def test_missing_masks_fall_back_to_the_segmenter_with_a_warning(tmp_path, synth
     for mask_file in (tmp_path / "masks").iterdir():
         mask_file.unlink()
     (tmp_path / "masks").rmdir()
-    with pytest.warns(CsgsWarning, match="depends on the masks"):
+    with pytest.warns(FallbackWarning, match="built-in graph segmenter"):
         views = load_dataset(tmp_path)
     assert all(v.mask is not None and v.mask.dtype == np.int32 for v in views)
     assert all(len(np.unique(v.mask)) >= 2 for v in views)
