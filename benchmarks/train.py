@@ -44,7 +44,7 @@ from csgs_codec.train.pipeline import TrainSettings, train_scene
 from csgs_codec.train.synthetic import make_synthetic_dataset
 
 LAYER_CHUNKS = {"base": ("ANCH", "GEOM", "AHYP", "ACRM", "AMSK", "AMLP"),
-                "color": ("AFEA", "AOFF", "ASCL"), "semantic": ("SHYP", "ASEM", "SEML")}
+                "color": ("AFEA", "AOFF", "ASCL"), "semantic": ("SHYP", "ASEM", "SEML", "SEMR")}
 
 
 def run_one(data, train, test, weight: float, args) -> dict:

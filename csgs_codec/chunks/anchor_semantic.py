@@ -3,7 +3,7 @@ hyperprior (an integer network payload over the anchor cells with 2S + 1 outputs
 :func:`csgs_codec.chunks.anchor_networks.hyperprior_payload`), and ASEM: the S channel names
 (§12.16), then one length-prefixed residual stream of the M x S semantic values on the grid
 of 2^-12 value units, anchor-major. SHYP and ASEM are both present or both absent. Anchor
-labels are SEML (:mod:`csgs_codec.chunks.semantic`).
+labels are SEML or SEMR (:mod:`csgs_codec.chunks.semantic`).
 """
 
 from __future__ import annotations

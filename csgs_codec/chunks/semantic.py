@@ -1,7 +1,9 @@
 """The semantic layer's chunks of a standard scene (FORMAT §12.16-12.18), both directions:
 SEMF (channel names + a float stream of the features), SEMC (a codebook of distinct feature
-rows, :mod:`csgs_codec.chunks.semantic_codebook`) and SEML (integer labels, one residual
-stream with step 1, lossless; anchor scenes use the same payload).
+rows, :mod:`csgs_codec.chunks.semantic_codebook`) and integer labels: SEML (one residual
+stream with step 1, lossless) or SEMR (runs, or a map of the SEMC instances,
+:mod:`csgs_codec.chunks.label_runs`), whichever is smaller; anchor scenes use the same
+payloads.
 """
 
 from __future__ import annotations
@@ -10,7 +12,13 @@ import numpy as np
 
 from csgs_codec.attributes.float_stream import read_float_stream, write_float_stream
 from csgs_codec.chunks.checks import check_finite
-from csgs_codec.chunks.semantic_codebook import read_codebook
+from csgs_codec.chunks.label_runs import (
+    instance_mapping,
+    mapping_payload,
+    read_runs_payload,
+    runs_payload,
+)
+from csgs_codec.chunks.semantic_codebook import read_codebook_with_ids
 from csgs_codec.chunks.semantic_names import MAX_SEMANTIC_CHANNELS, names_from_bytes, names_to_bytes
 from csgs_codec.entropy.residual import decode_symbols, encode_symbols
 from csgs_codec.entropy.table_choice import best_table
@@ -59,6 +67,23 @@ def label_payload(labels: np.ndarray) -> bytes:
     return out.getvalue()
 
 
+def smallest_label_chunk(labels: np.ndarray, instances: tuple[np.ndarray, int] | None = None
+                         ) -> tuple[str, bytes]:
+    """(chunk type, payload) of the smallest lossless coding of (N,) int ``labels``: SEML,
+    SEMR runs, or SEMR as a map of ``instances`` ((N,) ids, instance count K) when the tile
+    writes those ids in SEMC and the labels are a function of them. Ties keep SEML."""
+    best = ("SEML", label_payload(labels))
+    candidates = [runs_payload(labels) if len(labels) else None]
+    if instances is not None and len(labels):
+        mapping = instance_mapping(labels, *instances)
+        if mapping is not None:
+            candidates.append(mapping_payload(mapping))
+    for payload in candidates:
+        if payload is not None and len(payload) < len(best[1]):
+            best = ("SEMR", payload)
+    return best
+
+
 def read_label_payload(data: bytes, offset: int, count: int) -> np.ndarray:
     """(count,) int32 labels of a SEML payload at absolute byte ``offset``.
 
@@ -91,6 +116,7 @@ def read_semantic_layer(container, count: int, scene: GaussianScene) -> None:
             there).
     """
     present = {e.type for e in container.toc}
+    instances = None
     if "SEMF" in present:
         scene.semantic_names, scene.semantic = read_feature_payload(
             *container.single_payload("SEMF"), count)
@@ -99,20 +125,30 @@ def read_semantic_layer(container, count: int, scene: GaussianScene) -> None:
         if "SEMF" in present:
             raise FormatError("a tile holds both SEMF and SEMC", chunk="SEMC", offset=offset)
         r = ByteReader(data, base_offset=offset, chunk="SEMC")
-        scene.semantic_names, scene.semantic, scene.instances = read_codebook(
+        scene.semantic_names, scene.semantic, scene.instances, ids, k = read_codebook_with_ids(
             r, count, MAX_SEMANTIC_CHANNELS)
-    labels = read_labels(container, count)
+        instances = (ids, k)
+    labels = read_labels(container, count, instances)
     if labels is not None:
         scene.labels = labels
 
 
-def read_labels(container, count: int) -> np.ndarray | None:
-    """(count,) int32 labels of ``container``'s SEML (a tile's, or an anchor scene's with
-    ``count`` anchors); None when it holds none.
+def read_labels(container, count: int, instances: tuple[np.ndarray, int] | None = None
+                ) -> np.ndarray | None:
+    """(count,) int32 labels of ``container``'s SEML or SEMR (a tile's, or an anchor
+    scene's with ``count`` anchors); None when it holds neither. ``instances`` are the
+    tile's SEMC ids (count,) and instance count, None when it has no SEMC.
 
     Raises:
-        FormatError: naming SEML and the byte offset.
+        FormatError: naming SEML or SEMR and the byte offset (also when a tile holds both).
     """
-    if not any(e.type == "SEML" for e in container.toc):
+    present = {e.type for e in container.toc}
+    if "SEMR" in present:
+        data, offset = container.single_payload("SEMR")
+        if "SEML" in present:
+            raise FormatError("a tile holds both SEML and SEMR", chunk="SEMR", offset=offset)
+        return read_runs_payload(ByteReader(data, base_offset=offset, chunk="SEMR"), count,
+                                 instances)
+    if "SEML" not in present:
         return None
     return read_label_payload(*container.single_payload("SEML"), count)

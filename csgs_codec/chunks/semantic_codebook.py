@@ -116,6 +116,18 @@ def read_codebook(r: ByteReader, count: int, max_channels: int
     Raises:
         FormatError: any field that breaks §12.23, at its offset.
     """
+    return read_codebook_with_ids(r, count, max_channels)[:3]
+
+
+def read_codebook_with_ids(r: ByteReader, count: int, max_channels: int
+                           ) -> tuple[tuple[str, ...], np.ndarray, InstanceTable | None,
+                                      np.ndarray, int]:
+    """:func:`read_codebook` followed by the (count,) int64 instance ids and the instance
+    count K (a tile's ``SEMR`` may map them to labels, §12.25).
+
+    Raises:
+        FormatError: any field that breaks §12.23, at its offset.
+    """
     version = r.fixed("u8", "version")
     if version != VERSION:
         raise r.error(f"SEMC version {version} is not {VERSION}", r.offset - 1)
@@ -166,5 +178,5 @@ def read_codebook(r: ByteReader, count: int, max_channels: int
         # Each run of equal ids starts where a flag is 0 (and at Gaussian 0).
         run = np.cumsum(np.r_[1, (same == 0).astype(np.int64)]) - 1
         ids = starts[run]
-    return names, prototypes[ids], table
+    return names, prototypes[ids], table, ids, instances
 

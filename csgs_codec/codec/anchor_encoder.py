@@ -4,9 +4,9 @@ Base layer: ``ANCH`` header, ``GEOM`` anchor cells (lossless, canonical order), 
 hyperprior, ``ACRM`` CARM networks, ``AMSK`` offset masks, ``AMLP`` Scaffold MLPs (float streams).
 Color layer: ``AFEA`` features (one residual stream per CARM group), ``AOFF`` kept offsets,
 ``ASCL`` scaling. Semantic layer: ``SHYP`` semantic hyperprior, ``ASEM`` semantic features,
-``SEML`` labels. Everything after the cells is in the decoded (canonical) order, and the
-encoder reconstructs with the integer networks the decoder runs, so
-``AnchorDecoder().decode(data, "color,semantic")`` equals ``reconstruction`` bit for bit.
+``SEML`` or ``SEMR`` labels (whichever is smaller). Everything after the cells is in the
+decoded (canonical) order, and the encoder reconstructs with the integer networks the decoder
+runs, so ``AnchorDecoder().decode(data, "color,semantic")`` equals ``reconstruction`` bit for bit.
 The payloads are laid out by :mod:`csgs_codec.chunks` (``anchor_payloads``,
 ``anchor_networks``, ``anchor_streams``, ``anchor_semantic``, ``semantic``); this module fits
 the networks, picks the candidate and orders the chunks.
@@ -41,7 +41,7 @@ from csgs_codec.chunks.anchor_streams import (
     anchor_scaling_payload,
     offset_mask_payload,
 )
-from csgs_codec.chunks.semantic import label_payload
+from csgs_codec.chunks.semantic import smallest_label_chunk
 from csgs_codec.chunks.semantic_names import MAX_SEMANTIC_CHANNELS
 from csgs_codec.chunks.view_origins import even_sample, view_origins_payload
 from csgs_codec.codec.anchor_decoder import MAX_ANCHOR_VALUES_PER_BYTE, anchor_values
@@ -265,7 +265,8 @@ class AnchorEncoder:
             recon.semantic, recon.semantic_names = decoded, s.semantic_names
             steps["semantic"] = step_values(params.step)
         if s.labels is not None:
-            chunks.append(Chunk("SEML", "semantic", label_payload(s.labels)))
+            code, payload = smallest_label_chunk(s.labels)
+            chunks.append(Chunk(code, "semantic", payload))
             recon.labels = s.labels.copy()
         return steps
 

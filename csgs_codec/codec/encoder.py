@@ -24,7 +24,7 @@ from csgs_codec.attributes.streams import SceneStreams, join_streams, split_stre
 from csgs_codec.chunks.color_prior import prior_cells
 from csgs_codec.chunks.color_streams import STREAM_CHUNKS, color_stream_payload
 from csgs_codec.chunks.scene_header import SceneHeader
-from csgs_codec.chunks.semantic import feature_payload, label_payload
+from csgs_codec.chunks.semantic import feature_payload, smallest_label_chunk
 from csgs_codec.chunks.semantic_codebook import (
     codebook_of,
     instance_embeddings,
@@ -502,6 +502,7 @@ class Encoder:
 
     def _semantic_chunks(self, ordered: GaussianScene, reconstruction: GaussianScene,
                          chunks: list[Chunk], settings: Preset) -> None:
+        instances = None  # (ids, K) of the SEMC written, which SEMR may map to labels
         if ordered.semantic is not None:
             payload, reconstruction.semantic = feature_payload(
                 ordered.semantic_names, ordered.semantic, settings.semantic_step)
@@ -519,9 +520,11 @@ class Encoder:
                     reconstruction.semantic = ordered.semantic.astype(np.float32, copy=True)
                     reconstruction.instances = (None if stored is None
                                                 else InstanceTable(codebook[0], stored))
+                    instances = (codebook[1], len(codebook[0]))
             chunks.append(chunk)
         if ordered.labels is not None:
             reconstruction.labels = ordered.labels.copy()
-            chunks.append(Chunk("SEML", "semantic", label_payload(ordered.labels)))
+            code, payload = smallest_label_chunk(ordered.labels, instances)
+            chunks.append(Chunk(code, "semantic", payload))
 
 

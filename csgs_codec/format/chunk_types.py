@@ -84,6 +84,9 @@ _TABLE = (
     ChunkType("SEML", Layer.SEMANTIC, "Integer labels: a lossless residual stream."),
     ChunkType("SEMC", Layer.SEMANTIC,
               "Semantic codebook: channel names, K prototypes and an instance id per Gaussian."),
+    ChunkType("SEMR", Layer.SEMANTIC,
+              "Integer labels as runs: distinct labels and run-coded indices, or a label per "
+              "SEMC instance."),
     ChunkType("ANCH", Layer.BASE,
               "Anchor scene header: anchor count, F, K, voxel grid, CARM groups, flags."),
     ChunkType("AHYP", Layer.BASE, "Anchor hyperprior: integer network on the anchor cells."),

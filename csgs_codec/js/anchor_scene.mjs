@@ -18,7 +18,7 @@ import { parseDenseNet } from './dense_net.mjs';
 import { FormatError } from './errors.mjs';
 import { decodeGeometry } from './geometry.mjs';
 import { forwardIntNet, parseIntNet } from './intnet.mjs';
-import { readLabels, readNames } from './semantic_layer.mjs';
+import { readAnyLabels, readNames } from './semantic_layer.mjs';
 
 const MAX_SEMANTIC_CHANNELS = 4096;
 /** Most anchor values (M x (F + 3K + 6)) a file may declare per byte present (§10.1), as
@@ -157,7 +157,7 @@ export async function decodeAnchorScene(data, options) {
   if (layers.has('semantic')) {
     const semantic = anchorSemantic(container, cells, posBits, family, sine);
     if (semantic) [scene.semanticNames, scene.semantic] = [semantic.names, semantic.values];
-    if (container.toc.entries.some((e) => e.type === 'SEML')) scene.labels = readLabels(container, m, family);
+    scene.labels = readAnyLabels(container, m, family);
   }
   return scene;
 }

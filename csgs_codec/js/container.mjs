@@ -19,7 +19,7 @@ export const LAYERS = ['base', 'color', 'semantic'];
 /** Registered chunk types and their layer (§12.1); 'fill' may be in any layer. */
 export const CHUNK_LAYERS = {
   fill: null, TIDX: 0, SCNE: 0, GEOM: 0, OUTL: 0, OUTQ: 0, vdis: 0, CHYP: 1, SHDC: 1, SHBA: 1,
-  SHBB: 1, SHBC: 1, SHXF: 1, OPAC: 1, SCAL: 1, ROTN: 1, SEMF: 2, SEML: 2, SEMC: 2, ANCH: 0, AHYP: 0, ACRM: 0,
+  SHBB: 1, SHBC: 1, SHXF: 1, OPAC: 1, SCAL: 1, ROTN: 1, SEMF: 2, SEML: 2, SEMC: 2, SEMR: 2, ANCH: 0, AHYP: 0, ACRM: 0,
   AMSK: 0, AMLP: 0, vorg: 0, AFEA: 1, AOFF: 1, ASCL: 1, SHYP: 2, ASEM: 2,
 };
 

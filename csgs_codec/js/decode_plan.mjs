@@ -61,7 +61,7 @@ export function planDecode(prep, { priorParts = 1, stages = STAGES } = {}) {
   }
   const order = modelled.size ? ['GEOM', ...parts, ...prep.codes] : [...prep.codes, 'GEOM'];
   if (prep.layers.has('semantic')) {
-    add('SEMANTIC', [], 'semantic', 1 + sizes.SEMF + sizes.SEMC + sizes.SEML);
+    add('SEMANTIC', [], 'semantic', 1 + sizes.SEMF + sizes.SEMC + sizes.SEML + sizes.SEMR);
     order.push('SEMANTIC');
   }
   const channels = modelled.size ? modelledChannels(prep.prior, prep.codes) : [];

@@ -7,7 +7,7 @@
  *                §12.20)
  *   PRIOR/k      the color hyperprior's network (§12.19) on rows [start, end) of the cells
  *   SHDC...ROTN  one color stream (§12.8-§12.15); ROTN also returns the dropped components
- *   SEMANTIC     the SEMF or SEMC features and SEML labels (§12.16, §12.23, §12.17)
+ *   SEMANTIC     the SEMF or SEMC features and SEML or SEMR labels (§12.16, §12.23, §12.17, §12.25)
  *
  * decode_plan.mjs says which task needs which and in what order their errors count.
  */

@@ -1,5 +1,5 @@
-/** The semantic layer of a standard scene: SEMF or SEMC features and SEML labels (§12.16,
- * §12.23, §12.17). */
+/** The semantic layer of a standard scene: SEMF or SEMC features and SEML or SEMR labels
+ * (§12.16, §12.23, §12.17, §12.25). */
 
 import { ByteReader } from './bytes.mjs';
 import { decodeCategorical } from './categorical.mjs';
@@ -97,19 +97,75 @@ export function readCodebook(r, count) {
   }
   r.expectEnd('the SEMC payload');
   const features = new Float32Array(count * channels);
+  const ids = runsToSymbols(same, starts, count);
+  for (let i = 0; i < count; i++) {
+    features.set(prototypes.subarray(ids[i] * channels, (ids[i] + 1) * channels), i * channels);
+  }
+  return { names, features, instances: embeddings ? { prototypes, embeddings, width } : null, ids, instanceCount: instances };
+}
+
+/** The ``count`` symbols of a run coding (§12.23, §12.25): symbol 0 is ``starts[0]``; symbol i
+ * repeats symbol i - 1 where ``same[i - 1]`` is 1, else it is the next unread start. */
+function runsToSymbols(same, starts, count) {
+  const out = new Uint8Array(count);
   let run = 0;
   for (let i = 0; i < count; i++) {
     if (i > 0 && same[i - 1] === 0) run++;
-    const id = starts[run];
-    features.set(prototypes.subarray(id * channels, (id + 1) * channels), i * channels);
+    out[i] = starts[run];
   }
-  return { names, features, instances: embeddings ? { prototypes, embeddings, width } : null };
+  return out;
 }
 
-/** Decode SEMF or SEMC and SEML when present into ``scene`` (semantic, semanticNames,
- * labels). */
+/** SEMR (§12.25): the ``count`` int32 labels, as runs of their own (source 0) or a label per
+ * instance of the tile's SEMC (source 1; ``instances`` = { ids, instanceCount }, or null when
+ * the tile has no SEMC). */
+export function readLabelRuns(r, count, instances) {
+  let at = r.offset;
+  const version = r.u8('version');
+  if (version !== 1) throw r.error(`SEMR version ${version} is not 1`, at);
+  at = r.offset;
+  const source = r.u8('source');
+  if (source > 1) throw r.error(`source ${source} is not 0 (runs) or 1 (instances)`, at);
+  if (source === 1 && !instances) throw r.error('source 1 (instances) in a tile without SEMC', at);
+  at = r.offset;
+  const valueCount = r.varint('value_count', 4294967296);
+  if (source === 0 && !(valueCount >= 1 && valueCount <= 255)) throw r.error(`value_count ${valueCount} is outside 1..255`, at);
+  if (source === 1 && valueCount !== instances.instanceCount) throw r.error(`value_count ${valueCount} is not the SEMC instance_count ${instances.instanceCount}`, at);
+  const values = new Int32Array(valueCount);
+  for (let k = 0; k < valueCount; k++) {
+    at = r.offset;
+    const v = r.svarintBig('value');
+    if (v < -(2n ** 31n) || v >= 2n ** 31n) throw r.error('label outside the int32 range', at);
+    values[k] = Number(v);
+    if (source === 0 && k > 0 && values[k] <= values[k - 1]) throw r.error('values are not strictly increasing', at);
+  }
+  const labels = new Int32Array(count);
+  if (source === 1) {
+    r.expectEnd('the SEMR payload');
+    for (let i = 0; i < count; i++) labels[i] = values[instances.ids[i]];
+    return labels;
+  }
+  const sameBytes = r.byteString('same_stream');
+  const same = decodeCategorical(sameBytes, Math.max(count - 1, 0), r.chunk, r.offset - sameBytes.length, 2);
+  let changes = 0;
+  for (let i = 0; i < same.length; i++) if (same[i] === 0) changes++;
+  at = r.offset;
+  const indexBytes = r.byteString('index_stream');
+  const starts = decodeCategorical(indexBytes, count === 0 ? 0 : 1 + changes, r.chunk, r.offset - indexBytes.length, Math.max(valueCount, 2));
+  for (let i = 0; i < starts.length; i++) {
+    if (starts[i] >= valueCount) throw r.error(`an index is not below value_count ${valueCount}`, at);
+  }
+  r.expectEnd('the SEMR payload');
+  const index = runsToSymbols(same, starts, count);
+  for (let i = 0; i < count; i++) labels[i] = values[index[i]];
+  return labels;
+}
+
+/** Decode SEMF or SEMC and SEML or SEMR when present into ``scene`` (semantic,
+ * semanticNames, labels). */
 export function decodeSemantic(container, header, scene, family) {
   const present = new Set(container.toc.entries.map((e) => e.type));
+  let ids = null;
   if (present.has('SEMF')) {
     const [data, offset] = single(container, 'SEMF');
     const r = new ByteReader(data, offset, 'SEMF');
@@ -123,12 +179,27 @@ export function decodeSemantic(container, header, scene, family) {
   if (present.has('SEMC')) {
     const [data, offset] = single(container, 'SEMC');
     if (present.has('SEMF')) throw new FormatError('a tile holds both SEMF and SEMC', { chunk: 'SEMC', offset });
-    const { names, features, instances } = readCodebook(new ByteReader(data, offset, 'SEMC'), header.count);
-    scene.semantic = features;
-    scene.semanticNames = names;
-    scene.instances = instances;
+    const codebook = readCodebook(new ByteReader(data, offset, 'SEMC'), header.count);
+    scene.semantic = codebook.features;
+    scene.semanticNames = codebook.names;
+    scene.instances = codebook.instances;
+    ids = { ids: codebook.ids, instanceCount: codebook.instanceCount };
   }
-  if (present.has('SEML')) scene.labels = readLabels(container, header.count, family);
+  const labels = readAnyLabels(container, header.count, family, ids);
+  if (labels) scene.labels = labels;
+}
+
+/** The ``count`` int32 labels of the container's SEML or SEMR (a tile's Gaussians or an
+ * anchor scene's anchors), or null when it holds neither; ``ids`` = { ids, instanceCount }
+ * of the tile's SEMC, or null. */
+export function readAnyLabels(container, count, family, ids = null) {
+  const present = new Set(container.toc.entries.map((e) => e.type));
+  if (present.has('SEMR')) {
+    const [data, offset] = single(container, 'SEMR');
+    if (present.has('SEML')) throw new FormatError('a tile holds both SEML and SEMR', { chunk: 'SEMR', offset });
+    return readLabelRuns(new ByteReader(data, offset, 'SEMR'), count, ids);
+  }
+  return present.has('SEML') ? readLabels(container, count, family) : null;
 }
 
 /** The ``count`` int32 labels of the container's SEML (§12.17; a tile's Gaussians or an

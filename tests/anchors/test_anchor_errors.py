@@ -14,7 +14,7 @@ from csgs_codec.format import Chunk, read_layers, write_container
 from tests.anchors.helpers import encoded, small_scene
 
 CODES = ("ANCH", "GEOM", "AHYP", "ACRM", "AMSK", "AMLP", "AFEA", "AOFF", "ASCL", "SHYP",
-         "ASEM", "SEML")
+         "ASEM", "SEMR")
 
 
 def rebuilt(changes: dict[str, bytes | None]) -> bytes:
@@ -32,7 +32,7 @@ def payload(code: str) -> bytes:
     return container.payload(code)
 
 
-@pytest.mark.parametrize("code", [c for c in CODES if c != "SEML"])
+@pytest.mark.parametrize("code", [c for c in CODES if c != "SEMR"])
 def test_a_missing_chunk_is_a_format_error_naming_it(code):
     with pytest.raises(FormatError) as err:
         AnchorDecoder().decode(rebuilt({code: None}), layers="color,semantic")
@@ -40,7 +40,7 @@ def test_a_missing_chunk_is_a_format_error_naming_it(code):
 
 
 def test_labels_are_optional():
-    decoded = AnchorDecoder().decode(rebuilt({"SEML": None}), layers="color,semantic")
+    decoded = AnchorDecoder().decode(rebuilt({"SEMR": None}), layers="color,semantic")
     assert decoded.labels is None and decoded.semantic is not None
 
 

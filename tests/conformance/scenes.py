@@ -214,7 +214,8 @@ def _semantic_codebook_vectors(out_dir: Path) -> None:
     prototypes = np.array([[0.5, -1.25, 2.0], [0.0, 0.75, -0.5], [-2.5, 1.0, 0.25],
                            [1.5, 1.5, -1.0], [-0.75, -0.25, 3.0]], np.float32)
     scene = replace(small, semantic=prototypes[small.labels])
-    data = Encoder(quality=6, **UNIFORM).encode(scene)
+    current = Encoder(quality=6, **UNIFORM).encode(scene)
+    data = _seml_as_landed(current)
     _write(out_dir, "semantic_codebook", data,
            "semantic_small's scene with every Gaussian's 3 features its label's prototype "
            "(5 instances): coded exactly as a semantic codebook (SEMC), quality 6",
@@ -237,6 +238,9 @@ def _semantic_codebook_vectors(out_dir: Path) -> None:
         _write(out_dir, name, bad, f"semantic_codebook with {what} (frame and CRC "
                "rewritten): the color layer reads, the semantic layer is refused", _reads(bad))
     _codebook_embedding_vectors(out_dir, scene, prototypes)
+    from tests.conformance._label_runs import generate_label_runs
+
+    generate_label_runs(out_dir, current)
     features = Encoder(quality=6, **UNIFORM).encode(small)
     both = _with_payload(data, "SEMF", _chunk_payload(features, "SEMF"), before="SEMC")
     _write(out_dir, "semantic_codebook_with_semf", both,
@@ -256,8 +260,8 @@ def _codebook_embedding_vectors(out_dir: Path, scene: GaussianScene,
     embeddings = np.array([[1.0, 0.0, 0.0, 0.5], [0.0, 1.0, 0.25, 0.0],
                            [0.0, 0.0, 1.0, -0.5], [0.5, 0.5, 0.0, 0.75],
                            [-1.0, 0.0, 0.0, 0.125]], np.float32)
-    data = Encoder(quality=6, **UNIFORM).encode(
-        replace(scene, instances=InstanceTable(prototypes, embeddings)))
+    data = _seml_as_landed(Encoder(quality=6, **UNIFORM).encode(
+        replace(scene, instances=InstanceTable(prototypes, embeddings))))
     arrays = Decoder().decode(data, layers="color,semantic")
     _write(out_dir, "semantic_codebook_embeddings", data,
            "semantic_codebook's scene with a 4-value embedding per instance (SEMC "
@@ -271,6 +275,20 @@ def _codebook_embedding_vectors(out_dir: Path, scene: GaussianScene,
            "semantic_codebook_embeddings with its first embedding value a binary16 NaN "
            "(frame and CRC rewritten): the color layer reads, the semantic layer is refused",
            _reads(bad))
+
+
+def _seml_as_landed(data: bytes) -> bytes:
+    """``data`` (one tile) with its SEMR chunk written back as the SEML of the same labels:
+    the semantic_codebook vectors landed before revision 27, when the encoder wrote SEML
+    only, and stay byte for byte as they landed."""
+    from csgs_codec.chunks.semantic import label_payload
+
+    labels = Decoder().decode(data, layers="color,semantic").labels
+    container = read_layers(data, layers={"color", "semantic"})
+    chunks = [Chunk("SEML", e.layer, label_payload(labels), e.tile) if e.type == "SEMR"
+              else Chunk(e.type, e.layer, bytes(container.payloads[e.index]), e.tile)
+              for e in container.toc]
+    return write_container(chunks)
 
 
 def _codebook_payload(names: tuple[str, ...], prototypes: np.ndarray, ids: np.ndarray

@@ -3,7 +3,8 @@
 Seeds: a 300-Gaussian subset of samples/donut.ply (SH 0), the same with four Gaussians moved
 1e4 to 1e6 units away (so the file has far outliers, chunk OUTL), a 300-Gaussian subset of the
 SH-3 fixture ../shared/data/fixtures/sh3_iter7000.ply, and a 200-Gaussian random scene with
-four semantic channels and labels, each at qualities 2 and 8; multi-tile files (TIDX,
+four semantic channels and labels, the same with labels that follow the positions (SEMR
+runs) or its instances (SEMR map), each at qualities 2 and 8; multi-tile files (TIDX,
 FORMAT §12.22) of the semantic scene in 4 tiles and of the outlier scene in 4 tiles (far
 points in a tile of their own grid), at quality 5; plus every .csgs under
 spec/vectors/scenes and (anchor scenes, where present) spec/vectors/anchors. The large donut
@@ -69,8 +70,16 @@ def seed_scenes() -> dict[str, GaussianScene]:
     prototypes = np.random.default_rng(5).normal(size=(int(instances.labels.max()) + 1, 4))
     instances.semantic = prototypes[instances.labels].astype(np.float32)
     instances.labels = None
+    # Labels that follow the positions (runs in Morton order: SEMR source 0), and labels
+    # that follow the instances (a map of SEMC's ids: SEMR source 1), FORMAT §12.25.
+    runs = semantic.subset(np.arange(len(semantic)))
+    runs.semantic = runs.semantic_names = None
+    octant = (runs.positions > 0) @ np.array([1, 2, 4])
+    runs.labels = (octant + 10).astype(np.int32)
+    mapped = instances.subset(np.arange(len(instances)))
+    mapped.labels = (semantic.labels % 3 - 1).astype(np.int32)
     scenes = {"donut300": donut, "outliers300": far, "semantic200": semantic,
-              "instances200": instances}
+              "instances200": instances, "labelruns200": runs, "labelmap200": mapped}
     sh3 = FIXTURES / "sh3_iter7000.ply"
     if sh3.exists():
         scenes["sh3_300"] = _subset(read_ply(sh3), SUBSET, 3)

@@ -72,6 +72,10 @@ def test_seeds_cover_semantics_outliers_two_qualities_and_the_scene_vectors(seed
     assert {"vector:donut_q3", "vector:semantic_small", "vector:three_points_sh3_q9"} <= names
     semantic = next(s for s in seeds if s.name == "semantic200_q8")
     assert {c.type for c in semantic.chunks} >= {b"SEMF", b"SEML"}
+    for name, source in (("labelruns200_q8", 0), ("labelmap200_q8", 1)):
+        labelled = next(s for s in seeds if s.name == name)
+        semr = next(c for c in labelled.chunks if c.type == b"SEMR")
+        assert semr.payload[1] == source, name
     outliers = next(s for s in seeds if s.name == "outliers300_q2")
     assert b"OUTL" in {c.type for c in outliers.chunks}
     if (VECTORS_DIR / "anchors").is_dir():
@@ -114,9 +118,11 @@ def test_damage_in_the_semantic_layer_never_changes_a_color_read(seeds):
     import random
 
     rng = random.Random(5)
-    for seed in [s for s in seeds if s.name in ("semantic200_q8", "vector:semantic_small")]:
+    names = ("semantic200_q8", "vector:semantic_small", "labelruns200_q8", "labelmap200_q8")
+    for seed in [s for s in seeds if s.name in names]:
         color = Decoder().decode(seed.data, layers="color")
-        semantic = [i for i, c in enumerate(seed.chunks) if c.type in (b"SEMF", b"SEML")]
+        semantic = [i for i, c in enumerate(seed.chunks)
+                    if c.type in (b"SEMF", b"SEML", b"SEMC", b"SEMR")]
         for _ in range(50):
             chunks = list(seed.chunks)
             i = rng.choice(semantic)

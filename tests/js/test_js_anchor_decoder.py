@@ -60,6 +60,18 @@ def test_anchor_vectors_decode_as_in_python(layers, threads, range_coder):
     assert "mlp.color.w1" in decoded["anchors_color_q8_mlp_float16"]["arrays"]
 
 
+def test_anchor_labels_coded_as_runs_decode_as_in_python(tmp_path):
+    """The anchor encoder writes SEMR (§12.25) where it is smaller than SEML: the helper
+    scene's labels are such a case."""
+    from tests.anchors.helpers import encoded
+
+    path = tmp_path / "labels.csgs"
+    path.write_bytes(encoded().data)
+    assert "SEMR" in {e.type for e in read_layers(path.read_bytes(), "semantic").toc}
+    (result,) = _compare([path], "color,semantic")
+    assert result["ok"] and "labels" in result["arrays"]
+
+
 @pytest.fixture(scope="module")
 def vorg_file(tmp_path_factory) -> Path:
     path = tmp_path_factory.mktemp("vorg") / "origins.csgs"

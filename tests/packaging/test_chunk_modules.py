@@ -13,7 +13,7 @@ PACKAGE = Path(__file__).resolve().parents[2] / "csgs_codec"
 FAMILIES = {"SHDC": "color_streams", "SHBA": "color_streams", "SHBB": "color_streams",
             "SHBC": "color_streams", "OPAC": "color_streams", "SCAL": "color_streams",
             "ROTN": "color_streams", "OUTL": "far_points", "OUTQ": "far_points",
-            "SEMF": "semantic", "SEML": "semantic", "SEMC": "semantic",
+            "SEMF": "semantic", "SEML": "semantic", "SEMC": "semantic", "SEMR": "semantic",
             "SCNE": "scene_header", "TIDX": "tile_index", "vdis": "view_record",
             "ANCH": "anchor_payloads", "AMLP": "anchor_payloads",
             "AHYP": "anchor_networks", "ACRM": "anchor_networks",
