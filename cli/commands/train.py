@@ -35,6 +35,10 @@ def add_arguments(parser) -> None:
                              f"smaller files; default {RATE_WEIGHT_PRESETS[0]})")
     parser.add_argument("--iterations", type=int, default=defaults.ITERATIONS, metavar="N",
                         help=f"stage-1 steps, one view each (default {defaults.ITERATIONS})")
+    parser.add_argument("--budget", metavar="TIME", type=parse_duration,
+                        help="finish in about this wall time (e.g. 10m, 90s, 1h): stage 1's "
+                             "steps are set from the speed of its first 40 (instead of "
+                             "--iterations; the file then depends on the machine's speed)")
     parser.add_argument("--semantic-iterations", type=int, default=defaults.SEMANTIC_ITERATIONS,
                         metavar="N", help="stage-2 steps (stage 3 runs two thirds as many; "
                                           f"default {defaults.SEMANTIC_ITERATIONS})")
@@ -100,8 +104,31 @@ def add_arguments(parser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
 
 
+#: Shortest and longest --budget, seconds.
+BUDGET_RANGE = (10.0, 7 * 24 * 3600.0)
+
+
+def parse_duration(text: str) -> float:
+    """Seconds of a duration written ``90``, ``90s``, ``10m`` or ``1.5h``."""
+    import argparse
+
+    units = {"s": 1.0, "m": 60.0, "h": 3600.0}
+    number, unit = (text[:-1], text[-1]) if text[-1:].lower() in units else (text, "s")
+    try:
+        seconds = float(number) * units[unit.lower()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a duration such as 90s, 10m or "
+                                         "1h") from None
+    if not BUDGET_RANGE[0] <= seconds <= BUDGET_RANGE[1]:
+        raise argparse.ArgumentTypeError(f"{text!r}: a budget must be 10 s to 7 days")
+    return seconds
+
+
 def run(args) -> int:
     """Load the dataset, train every stage, write the .csgs atomically and print a summary."""
+    import time
+
+    started = time.perf_counter()
     import torch
     from tqdm import tqdm
 
@@ -122,6 +149,9 @@ def run(args) -> int:
     if not (math.isfinite(args.rate_weight) and args.rate_weight >= 0):
         raise InputError(f"--lambda must be a finite number >= 0, got {args.rate_weight}",
                          property="lambda")
+    if args.budget is not None and args.resume:
+        raise InputError("--budget plans a run from its start: resume without it",
+                         property="budget")
     for name in ("iterations", "semantic_iterations", "anchors", "max_anchors",
                  "checkpoint_every"):
         if not 1 <= getattr(args, name) <= MAX_COUNT:
@@ -211,6 +241,8 @@ def run(args) -> int:
                             refresh=False)
         bar.update(step.step - bar.n)
 
+    if args.budget is not None:
+        settings.budget_seconds = args.budget - (time.perf_counter() - started)
     try:
         result = train_scene(train_views, points, settings, checkpoint_dir=args.checkpoint_dir,
                              resume=args.resume, progress=progress)
@@ -223,6 +255,9 @@ def run(args) -> int:
           f"{scene.active_offsets():,} Gaussian slots, semantic layer {share:.1f}% of the file")
     timings = ", ".join(f"{k} {v:.1f} s" for k, v in result.seconds.items())
     print(f"time: {timings}")
+    if args.budget is not None:
+        print(f"budget {args.budget:.0f} s: stage 1 ran {result.color_state.step:,} steps, the "
+              f"run {time.perf_counter() - started:.0f} s")
     if test_views:
         scores = score_views(scene, test_views)
         inside = ("" if math.isnan(scores.foreground_psnr) else

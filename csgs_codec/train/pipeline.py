@@ -75,6 +75,9 @@ class TrainSettings:
             the masks' mean features sit, so also the semantic layer's size).
         checkpoint_every: stage-1 steps between checkpoints (with a checkpoint folder).
         encoder_fit: the anchor encoder's hyperprior fitting settings (default its own).
+        budget_seconds: wall seconds the whole run may take (None: ``color.iterations``
+            steps): stage 1's length is then set from the speed of its first steps
+            (:func:`budget_iterations`), so the file depends on the machine's speed.
     """
 
     color: ColorStageSettings = field(default_factory=ColorStageSettings)
@@ -85,6 +88,25 @@ class TrainSettings:
     contrastive_margin: float = CONTRASTIVE_MARGIN
     checkpoint_every: int = 500
     encoder_fit: FitSettings | None = None
+    budget_seconds: float | None = None
+
+
+#: Stage-1 steps timed before a time budget sets the stage's length.
+BUDGET_PROBE_STEPS = 40
+#: Share of a time budget stage 1 plans for at its probe's speed: the rest is left for the
+#: encodes and the semantic stages (15-20% on mary_rose at 384 px) and for the stage's own
+#: slowdown as anchors grow and the rate term starts.
+BUDGET_STAGE1_SHARE = 0.7
+#: Most stage-1 steps a budget may plan.
+BUDGET_MAX_ITERATIONS = 100_000
+
+
+def budget_iterations(steps_per_second: float, seconds_left: float) -> int:
+    """Stage-1 steps that fit a budget: ``BUDGET_STAGE1_SHARE`` of the ``seconds_left`` at
+    ``steps_per_second``, at least one more than the probe's and at most
+    :data:`BUDGET_MAX_ITERATIONS`."""
+    planned = int(steps_per_second * max(seconds_left, 0.0) * BUDGET_STAGE1_SHARE)
+    return min(max(planned, BUDGET_PROBE_STEPS + 1), BUDGET_MAX_ITERATIONS)
 
 
 @dataclass
@@ -156,6 +178,15 @@ def train_scene(views: list[TrainingView], points: np.ndarray, settings: TrainSe
         state = initial_state(views, points, settings.color)
     report("stage 1: color", None)
     began = time.perf_counter()
+    if settings.budget_seconds is not None and state.step == 0:
+        # Time the first steps, then set the stage's length (its schedules are fractions
+        # of it, and the probe ends before growth and the rate term start).
+        probe = min(BUDGET_PROBE_STEPS, state.settings.iterations)
+        train_color_stage(views, state, progress=lambda p: report("stage 1: color", p),
+                          stop_at=probe)
+        elapsed = time.perf_counter() - began
+        state.settings = dataclasses.replace(state.settings, iterations=budget_iterations(
+            probe / max(elapsed, 1e-9), settings.budget_seconds - elapsed))
     every = settings.checkpoint_every if checkpoint is not None else state.settings.iterations
     while state.step < state.settings.iterations:
         stop = min(state.step + max(every, 1), state.settings.iterations)
