@@ -69,25 +69,21 @@ def test_a_bad_budget_exits_2_naming_it(dataset, tmp_path, capsys, budget, fragm
     assert "--budget" in err and fragment in err
 
 
+@pytest.mark.slow  # runs for its budget, 15 s
 def test_a_time_budget_sets_stage_1_from_its_first_steps(dataset, tmp_path, capsys):
     """`--budget 15s` on a tiny capture: stage 1's steps are planned from the probe's speed
     (more than the probe's 40 on any machine this fast, never the default 2,000 it would
     take without the budget), the run ends and writes a file that decodes."""
-    import time
-
     from csgs_codec.train.pipeline import BUDGET_PROBE_STEPS
 
     out = tmp_path / "budget.csgs"
-    began = time.perf_counter()
     assert main(["train", str(dataset), "-o", str(out), "--budget", "15s", "--anchors", "50",
                  "--features", "8", "--offsets", "4", "--semantic-iterations", "15",
                  "--test-every", "3", "-q"]) == 0
-    elapsed = time.perf_counter() - began
     printed = capsys.readouterr().out
     line = next(x for x in printed.splitlines() if x.startswith("budget 15 s"))
     steps = int(line.split("ran ")[1].split(" steps")[0].replace(",", ""))
-    assert BUDGET_PROBE_STEPS < steps
-    assert elapsed < 60  # a budget, not a guarantee: a loaded machine may overrun it a little
+    assert steps > BUDGET_PROBE_STEPS
     assert len(AnchorDecoder().decode(out.read_bytes())) > 0
 
 
