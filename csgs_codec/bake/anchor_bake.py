@@ -46,6 +46,8 @@ from csgs_codec.scene.gaussian_scene import GaussianScene
 #: robust box fills to 70%, as the encoder's default viewing distribution frames a scene.
 _FOV_Y_DEG = 40.0
 _FILL = 0.7
+#: Most refinement steps a bake takes.
+MAX_REFINE_STEPS = 100_000
 #: Anchors evaluated together (bounds memory: anchors x offsets x basis^2 doubles).
 ANCHOR_BATCH = 2048
 #: Least opacity weight a view gives a slot's colour fit, so that a slot on from few views
@@ -65,6 +67,9 @@ class BakeSettings:
             total colour weight (0 for plain least squares).
         directions: view directions per shell of the default sphere of origins.
         distances: shells of the default sphere, as multiples of the framing distance.
+        refine_steps: Adam steps refining the bake against the exact renders from the
+            origins (:mod:`csgs_codec.bake.refine`; 0: none, the browser page's bake).
+        refine_size: side in pixels of those renders.
     """
 
     sh_degree: int = 3
@@ -72,6 +77,8 @@ class BakeSettings:
     ridge: float = 1e-3
     directions: int = 32
     distances: tuple[float, ...] = (0.65, 1.0, 1.5)
+    refine_steps: int = 0
+    refine_size: int = 256
 
     def check(self) -> None:
         """Raise :class:`InputError` naming the first setting out of range."""
@@ -84,6 +91,12 @@ class BakeSettings:
         if not (math.isfinite(self.ridge) and self.ridge >= 0.0):
             raise InputError(f"ridge must be finite and >= 0, got {self.ridge}",
                              property="ridge")
+        if not 0 <= self.refine_steps <= MAX_REFINE_STEPS:
+            raise InputError(f"refine steps must be 0..{MAX_REFINE_STEPS:,}, got "
+                             f"{self.refine_steps}", property="refine_steps")
+        if not 16 <= self.refine_size <= 2048:
+            raise InputError(f"refine size must be 16..2048 pixels, got {self.refine_size}",
+                             property="refine_size")
         if self.directions < 1 or not self.distances or min(self.distances) <= 0:
             raise InputError("the default sphere needs directions and positive distances",
                              property="directions")
@@ -167,7 +180,13 @@ def bake_anchor_scene(scene: AnchorScene, *, cameras: list[Camera] | None = None
         parts.append(_bake_batch(scene, batch, mlps, origin_tensor, settings))
         if progress is not None:
             progress(batch.stop, len(scene))
-    return _assemble(scene, parts, settings.sh_degree)
+    baked = _assemble(scene, parts, settings.sh_degree)
+    if settings.refine_steps:
+        from csgs_codec.bake.refine import refine_bake
+
+        baked = refine_bake(baked, scene, origins, steps=settings.refine_steps,
+                            size=settings.refine_size, device=device)
+    return baked
 
 
 @dataclass

@@ -86,7 +86,8 @@ def test_every_command_takes_anchor_files_plys_and_checkpoints(tmp_path, capsys)
                  "64x48", "--json"]) == 0
     facts = json.loads(capsys.readouterr().out)
     assert facts["mean"]["psnr"] == "inf"  # the same anchors rendered the same way
-    assert main(["decode", str(out), "-o", str(tmp_path / "baked.spz"), "-q"]) == 0
+    assert main(["decode", str(out), "-o", str(tmp_path / "baked.spz"), "--refine-bake", "40",
+                 "-q"]) == 0
     capsys.readouterr()
     assert main(["compare", str(out), str(tmp_path / "baked.spz"), "--orbit", "2", "--size",
                  "64x48", "--json"]) == 0
@@ -101,12 +102,12 @@ def test_decode_bakes_anchor_files_into_every_scene_format(tmp_path, capsys):
     assert main(["encode", str(folder), "-o", str(out), "-q"]) == 0
     for name in ("a.ply", "a.spz", "a.glb", "a.splat"):
         assert main(["decode", str(out), "-o", str(tmp_path / name), "--sh-degree", "1",
-                     "-q"]) == 0
+                     "--refine-bake", "0" if name != "a.ply" else "20", "-q"]) == 0
         assert (tmp_path / name).is_file()  # a scene file, never a checkpoint folder
         assert len(read_scene(tmp_path / name)) > 0
     assert read_scene(tmp_path / "a.ply").sh_degree_stored == 1
     assert main(["decode", str(out), "-o", str(tmp_path / "b.spz"), "--checkpoint",
-                 str(tmp_path / "ckpt_too"), "-q"]) == 0
+                 str(tmp_path / "ckpt_too"), "--refine-bake", "0", "-q"]) == 0
     assert read_scaffold(tmp_path / "ckpt_too").mlps is not None
     capsys.readouterr()
     assert main(["decode", str(SAMPLE_CSGS(tmp_path)), "-o", str(tmp_path / "s.ply"),
@@ -119,3 +120,29 @@ def SAMPLE_CSGS(tmp_path):  # noqa: N802
     if not path.exists():
         assert main(["encode", str(SAMPLE), "-o", str(path), "--fast", "-q"]) == 0
     return path
+
+
+def test_refine_bake_0_writes_the_api_s_bake_and_bad_values_exit_2(tmp_path, capsys):
+    """`--refine-bake 0` is the browser page's bake (bake_anchor_scene's default settings);
+    the default refines it; a negative count is refused before any work."""
+    from csgs_codec import read_scene
+    from csgs_codec.bake.anchor_bake import bake_anchor_scene
+
+    _, folder = _checkpoint(tmp_path)
+    out = tmp_path / "a.csgs"
+    assert main(["encode", str(folder), "-o", str(out), "-q"]) == 0
+    assert main(["decode", str(out), "-o", str(tmp_path / "plain.ply"), "--refine-bake", "0",
+                 "-q"]) == 0
+    expected = bake_anchor_scene(AnchorDecoder().decode(out))
+    plain = read_scene(tmp_path / "plain.ply")
+    np.testing.assert_array_equal(plain.sh_dc, expected.sh_dc)
+    np.testing.assert_array_equal(plain.opacity, expected.opacity)
+    assert main(["decode", str(out), "-o", str(tmp_path / "refined.ply"), "--refine-bake",
+                 "30"]) == 0
+    assert "refined in 30 steps" in capsys.readouterr().out
+    refined = read_scene(tmp_path / "refined.ply")
+    np.testing.assert_array_equal(refined.positions, plain.positions)
+    assert not np.array_equal(refined.opacity, plain.opacity)
+    assert main(["decode", str(out), "-o", str(tmp_path / "bad.ply"), "--refine-bake",
+                 "-1"]) == 2
+    assert "refine" in capsys.readouterr().err and not (tmp_path / "bad.ply").exists()
