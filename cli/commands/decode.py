@@ -159,6 +159,10 @@ def note_semantic_left_out(args) -> None:
 
     if "semantic" in args.layers.split(",") or not has_semantic_layer(args.bitstream):
         return
+    from pathlib import Path
+
+    if Path(args.output).suffix.lower() in (".spz", ".splat", ".glb"):
+        return  # these formats carry no semantic channels either way
     warnings.warn(CsgsWarning(f"{args.bitstream} has a semantic layer, not decoded (the "
                               "default is --layers color); add --layers color,semantic to "
                               "decode it"), stacklevel=2)

@@ -146,3 +146,14 @@ def test_refine_bake_0_writes_the_api_s_bake_and_bad_values_exit_2(tmp_path, cap
     assert main(["decode", str(out), "-o", str(tmp_path / "bad.ply"), "--refine-bake",
                  "-1"]) == 2
     assert "refine" in capsys.readouterr().err and not (tmp_path / "bad.ply").exists()
+
+
+def test_the_semantic_layer_left_out_is_said_only_where_the_output_could_carry_it(
+        tmp_path, capsys):
+    from benchmarks._js_receiver import REPO
+
+    trained = REPO / "tests" / "data" / "anchors" / "demo_trained.csgs"
+    for name, said in (("a.ply", True), ("a.spz", False)):
+        assert main(["decode", str(trained), "-o", str(tmp_path / name), "--refine-bake",
+                     "0"]) == 0
+        assert ("--layers color,semantic" in capsys.readouterr().err) == said, name
