@@ -45,7 +45,7 @@ def add_arguments(parser) -> None:
                               "folder")
 
 
-#: Refinement steps of a bake ``csgs decode`` writes (10 s for mary_rose's 4,542 Gaussians).
+#: Refinement steps of a bake ``csgs decode`` writes (16 s for mary_rose's 4,542 Gaussians).
 DEFAULT_REFINE_STEPS = 300
 
 

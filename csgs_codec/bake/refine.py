@@ -6,8 +6,9 @@ the averages are not the static Gaussians that render closest to the anchors. Th
 renders the anchor scene exactly (per view, as training does) from a camera at each view
 origin looking at the anchors' centre, then runs Adam on the baked Gaussians' SH
 coefficients, opacity, scale and rotation (positions fixed) to lower the L1 error of their
-renders against those targets. On the real mary_rose capture 300 steps (10 s on a 2-core
-CPU) bring the bake from 1.04 to 0.42 dB below the exact render on held-out photos.
+renders against those targets. On the real mary_rose capture 300 steps (16 s on a 2-core
+CPU, target renders included) bring the bake from 1.04 to 0.39 dB below the exact render on
+held-out photos.
 
 The views are drawn in a seeded order and every operation runs in float32 on the given
 device, so a refinement repeats on one machine; it feeds no range coder.
