@@ -23,6 +23,7 @@ Formats:
 from __future__ import annotations
 
 import math
+import os
 import warnings
 from pathlib import Path
 
@@ -253,6 +254,8 @@ def _size_from_image_file(folder: Path, file_path) -> dict[str, int]:
     image cannot be read, so the missing field is reported."""
     if not isinstance(file_path, str) or not file_path:
         return {}
+    if Path(file_path).is_absolute() or os.path.normpath(file_path).split(os.sep)[0] == "..":
+        return {}  # outside the JSON's folder: not opened (the dataset loader's rule)
     image = folder / file_path
     candidates = [image] if image.suffix else [image.with_suffix(".png"), image]
     from PIL import Image
