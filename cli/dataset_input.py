@@ -52,6 +52,14 @@ def add_builtin_segmenter_argument(parser) -> None:
                              "SAM-style masks; see docs/masks.md)")
 
 
+def add_outside_paths_argument(parser) -> None:
+    """``--allow-outside-paths``: read image paths that leave the dataset folder."""
+    parser.add_argument("--allow-outside-paths", action="store_true",
+                        help="read images whose path in the camera file is absolute or climbs "
+                             "out of the dataset folder with '..' (refused by default; "
+                             "docs/captures.md)")
+
+
 @contextlib.contextmanager
 def mask_fallback(args):
     """Within: the built-in segmenter's FallbackWarning is silent when ``args`` ask for it

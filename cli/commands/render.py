@@ -68,7 +68,8 @@ def captured(args) -> list:
     from csgs_codec.train.datasets import dataset_files
 
     try:
-        return dataset_files(args.cameras)
+        # every photo the cameras name, inside the dataset or not, is kept from being replaced
+        return dataset_files(args.cameras, allow_outside_paths=True)
     except InputError:
         return []
 

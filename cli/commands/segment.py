@@ -19,7 +19,7 @@ DEFAULT_RESOLUTION = 640
 
 def add_arguments(parser) -> None:
     """Arguments of ``csgs segment``."""
-    from csgs_cli.dataset_input import add_builtin_segmenter_argument
+    from csgs_cli.dataset_input import add_builtin_segmenter_argument, add_outside_paths_argument
     from csgs_codec.decisions.presets import DEFAULT_QUALITY, QUALITIES
     from csgs_codec.train import defaults
 
@@ -41,6 +41,7 @@ def add_arguments(parser) -> None:
                              "beside the image folder, else the built-in segmenter (weaker, "
                              "with a warning)")
     add_builtin_segmenter_argument(parser)
+    add_outside_paths_argument(parser)
     parser.add_argument("--mask-embeddings", metavar="DIR",
                         help="one .npy per view named after its image, row i an embedding "
                              "of mask id i (e.g. CLIP image embeddings of the masks): the "
@@ -99,13 +100,15 @@ def run(args) -> int:
         [("-o", output)],
         [("the scene", args.scene), ("--mask-embeddings", args.mask_embeddings),
          ("--cameras", args.cameras)]
-        + [("--images", file) for file in dataset_files(data, masks=args.masks,
-                                                        images=images)])
+        + [("--images", file) for file in dataset_files(
+            data, masks=args.masks, images=images,
+            allow_outside_paths=args.allow_outside_paths)])
     check_output(output, [args.scene])
     scene = load_scene(args.scene, command=NAME, layers="color")
     with mask_fallback(args):
         views = load_dataset(data, downscale=downscale_for(data, args.resolution),
-                             masks=args.masks, images=images, segment_missing=True)
+                             masks=args.masks, images=images, segment_missing=True,
+                             allow_outside_paths=args.allow_outside_paths)
     embeddings = None
     if args.mask_embeddings:
         if suffix != ".csgs":

@@ -20,7 +20,7 @@ HELP = ("train a scene from images + cameras (+ instance masks) through the thre
 
 def add_arguments(parser) -> None:
     """Arguments of ``csgs train``."""
-    from csgs_cli.dataset_input import add_builtin_segmenter_argument
+    from csgs_cli.dataset_input import add_builtin_segmenter_argument, add_outside_paths_argument
     from csgs_codec.train import defaults
     from csgs_codec.train.defaults import RATE_WEIGHT_PRESETS
     parser.add_argument("data", help="dataset: a folder with transforms.json, cameras.json "
@@ -73,6 +73,7 @@ def add_arguments(parser) -> None:
                              "without one a built-in segmenter makes masks, with a warning; "
                              "docs/masks.md)")
     add_builtin_segmenter_argument(parser)
+    add_outside_paths_argument(parser)
     parser.add_argument("--foreground-masks", metavar="DIR",
                         help="folder of object masks (255 object, 0 background; one per "
                              "image, named by its stem): train the object alone with a "
@@ -188,19 +189,22 @@ def run(args) -> int:
     resolve_training_rasterizer(args.rasterizer, args.device)  # fail before loading images
     check_output_folder(Path(args.output))
     foreground = args.foreground_masks
+    outside = args.allow_outside_paths
     if foreground is None and not args.no_foreground_masks:
-        foreground = find_foreground_masks(args.data)
+        foreground = find_foreground_masks(args.data, allow_outside_paths=outside)
     masks = None if args.no_semantic else args.masks
     refuse_overwriting_inputs(
         [("-o", args.output)],
         [("--points", args.points)]
         + [("the dataset", file)
-           for file in dataset_files(args.data, masks=masks, foreground=foreground)])
+           for file in dataset_files(args.data, masks=masks, foreground=foreground,
+                                     allow_outside_paths=outside)])
     with mask_fallback(args):
         views = load_dataset(args.data, downscale=downscale_for(args.data, args.resolution),
                              masks=None if args.no_semantic else args.masks,
                              segment_missing=not args.no_semantic,
-                             read_masks=not args.no_semantic, foreground=foreground)
+                             read_masks=not args.no_semantic, foreground=foreground,
+                             allow_outside_paths=outside)
     train_views, test_views = split_views(views, args.test_every)
     points, source = find_initial_points(args.data, [v.camera for v in train_views],
                                          points=args.points, seed=args.seed,

@@ -23,6 +23,7 @@ Formats:
 from __future__ import annotations
 
 import math
+import os
 import warnings
 from pathlib import Path
 
@@ -191,6 +192,12 @@ def _field(entry: dict, key: str, source, where: str):
 
 def _finite(entry: dict, key: str, source, where: str) -> float:
     value = _field(entry, key, source, where)
+    if isinstance(value, int) and not isinstance(value, bool):
+        try:
+            value = float(value)
+        except OverflowError:  # JSON integers are unbounded
+            raise InputError("number too large for a float", file=source,
+                             property=f"{where}.{key}") from None
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise InputError(f"expected a finite number, got {value!r}", file=source,
                          property=f"{where}.{key}")
@@ -221,7 +228,7 @@ def _float_array(entry: dict, key: str, shape: tuple[int, ...], source, where: s
     value = _field(entry, key, source, where)
     try:
         array = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: an integer past 1e308
         raise InputError(f"expected numbers of shape {shape}", file=source,
                          property=f"{where}.{key}") from None
     if allow_rows is not None and array.shape == (allow_rows, shape[1]):
@@ -247,6 +254,8 @@ def _size_from_image_file(folder: Path, file_path) -> dict[str, int]:
     image cannot be read, so the missing field is reported."""
     if not isinstance(file_path, str) or not file_path:
         return {}
+    if Path(file_path).is_absolute() or os.path.normpath(file_path).split(os.sep)[0] == "..":
+        return {}  # outside the JSON's folder: not opened (the dataset loader's rule)
     image = folder / file_path
     candidates = [image] if image.suffix else [image.with_suffix(".png"), image]
     from PIL import Image

@@ -16,7 +16,6 @@ in that folder, measured from the file, not inferred from N.
 
 from __future__ import annotations
 
-import io
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,7 +29,7 @@ from csgs_codec.scene.camera import (
     Camera,
     intrinsics_problem,
 )
-from csgs_codec.untrusted import open_regular, read_regular
+from csgs_codec.untrusted import open_regular, read_npy, read_regular
 
 #: The pose file of an LLFF capture.
 POSES_FILE = "poses_bounds.npy"
@@ -103,10 +102,9 @@ def read_poses_bounds(path: str | Path) -> LlffPoses:
     data = read_regular(path, MAX_CAMERA_FILE_BYTES, what="a camera file")
     if not data.startswith(b"\x93NUMPY"):
         raise InputError("not a NumPy .npy file (it lacks the \\x93NUMPY magic)", file=path)
-    try:
-        array = np.load(io.BytesIO(data), allow_pickle=False)
-    except (ValueError, OSError, EOFError) as error:
-        raise InputError(f"not a NumPy .npy array: {error}", file=path) from None
+    # read_npy checks the header against the file before any array is made (numpy's own
+    # parser raised tokenize and overflow errors on hostile headers).
+    array = read_npy(path, MAX_CAMERA_FILE_BYTES, what="a camera file", kinds="biuf")
     if not isinstance(array, np.ndarray) or array.dtype.kind not in "fiu":
         raise InputError(f"expected a float array, got {getattr(array, 'dtype', type(array))}",
                          file=path)

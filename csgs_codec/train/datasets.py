@@ -11,7 +11,12 @@ Layouts :func:`load_dataset` recognises (``path`` is the dataset folder or its c
   ``images/``, or of the ``images_N/`` copy nearest above the asked size, in sorted name order.
 
 The ``images/`` folder is searched beside the camera file, then one and two levels up (COLMAP
-models sit in ``sparse/0``). Masks: one integer instance-id image per view with the image's
+models sit in ``sparse/0``). Image names must stay inside the dataset folder: the folder
+holding the camera file (transforms.json), the folder holding ``images/`` (INRIA, COLMAP), or
+the ``images`` folder when one is given; an absolute name or one whose ``..`` climbs out is
+refused unless ``allow_outside_paths`` (``--allow-outside-paths``) is set (docs/captures.md).
+
+Masks: one integer instance-id image per view with the image's
 stem (``masks/frame_001.png`` for ``images/frame_001.jpg``), from the ``masks/`` folder beside
 the images unless another folder is given. A mask may also have the size of the full-size
 image when an LLFF ``images_N/`` copy is read: it is then resized like the image. Without
@@ -26,6 +31,7 @@ from __future__ import annotations
 
 import contextlib
 import numbers
+import os
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -65,8 +71,8 @@ IMAGES_FOLDER = "images"
 def load_dataset(path: str | Path, *, downscale: float = 1.0, masks: str | Path | None = None,
                  images: str | Path | None = None, segment_missing: bool = True,
                  background: tuple[float, float, float] = (0.0, 0.0, 0.0),
-                 read_masks: bool = True, foreground: str | Path | None = None
-                 ) -> list[TrainingView]:
+                 read_masks: bool = True, foreground: str | Path | None = None,
+                 allow_outside_paths: bool = False) -> list[TrainingView]:
     """Load every view of a dataset (layouts in the module notes).
 
     Args:
@@ -89,20 +95,23 @@ def load_dataset(path: str | Path, *, downscale: float = 1.0, masks: str | Path 
             :func:`find_foreground_masks` for a capture's own): each image is composited over
             ``background`` outside its mask (before any downscale) and the view's
             ``foreground`` set.
+        allow_outside_paths: read image names that are absolute or climb out of the dataset
+            folder with ``..`` (refused by default; module notes).
 
     Returns:
         One :class:`TrainingView` per camera, in the camera file's order (COLMAP: image name).
 
     Raises:
         InputError: no camera file, a missing or unreadable image or mask, an image whose size
-            differs from its camera's, or a mask whose size differs from its image's (each
-            naming the file).
+            differs from its camera's, a mask whose size differs from its image's (each
+            naming the file), or an image name leaving the dataset folder (naming the camera
+            file, the frame or image, and the name).
     """
     if (isinstance(downscale, bool) or not isinstance(downscale, numbers.Real)
             or not 1.0 <= float(downscale) < float("inf")):
         raise InputError(f"downscale must be a finite factor >= 1, got {downscale}",
                          property="downscale")
-    files = _view_files(Path(path), float(downscale), images)
+    files = _view_files(Path(path), float(downscale), images, allow_outside_paths)
     foreground_root = None
     if foreground is not None:
         foreground_root = Path(foreground)
@@ -150,8 +159,8 @@ def _fallback_message(path, image_root: Path, foreground_root: Path | None) -> s
             "this warning")
 
 
-def find_foreground_masks(path: str | Path, *, images: str | Path | None = None
-                          ) -> Path | None:
+def find_foreground_masks(path: str | Path, *, images: str | Path | None = None,
+                          allow_outside_paths: bool = False) -> Path | None:
     """The dataset's own foreground masks: its ``masks/`` folder (found as for instance
     masks) when every view has a mask there holding only 0 and 255 (see
     :func:`csgs_codec.train.foreground.is_binary_mask`), else None.
@@ -159,7 +168,7 @@ def find_foreground_masks(path: str | Path, *, images: str | Path | None = None
     Raises:
         InputError: as :func:`load_dataset` for the cameras and images.
     """
-    files = _view_files(Path(path), 1.0, images)
+    files = _view_files(Path(path), 1.0, images, allow_outside_paths)
     folder = _mask_folder(files.image_root, None)
     if folder is None:
         return None
@@ -185,14 +194,17 @@ class _ViewFiles:
     mask_scale: float
 
 
-def _view_files(path: Path, downscale: float, images: str | Path | None) -> _ViewFiles:
+def _view_files(path: Path, downscale: float, images: str | Path | None,
+                allow_outside_paths: bool = False) -> _ViewFiles:
     camera_path = find_camera_file(path)
     if is_llff_path(camera_path):
         capture = load_llff_capture(camera_path, downscale=downscale, folder=images)
         return _ViewFiles(capture.cameras, capture.folder, [c.name for c in capture.cameras],
                           capture.remaining_downscale, capture.scale)
     cameras = load_cameras(camera_path)
-    image_root, names = _image_locations(camera_path, cameras, images)
+    image_root, names, dataset_root = _image_locations(camera_path, cameras, images)
+    if not allow_outside_paths:
+        check_names_inside(camera_path, names, image_root, dataset_root)
     return _ViewFiles(cameras, image_root, names, downscale, 1.0)
 
 
@@ -218,7 +230,8 @@ def find_camera_file(path: Path) -> Path:
 
 def dataset_files(path: str | Path, *, masks: str | Path | None = None,
                   images: str | Path | None = None,
-                  foreground: str | Path | None = None) -> list[Path]:
+                  foreground: str | Path | None = None,
+                  allow_outside_paths: bool = False) -> list[Path]:
     """The files :func:`load_dataset` (same arguments) would read: the camera file (or the
     COLMAP model's files), each view's image, and each instance or foreground mask it finds.
     Files that are missing are left out (loading reports them); no image is opened.
@@ -227,7 +240,7 @@ def dataset_files(path: str | Path, *, masks: str | Path | None = None,
         InputError: as :func:`load_dataset` for a missing or malformed camera file.
     """
     camera_path = find_camera_file(Path(path))
-    views = _view_files(Path(path), 1.0, images)
+    views = _view_files(Path(path), 1.0, images, allow_outside_paths)
     files = colmap_model_files(camera_path) if camera_path.is_dir() else [camera_path]
     foreground_root = None if foreground is None else Path(foreground)
     roots = [(views.image_root, False), (_mask_folder(views.image_root, masks, foreground_root),
@@ -241,22 +254,60 @@ def dataset_files(path: str | Path, *, masks: str | Path | None = None,
 
 
 def _image_locations(camera_path: Path, cameras: list[Camera], images: str | Path | None
-                     ) -> tuple[Path, list[str]]:
-    """(folder the names are relative to, image name per camera)."""
+                     ) -> tuple[Path, list[str], Path]:
+    """(folder the names are relative to, image name per camera, the dataset folder the
+    names must stay inside)."""
     names = [camera.name for camera in cameras]
     if _is_transforms_file(camera_path) and images is None:
-        return camera_path.parent, names
+        return camera_path.parent, names, camera_path.parent
     if images is not None:
         folder = Path(images)
         if not folder.is_dir():
             raise InputError("images folder not found", file=folder)
-        return folder, names
+        return folder, names, folder
     start = camera_path if camera_path.is_dir() else camera_path.parent
     for folder in (start, start.parent, start.parent.parent):
         if (folder / IMAGES_FOLDER).is_dir():
-            return folder / IMAGES_FOLDER, names
+            return folder / IMAGES_FOLDER, names, folder
     raise InputError(f"no '{IMAGES_FOLDER}' folder beside the cameras or up to two levels "
                      "above", file=start / IMAGES_FOLDER)
+
+
+def check_names_inside(camera_path: Path, names: list[str], image_root: Path,
+                       dataset_root: Path) -> None:
+    """Refuse an image name that is absolute or whose ``..`` leaves ``dataset_root`` once
+    joined to ``image_root`` (a folder inside it). The test is on the names as written,
+    not on resolved paths, so a dataset whose ``images/`` is a symlink still loads.
+
+    Raises:
+        InputError: naming the camera file, the frame or image (``property``) and the path.
+    """
+    prefix = os.path.relpath(os.path.abspath(image_root), os.path.abspath(dataset_root))
+    for index, name in enumerate(names):
+        joined = os.path.normpath(os.path.join(prefix, name))
+        if Path(name).is_absolute() or joined == os.pardir or joined.startswith(
+                os.pardir + os.sep):
+            raise InputError(f"image path {name!r} is outside the dataset folder "
+                             f"'{dataset_root}'; pass --allow-outside-paths to read it",
+                             file=_names_file(camera_path),
+                             property=_name_field(camera_path, index, name))
+
+
+def _names_file(camera_path: Path) -> Path:
+    """The file holding the image names: the camera file, or a COLMAP model's images file."""
+    if camera_path.is_dir():
+        return next((f for f in colmap_model_files(camera_path) if f.stem == "images"),
+                    camera_path)
+    return camera_path
+
+
+def _name_field(camera_path: Path, index: int, name: str) -> str:
+    """Where the camera file gives view ``index``'s image name."""
+    if camera_path.is_dir() or camera_path.suffix.lower() in (".txt", ".bin"):
+        return f"image {name[:80]}"  # COLMAP: views are sorted by name
+    if _is_transforms_file(camera_path):
+        return f"frames[{index}].file_path"
+    return f"[{index}].img_name"
 
 
 def _is_transforms_file(camera_path: Path) -> bool:

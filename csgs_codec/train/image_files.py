@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from csgs_codec.errors import InputError
+from csgs_codec.untrusted import open_regular
 
 #: Suffixes tried, in order, when an image is named without one.
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".JPG", ".JPEG", ".PNG", ".tif", ".tiff", ".webp",
@@ -24,6 +25,7 @@ _GREY_16_MODES = ("I;16", "I;16B", "I;16L", "I;16N")
 #: header is checked before any pixel is decoded, so a small file claiming a huge image
 #: never reaches memory.
 MAX_IMAGE_PIXELS = 1 << 27
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
 def find_image(folder: Path, name: str) -> Path:
@@ -54,6 +56,32 @@ def _find_image(path: Path) -> Path:
     raise InputError("image file not found", file=path)
 
 
+def check_png_chunks(path: Path) -> None:
+    """Refuse a PNG whose chunk lengths run past the end of the file (no-op for other
+    formats). Pillow reads an image chunk in one piece of its stated length, so an 89-byte
+    file whose IDAT claims 512 MiB made it allocate 512 MiB before failing.
+
+    Raises:
+        InputError: naming the file, the chunk and its byte offset.
+    """
+    with open_regular(path) as handle:
+        if handle.read(8) != PNG_SIGNATURE:
+            return
+        end = handle.seek(0, 2)
+        offset = 8
+        while offset + 8 <= end:
+            handle.seek(offset)
+            head = handle.read(8)
+            length, kind = int.from_bytes(head[:4], "big"), head[4:8]
+            if offset + 12 + length > end:
+                name = kind.decode("latin1").encode("ascii", "backslashreplace").decode()
+                raise InputError(f"PNG chunk '{name}' at byte {offset} claims {length:,} "
+                                 f"bytes, past the end of the {end:,}-byte file", file=path)
+            if kind == b"IEND":
+                return
+            offset += 12 + length
+
+
 def _open(path: Path, size: tuple[int, int] | None = None, what: str = "image",
           owner: str = "its camera"):
     """The decoded image at ``path``; its header's (width, height) is checked against
@@ -63,6 +91,7 @@ def _open(path: Path, size: tuple[int, int] | None = None, what: str = "image",
     try:
         with warnings.catch_warnings():  # csgs's own bound below says it better
             warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            check_png_chunks(path)
             handle = Image.open(path)  # reads the header only
     except (OSError, ValueError, Image.DecompressionBombError) as exc:
         raise InputError(f"cannot read image: {exc}", file=path) from None
