@@ -19,20 +19,21 @@ are written to ``--crash-dir``. Exit status 1 when any input crashed or timed ou
 
 from __future__ import annotations
 
-import argparse
 import json
-import multiprocessing
 import os
 import sys
-import tempfile
-import time
 from collections import Counter
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from bench_common import document, emit  # noqa: E402
-from fuzz_readers import RATIO_MIN_BYTES, _format_row  # noqa: E402
+from fuzz_readers import (  # noqa: E402
+    RATIO_MIN_BYTES,
+    HeapFigures,
+    _format_row,
+    campaign_arguments,
+    run_campaign,
+)
 
 from tests.fuzz.loader_campaign import MEMORY_ALLOWANCE, LoaderTally, run_range  # noqa: E402
 from tests.fuzz.loader_seeds import FORMATS, loader_seeds  # noqa: E402
@@ -51,25 +52,10 @@ def _init_worker(campaign: int, time_limit: float, crash_dir: Path | None,
     _SCRATCH = scratch / f"worker{os.getpid()}"
 
 
-class _Tally(LoaderTally):
-    """A layout's tally that also tracks the heap figures of inputs of RATIO_MIN_BYTES+."""
+class _Tally(HeapFigures, LoaderTally):
+    """A layout's tally with the heap figures, under the loaders' memory bound."""
 
-    def __init__(self) -> None:
-        super().__init__()
-        self.ratio_large, self.ratio_large_index, self.bound_share = 0.0, -1, 0.0
-
-    def add(self, o) -> None:
-        super().add(o)
-        if o.size >= RATIO_MIN_BYTES and o.peak_bytes / o.size > self.ratio_large:
-            self.ratio_large, self.ratio_large_index = o.peak_bytes / o.size, o.index
-        self.bound_share = max(self.bound_share,
-                               o.peak_bytes / (MEMORY_FACTOR * o.size + MEMORY_ALLOWANCE))
-
-    def merge(self, other) -> None:
-        super().merge(other)
-        if other.ratio_large > self.ratio_large:
-            self.ratio_large, self.ratio_large_index = other.ratio_large, other.ratio_large_index
-        self.bound_share = max(self.bound_share, other.bound_share)
+    allowance = MEMORY_ALLOWANCE
 
 
 def _save_crash(mutant, outcome) -> None:
@@ -127,48 +113,10 @@ def _result(tallies: dict[str, _Tally], operators: Counter, args, elapsed: float
 
 def main() -> int:
     """Run the campaign; exit status 1 when any input crashed, timed out or a batch hung."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--inputs", type=int, default=10_000)
-    parser.add_argument("--workers", type=int, default=1)
-    parser.add_argument("--seed", type=int, default=0, help="campaign seed")
-    parser.add_argument("--start", type=int, default=0, help="first input index")
-    parser.add_argument("--batch", type=int, default=500, help="inputs per batch")
-    parser.add_argument("--time-limit", type=float, default=5.0,
-                        help="seconds one input may run before it counts as a timeout")
-    parser.add_argument("--out", help="write the JSON here (rewritten after every batch)")
-    parser.add_argument("--crash-dir", type=Path, help="write crashing inputs here")
-    args = parser.parse_args()
-
+    args = campaign_arguments(__doc__.splitlines()[0], batch=500, time_limit=5.0)
     loader_seeds()  # made once, before the workers fork
-    batches = [(s, min(args.batch, args.start + args.inputs - s))
-               for s in range(args.start, args.start + args.inputs, args.batch)]
-    tallies: dict[str, _Tally] = {}
-    operators: Counter = Counter()
-    hang = None
-    began = time.perf_counter()
-    ctx = multiprocessing.get_context("fork")
-    root = "/dev/shm" if os.path.isdir("/dev/shm") else None  # scratch files in memory
-    with tempfile.TemporaryDirectory(prefix="csgs_fuzz_loaders_", dir=root) as scratch, \
-            ctx.Pool(args.workers, _init_worker,
-                     (args.seed, args.time_limit, args.crash_dir, Path(scratch))) as pool:
-        pending = [(b, pool.apply_async(_run_batch, (b,))) for b in batches]
-        for bounds, job in pending:
-            try:
-                part, ops = job.get(timeout=args.batch * (args.time_limit + 1) + 60)
-            except multiprocessing.TimeoutError:
-                hang = f"batch of inputs {bounds[0]}..{sum(bounds) - 1} did not finish"
-                pool.terminate()
-                break
-            for name, tally in part.items():
-                tallies.setdefault(name, _Tally()).merge(tally)
-            operators.update(ops)
-            if args.out:
-                emit(document("fuzz_loaders", [_result(tallies, operators, args,
-                                                       time.perf_counter() - began, hang)]),
-                     args.out)
-    result = _result(tallies, operators, args, time.perf_counter() - began, hang)
-    emit(document("fuzz_loaders", [result]), args.out)
-    return 1 if result["crashes"] or result["timeouts"] or hang else 0
+    row = run_campaign(args, "fuzz_loaders", _init_worker, _run_batch, _Tally, _result)
+    return 1 if row["crashes"] or row["timeouts"] or row["hang"] else 0
 
 
 if __name__ == "__main__":

@@ -63,8 +63,12 @@ def _init_worker(campaign: int, time_limit: float, crash_dir: Path | None,
     _SCRATCH = scratch / f"worker{os.getpid()}"
 
 
-class _Tally(FormatTally):
-    """A format's tally that also tracks the heap figures of inputs of RATIO_MIN_BYTES+."""
+class HeapFigures:
+    """Mixin for a campaign's tally class: also tracks the largest heap ratio of inputs of
+    RATIO_MIN_BYTES+ and the largest share of the memory bound (``allowance``: its bytes
+    beyond MEMORY_FACTOR x input)."""
+
+    allowance = MEMORY_ALLOWANCE
 
     def __init__(self) -> None:
         super().__init__()
@@ -75,13 +79,17 @@ class _Tally(FormatTally):
         if o.size >= RATIO_MIN_BYTES and o.peak_bytes / o.size > self.ratio_large:
             self.ratio_large, self.ratio_large_index = o.peak_bytes / o.size, o.index
         self.bound_share = max(self.bound_share,
-                               o.peak_bytes / (MEMORY_FACTOR * o.size + MEMORY_ALLOWANCE))
+                               o.peak_bytes / (MEMORY_FACTOR * o.size + self.allowance))
 
     def merge(self, other) -> None:
         super().merge(other)
         if other.ratio_large > self.ratio_large:
             self.ratio_large, self.ratio_large_index = other.ratio_large, other.ratio_large_index
         self.bound_share = max(self.bound_share, other.bound_share)
+
+
+class _Tally(HeapFigures, FormatTally):
+    """A format's tally with the heap figures."""
 
 
 def _save_crash(mutant, outcome) -> None:
@@ -159,32 +167,41 @@ def _result(tallies: dict[str, _Tally], operators: Counter, args, elapsed: float
     }
 
 
-def main() -> int:
-    """Run the campaign; exit status 1 when any input crashed, timed out or a batch hung."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def campaign_arguments(description: str, batch: int, time_limit: float) -> argparse.Namespace:
+    """The options every fuzz campaign script takes (their defaults for ``batch`` inputs per
+    batch and ``time_limit`` seconds per input)."""
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--inputs", type=int, default=10_000)
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--seed", type=int, default=0, help="campaign seed")
     parser.add_argument("--start", type=int, default=0, help="first input index")
-    parser.add_argument("--batch", type=int, default=1000, help="inputs per batch")
-    parser.add_argument("--time-limit", type=float, default=10.0,
+    parser.add_argument("--batch", type=int, default=batch, help="inputs per batch")
+    parser.add_argument("--time-limit", type=float, default=time_limit,
                         help="seconds one input may run before it counts as a timeout")
     parser.add_argument("--out", help="write the JSON here (rewritten after every batch)")
     parser.add_argument("--crash-dir", type=Path, help="write crashing inputs here")
-    args = parser.parse_args()
+    return parser.parse_args()
 
+
+def run_campaign(args: argparse.Namespace, benchmark: str, init_worker, run_batch,
+                 tally: type, result) -> dict:
+    """Run the inputs ``args`` asks for in batches on forked workers (``init_worker(seed,
+    time_limit, crash_dir, scratch)`` starts each, ``run_batch((start, count))`` returns a
+    batch's ({name: tally}, operator Counter)), merging into ``tally`` instances and writing
+    ``result(tallies, operators, args, elapsed, hang)`` as the ``benchmark`` JSON after every
+    batch; a batch past its time ends the run as a hang. Returns the final result row."""
     batches = [(s, min(args.batch, args.start + args.inputs - s))
                for s in range(args.start, args.start + args.inputs, args.batch)]
-    tallies: dict[str, _Tally] = {}
+    tallies: dict = {}
     operators: Counter = Counter()
     hang = None
     began = time.perf_counter()
     ctx = multiprocessing.get_context("fork")
     root = "/dev/shm" if os.path.isdir("/dev/shm") else None  # scratch files in memory
-    with tempfile.TemporaryDirectory(prefix="csgs_fuzz_readers_", dir=root) as scratch, \
-            ctx.Pool(args.workers, _init_worker,
+    with tempfile.TemporaryDirectory(prefix=f"csgs_{benchmark}_", dir=root) as scratch, \
+            ctx.Pool(args.workers, init_worker,
                      (args.seed, args.time_limit, args.crash_dir, Path(scratch))) as pool:
-        pending = [(b, pool.apply_async(_run_batch, (b,))) for b in batches]
+        pending = [(b, pool.apply_async(run_batch, (b,))) for b in batches]
         for bounds, job in pending:
             try:
                 part, ops = job.get(timeout=args.batch * (args.time_limit + 1) + 60)
@@ -192,16 +209,23 @@ def main() -> int:
                 hang = f"batch of inputs {bounds[0]}..{sum(bounds) - 1} did not finish"
                 pool.terminate()
                 break
-            for name, tally in part.items():
-                tallies.setdefault(name, _Tally()).merge(tally)
+            for name, counted in part.items():
+                tallies.setdefault(name, tally()).merge(counted)
             operators.update(ops)
             if args.out:
-                emit(document("fuzz_readers", [_result(tallies, operators, args,
-                                                       time.perf_counter() - began, hang)]),
+                emit(document(benchmark, [result(tallies, operators, args,
+                                                 time.perf_counter() - began, hang)]),
                      args.out)
-    result = _result(tallies, operators, args, time.perf_counter() - began, hang)
-    emit(document("fuzz_readers", [result]), args.out)
-    return 1 if result["crashes"] or result["timeouts"] or hang else 0
+    row = result(tallies, operators, args, time.perf_counter() - began, hang)
+    emit(document(benchmark, [row]), args.out)
+    return row
+
+
+def main() -> int:
+    """Run the campaign; exit status 1 when any input crashed, timed out or a batch hung."""
+    args = campaign_arguments(__doc__.splitlines()[0], batch=1000, time_limit=10.0)
+    row = run_campaign(args, "fuzz_readers", _init_worker, _run_batch, _Tally, _result)
+    return 1 if row["crashes"] or row["timeouts"] or row["hang"] else 0
 
 
 if __name__ == "__main__":

@@ -105,7 +105,7 @@ def _stream(symbols, alphabet):
     return out.getvalue()
 
 
-def _refused(data, count=3, instances=None, match="", at=None):
+def assert_refused(data, count=3, instances=None, match="", at=None):
     with pytest.raises(FormatError, match=match) as caught:
         read_runs_payload(_reader(data), count, instances)
     assert caught.value.chunk == "SEMR"
@@ -117,56 +117,56 @@ def _refused(data, count=3, instances=None, match="", at=None):
 def test_a_version_other_than_1_is_invalid():
     data = bytearray(runs_payload(np.array([1, 1, 4])))
     data[0] = 2
-    _refused(data, match="version 2", at=0)
+    assert_refused(data, match="version 2", at=0)
 
 
 def test_a_source_above_1_is_invalid():
     data = bytearray(runs_payload(np.array([1, 1, 4])))
     data[1] = 2
-    _refused(data, match="source 2", at=1)
+    assert_refused(data, match="source 2", at=1)
 
 
 def test_source_1_without_semc_is_invalid():
-    _refused(mapping_payload([1, 2]), match="without SEMC", at=1)
+    assert_refused(mapping_payload([1, 2]), match="without SEMC", at=1)
 
 
 def test_source_1_with_a_value_count_other_than_the_instance_count_is_invalid():
-    _refused(mapping_payload([1, 2]), instances=(np.array([0, 1, 2]), 3),
+    assert_refused(mapping_payload([1, 2]), instances=(np.array([0, 1, 2]), 3),
              match="instance_count 3", at=2)
 
 
 def test_a_value_count_of_0_or_above_255_is_invalid():
-    _refused(_payload(values=()), match="value_count 0", at=2)
-    _refused(_payload(values=(), count=256), match="value_count 256", at=2)
+    assert_refused(_payload(values=()), match="value_count 0", at=2)
+    assert_refused(_payload(values=(), count=256), match="value_count 256", at=2)
 
 
 def test_values_not_strictly_increasing_are_invalid():
-    _refused(_payload(values=(4, 4)), match="strictly increasing", at=4)
+    assert_refused(_payload(values=(4, 4)), match="strictly increasing", at=4)
 
 
 def test_a_value_outside_int32_is_invalid():
-    _refused(_payload(values=(1 << 31,)), match="int32", at=3)
+    assert_refused(_payload(values=(1 << 31,)), match="int32", at=3)
 
 
 def test_an_index_not_below_value_count_is_invalid():
     # One value: the index stream's alphabet is 2, so it can hold an index 1.
     data = _payload(values=(7,), same=_stream([0], 2), index=_stream([0, 1], 2))
-    _refused(data, count=2, match="not below value_count 1", at=4 + len(_stream([0], 2)))
+    assert_refused(data, count=2, match="not below value_count 1", at=4 + len(_stream([0], 2)))
 
 
 def test_an_index_stream_with_another_alphabet_is_invalid():
     data = _payload(values=(7, 9), same=_stream([0], 2), index=_stream([0, 1], 3))
-    _refused(data, count=2, match="alphabet")
+    assert_refused(data, count=2, match="alphabet")
 
 
 def test_trailing_bytes_are_invalid():
-    _refused(runs_payload(np.array([1, 1, 4])) + b"\0", match="SEMR payload")
-    _refused(mapping_payload([1, 2]) + b"\0", instances=(np.array([0, 1, 1]), 2),
+    assert_refused(runs_payload(np.array([1, 1, 4])) + b"\0", match="SEMR payload")
+    assert_refused(mapping_payload([1, 2]) + b"\0", instances=(np.array([0, 1, 1]), 2),
              match="SEMR payload")
 
 
 def test_a_truncated_stream_is_invalid():
-    _refused(runs_payload(np.array([1, 1, 4]))[:-3], match="SEMR|truncat|end")
+    assert_refused(runs_payload(np.array([1, 1, 4]))[:-3], match="SEMR|truncat|end")
 
 
 def _encoded(scene):
