@@ -10,13 +10,9 @@ Outcomes and tallies are those of :mod:`tests.fuzz.reader_campaign` (``ok``, ``t
 from __future__ import annotations
 
 import shutil
-import time
-import traceback
-import warnings
 from collections import Counter
 from pathlib import Path
 
-from csgs_codec.errors import CsgsError
 from csgs_codec.scene.cameras_io import load_cameras
 from csgs_codec.train.datasets import load_dataset
 from tests.fuzz.loader_mutators import LoaderMutant, mutant_at
@@ -24,11 +20,10 @@ from tests.fuzz.loader_seeds import LoaderSeed
 from tests.fuzz.reader_campaign import (
     MEMORY_FACTOR,
     FormatTally,
-    InputTimeout,
     Outcome,
-    _time_limit,
+    observe,
 )
-from tests.heap_peak import heap_peak, heap_tracing
+from tests.heap_peak import heap_tracing
 
 MEMORY_ALLOWANCE = 16 << 20
 
@@ -57,28 +52,18 @@ def run_one(mutant: LoaderMutant, index: int, scratch: Path, time_limit: float =
     folder = scratch / f"in{index}" / "capture"
     folder.mkdir(parents=True)
     _write(mutant, folder)
-    kind, detail = "ok", ""
-    began = time.perf_counter()
+
+    def read() -> None:
+        load_dataset(folder, segment_missing=False)
+        if mutant.seed.format != "llff":
+            load_cameras(folder / mutant.seed.camera)
+
     try:
-        with heap_peak() as peak, warnings.catch_warnings(), _time_limit(time_limit):
-            warnings.simplefilter("ignore")
-            load_dataset(folder, segment_missing=False)
-            if mutant.seed.format != "llff":
-                load_cameras(folder / mutant.seed.camera)
-    except CsgsError as err:
-        kind, detail = "typed", f"{type(err).__name__}: {err}"
-    except InputTimeout:
-        kind, detail = "timeout", f"no result after {time_limit} s"
-    except Exception as exc:  # noqa: BLE001 - a crash is what the campaign looks for
-        frame = traceback.extract_tb(exc.__traceback__)[-1]
-        kind = "crash"
-        detail = (f"{type(exc).__name__}: {str(exc)[:200]} at {Path(frame.filename).name}:"
-                  f"{frame.lineno}")
+        kind, detail, seconds, peak = observe(read, time_limit)
     finally:
-        seconds = time.perf_counter() - began
         shutil.rmtree(folder.parent, ignore_errors=True)
-    return Outcome(index, mutant.seed.name, mutant.seed.format, kind, detail, seconds,
-                   peak.bytes, mutant.size, mutant.operators)
+    return Outcome(index, mutant.seed.name, mutant.seed.format, kind, detail, seconds, peak,
+                   mutant.size, mutant.operators)
 
 
 def run_range(seeds: list[LoaderSeed], start: int, count: int, campaign: int, scratch: Path,

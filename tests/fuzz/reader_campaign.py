@@ -20,6 +20,7 @@ import time
 import traceback
 import warnings
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -150,17 +151,17 @@ def _time_limit(seconds: float):
         signal.signal(signal.SIGALRM, previous)
 
 
-def run_one(mutant: Mutant, index: int, scratch: Path, time_limit: float = 10.0) -> Outcome:
-    """Read ``mutant`` from a file under ``scratch`` (emptied after) and say how it went."""
-    folder = scratch / f"in{index}"
-    folder.mkdir(parents=True)
-    path = _write(mutant, folder)
+def observe(read: Callable[[], object], time_limit: float
+            ) -> tuple[str, str, float, int]:
+    """(kind, detail, seconds, peak traced heap bytes) of ``read()`` run under the alarm of
+    ``time_limit`` seconds with warnings silenced: kind "ok", "typed" (a CsgsError), "timeout"
+    or "crash" (any other exception, named with its last frame)."""
     kind, detail = "ok", ""
     began = time.perf_counter()
     try:
         with heap_peak() as peak, warnings.catch_warnings(), _time_limit(time_limit):
             warnings.simplefilter("ignore")
-            read_interchange(path)
+            read()
     except CsgsError as err:
         kind, detail = "typed", f"{type(err).__name__}: {err}"
     except InputTimeout:
@@ -170,10 +171,19 @@ def run_one(mutant: Mutant, index: int, scratch: Path, time_limit: float = 10.0)
         kind = "crash"
         detail = (f"{type(exc).__name__}: {str(exc)[:200]} at {Path(frame.filename).name}:"
                   f"{frame.lineno}")
+    return kind, detail, time.perf_counter() - began, peak.bytes
+
+
+def run_one(mutant: Mutant, index: int, scratch: Path, time_limit: float = 10.0) -> Outcome:
+    """Read ``mutant`` from a file under ``scratch`` (emptied after) and say how it went."""
+    folder = scratch / f"in{index}"
+    folder.mkdir(parents=True)
+    path = _write(mutant, folder)
+    try:
+        kind, detail, seconds, peak = observe(lambda: read_interchange(path), time_limit)
     finally:
-        seconds = time.perf_counter() - began
         shutil.rmtree(folder, ignore_errors=True)
-    return Outcome(index, mutant.seed.name, mutant.seed.format, kind, detail, seconds, peak.bytes,
+    return Outcome(index, mutant.seed.name, mutant.seed.format, kind, detail, seconds, peak,
                    mutant.size, mutant.operators)
 
 
