@@ -232,10 +232,9 @@ def _decode_anchors(args) -> int:
 def bake_for_output(scene, args):
     """(baked GaussianScene, where its view origins came from) for ``csgs decode``: the bake,
     then its refinement against the exact renders (a progress bar each)."""
-    import numpy as np
     from tqdm import tqdm
 
-    from csgs_codec.bake.anchor_bake import BakeSettings, bake_anchor_scene, bake_origins
+    from csgs_codec.bake.anchor_bake import BakeSettings, bake_anchor_scene, bake_view_origins
     from csgs_codec.bake.refine import refine_bake
     from csgs_codec.scene.cameras_io import load_cameras
 
@@ -258,11 +257,7 @@ def bake_for_output(scene, args):
                                                                            refine_steps=0),
                                   progress=lambda done, total: bar.update(done - bar.n))
     if steps:
-        if cameras is not None:
-            origins = np.stack([np.asarray(c.position, np.float64) for c in cameras])
-        else:
-            origins = (scene.view_origins if scene.view_origins is not None
-                       else bake_origins(scene, settings))
+        origins = bake_view_origins(scene, cameras=cameras, settings=settings)
         with tqdm(total=steps, desc="refine the bake", unit="step", disable=args.quiet,
                   leave=False) as bar:
             baked = refine_bake(baked, scene, origins, steps=steps, size=settings.refine_size,

@@ -134,6 +134,27 @@ def bake_origins(scene: AnchorScene, settings: BakeSettings = BakeSettings()) ->
     return np.concatenate(out)
 
 
+def bake_view_origins(scene: AnchorScene, *, cameras: list[Camera] | None = None,
+                      origins: np.ndarray | None = None,
+                      settings: BakeSettings = BakeSettings()) -> np.ndarray:
+    """(V, 3) float64 view origins a bake of ``scene`` uses: the ``cameras``' centres, else
+    ``origins``, else the scene's stored ``view_origins``, else :func:`bake_origins`.
+
+    Raises:
+        InputError: no origin, or one that is not finite.
+    """
+    if cameras is not None:
+        origins = np.stack([np.asarray(c.position, np.float64) for c in cameras]) \
+            if cameras else np.zeros((0, 3))
+    elif origins is None:
+        origins = (scene.view_origins if scene.view_origins is not None
+                   else bake_origins(scene, settings))
+    origins = np.asarray(origins, np.float64).reshape(-1, 3)
+    if len(origins) == 0 or not np.all(np.isfinite(origins)):
+        raise InputError("the bake needs at least one finite view origin", property="origins")
+    return origins
+
+
 def bake_anchor_scene(scene: AnchorScene, *, cameras: list[Camera] | None = None,
                       origins: np.ndarray | None = None,
                       settings: BakeSettings = BakeSettings(),
@@ -162,15 +183,7 @@ def bake_anchor_scene(scene: AnchorScene, *, cameras: list[Camera] | None = None
     scene.validate()
     if scene.mlps is None:
         raise InputError("the anchor scene has no Scaffold-GS MLPs to bake", property="mlps")
-    if cameras is not None:
-        origins = np.stack([np.asarray(c.position, np.float64) for c in cameras]) \
-            if cameras else np.zeros((0, 3))
-    elif origins is None:
-        origins = (scene.view_origins if scene.view_origins is not None
-                   else bake_origins(scene, settings))
-    origins = np.asarray(origins, np.float64).reshape(-1, 3)
-    if len(origins) == 0 or not np.all(np.isfinite(origins)):
-        raise InputError("the bake needs at least one finite view origin", property="origins")
+    origins = bake_view_origins(scene, cameras=cameras, origins=origins, settings=settings)
     mlps = ScaffoldMLPs.from_weights(scene.mlps, scene.feat_dim, scene.n_offsets,
                                      device=device)
     origin_tensor = torch.as_tensor(origins, dtype=torch.float32, device=device)
