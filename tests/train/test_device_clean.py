@@ -3,8 +3,8 @@
 A CUDA run once crashed in ``row_bands`` because ``torch.zeros(height + 1, ...)`` made a CPU
 tensor next to CUDA ones (issue #31). Two checks keep that class of bug out, both on the CPU:
 
-* a static rule over ``csgs_codec/render``, ``csgs_codec/train`` and ``csgs_codec/model``
-  (:func:`device_rule_violations`):
+* a static rule over ``csgs_codec/render``, ``csgs_codec/train``, ``csgs_codec/model`` and
+  ``csgs_codec/bake`` (:func:`device_rule_violations`):
 
   1. every call of a torch tensor factory (:data:`FACTORIES`: ``torch.zeros``, ``arange``,
      ``tensor``, ``as_tensor``, ``rand``..., and ``torch.Generator``) and of a ``torch.nn``
@@ -58,7 +58,7 @@ from tests.train.stage1_data import tiny_dataset, tiny_train_settings
 
 REPO = Path(__file__).resolve().parents[2]
 #: Folders whose code must be device clean.
-CHECKED = ("csgs_codec/render", "csgs_codec/train", "csgs_codec/model")
+CHECKED = ("csgs_codec/render", "csgs_codec/train", "csgs_codec/model", "csgs_codec/bake")
 
 #: torch functions that make a tensor (or generator) from scratch: without ``device=`` they
 #: use the default device, whatever device the surrounding computation is on.
