@@ -13,7 +13,7 @@ import { readLayers, readPayloads, readToc } from './container.mjs';
 import { planDecode, sceneOf } from './decode_plan.mjs';
 import { LocalLane, runPlan } from './decode_runner.mjs';
 import { FormatError, UnsupportedError } from './errors.mjs';
-import { checkSameKind, checkTile, isTiled, joinTiles, readTileIndex, tileContainer } from './tile_index.mjs';
+import { checkSameKind, checkTile, isTiled, joinTiles, levelCount, levelTiles, readTileIndex, tileContainer } from './tile_index.mjs';
 
 const MAX_GAUSSIANS = 2 ** 24;
 const MAX_GAUSSIANS_PER_BYTE = 64;
@@ -80,12 +80,25 @@ export async function decodeScene(data, options) {
     const prep = prepareScene(data, options);
     return decodePrepared(data, prep, lanes, options.onStage, options.onProgress);
   }
+  const numbers = chosenTiles(tiled.tiles, options.lod);
   const scenes = [];
-  for (let i = 0; i < tiled.tiles.length; i++) {
-    const progress = options.onProgress && ((f) => options.onProgress((i + f) / tiled.tiles.length));
+  for (const [k, i] of numbers.entries()) {
+    const progress = options.onProgress && ((f) => options.onProgress((k + f) / numbers.length));
     scenes.push(checkedTile(tiled, i, await decodePrepared(data, tiled.prepare(i), lanes, null, progress)));
   }
-  return joinTiledScenes(tiled, scenes);
+  return joinTiledScenes(tiled, scenes, numbers);
+}
+
+/** The tiles a decode of level ``lod`` (default 0, the scene) reads: that level's tiles,
+ * increasing (every tile of a file without levels). A RangeError names a level the file
+ * does not have. */
+export function chosenTiles(tiles, lod = null) {
+  const levels = levelCount(tiles);
+  const level = lod ?? 0;
+  if (!Number.isInteger(level) || level < 0 || level >= levels) {
+    throw new RangeError(`level ${level} is not in the file (it has ${levels === 1 ? 'one level (0)' : `levels 0..${levels - 1}`})`);
+  }
+  return levelTiles(tiles, level);
 }
 
 /**
@@ -156,8 +169,9 @@ export function checkedTile(tiled, i, scene) {
   return scene;
 }
 
-/** The scene of a tiled file from its tiles' checked scenes, in tile order. */
-export function joinTiledScenes(tiled, scenes) {
-  checkSameKind(scenes, tiled.containers);
+/** The scene of a tiled file from its tiles' checked scenes, in tile order (tiles
+ * ``numbers``; default all). */
+export function joinTiledScenes(tiled, scenes, numbers = null) {
+  checkSameKind(scenes, (numbers ?? tiled.containers.map((_, i) => i)).map((i) => tiled.containers[i]));
   return joinTiles(scenes);
 }

@@ -1,0 +1,80 @@
+"""Coding a scene with levels of detail (FORMAT §12.22, tile index version 2).
+
+The scene's own Gaussians are level 0, cut into the leaves of a :class:`LevelTree`; every
+coarser level merges groups of about 8 Gaussians of the level below, within each of its
+tiles (:mod:`csgs_codec.levels`). Every tile of every level is then coded as a tile of a
+tiled scene (:func:`~csgs_codec.codec.tile_encoder.encode_tile`: its own geometry, priors
+and streams, decodable alone), level l on the whole scene's grid with cells 2**l times as
+wide (its Gaussians are about 2**l times as large, so its positions keep their precision
+relative to their size). Level 0's tiles code exactly as in a file of the same tiles
+without levels.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from csgs_codec.attributes.position_grid import PositionGrid
+from csgs_codec.codec.level_tree import LevelTree
+from csgs_codec.codec.tile_encoder import TileJob, _run_tiles, assemble
+from csgs_codec.codec.tiling import check_tiling
+from csgs_codec.decisions.presets import Preset
+from csgs_codec.format import Chunk
+from csgs_codec.levels.groups import GROUP_SIZE, group_ids
+from csgs_codec.levels.merge import merge_groups
+from csgs_codec.scene.gaussian_scene import GaussianScene
+
+
+def level_scenes(scene: GaussianScene, tree: LevelTree) -> list[list[GaussianScene]]:
+    """Per level (0 first), the scenes of its tiles in node order: level 0 the scene's own
+    Gaussians per leaf, each coarser level the one below merged in groups of
+    :data:`GROUP_SIZE` within each of its tiles."""
+    levels = [[scene.subset(rows) for rows in tree.leaves]]
+    for level in range(1, tree.levels):
+        below = levels[-1]
+        owner = tree.children(level)
+        whole = GaussianScene.concatenate(below)
+        segments = np.repeat(owner, [len(s) for s in below])
+        groups = group_ids(whole.positions, segments, GROUP_SIZE)
+        merged = merge_groups(whole, groups)
+        # groups are numbered node by node: each node's merged Gaussians are one run
+        per_node = np.bincount(segments[np.unique(groups, return_index=True)[1]],
+                               minlength=tree.node_count(level))
+        bounds = np.r_[0, np.cumsum(per_node)]
+        levels.append([merged.subset(np.arange(bounds[j], bounds[j + 1]))
+                       for j in range(tree.node_count(level))])
+    return levels
+
+
+def level_grid(grid: PositionGrid, level: int) -> PositionGrid:
+    """The grid level ``level``'s tiles are coded on: ``grid`` with cells 2**level wide."""
+    return PositionGrid(grid.origin, grid.cell * (1 << level), grid.bits)
+
+
+def encode_levels(encoder, scene: GaussianScene, grid: PositionGrid, settings: Preset,
+                  tile_size: int, levels: int, *, hyperprior: bool | None = None,
+                  record: Chunk | None = None):
+    """Encode ``scene`` (validated) with ``levels`` levels of detail, leaves of at most
+    ``tile_size`` Gaussians, with the ``encoder``'s settings; returns its
+    :class:`~csgs_codec.codec.encoder.EncodeReport` (reconstruction and order: level 0's).
+    ``record`` (a ``vdis`` chunk) goes into tile 0."""
+    check_tiling(len(scene), tile_size)
+    encoder.progress("levels", 0, 0)
+    tree = LevelTree.build(scene.positions, tile_size, levels)
+    scenes = level_scenes(scene, tree)
+    use_prior = encoder.config.fits_hyperprior if hyperprior is None else hyperprior
+    config = replace(encoder.config, hyperprior=use_prior, tile_size=None, workers=1,
+                     ray=None, view_pruning=False, cameras=None, levels=1)
+    jobs, links = [], []
+    for level in reversed(range(levels)):
+        level_rows = tree.leaves if level == 0 else [
+            np.arange(len(s), dtype=np.int64) for s in scenes[level]]
+        for node, (part, rows) in enumerate(zip(scenes[level], level_rows)):
+            jobs.append(TileJob(part, None, rows, level_grid(grid, level), settings, config,
+                                type(encoder)))
+            links.append((level, tree.parent(level, node)))
+    outputs = _run_tiles(encoder, jobs)
+    total = sum(len(job.scene) for job in jobs)
+    return assemble(encoder, jobs, outputs, total, record, links)
