@@ -27,18 +27,22 @@ from csgs_codec.levels.merge import merge_groups
 from csgs_codec.scene.gaussian_scene import GaussianScene
 
 
-def level_scenes(scene: GaussianScene, tree: LevelTree) -> list[list[GaussianScene]]:
+def level_scenes(scene: GaussianScene, tree: LevelTree,
+                 visibility: np.ndarray | None = None) -> list[list[GaussianScene]]:
     """Per level (0 first), the scenes of its tiles in node order: level 0 the scene's own
     Gaussians per leaf, each coarser level the one below merged in groups of
-    :data:`GROUP_SIZE` within each of its tiles."""
+    :data:`GROUP_SIZE` within each of its tiles, colours weighted by ``visibility`` (N,)
+    (see :func:`~csgs_codec.levels.merge.merge_groups`) when given."""
     levels = [[scene.subset(rows) for rows in tree.leaves]]
+    seen = None if visibility is None else np.concatenate(
+        [np.asarray(visibility)[rows] for rows in tree.leaves])
     for level in range(1, tree.levels):
         below = levels[-1]
         owner = tree.children(level)
         whole = GaussianScene.concatenate(below)
         segments = np.repeat(owner, [len(s) for s in below])
         groups = group_ids(whole.positions, segments, GROUP_SIZE)
-        merged = merge_groups(whole, groups)
+        merged, seen = merge_groups(whole, groups, seen)
         # groups are numbered node by node: each node's merged Gaussians are one run
         per_node = np.bincount(segments[np.unique(groups, return_index=True)[1]],
                                minlength=tree.node_count(level))
@@ -46,6 +50,32 @@ def level_scenes(scene: GaussianScene, tree: LevelTree) -> list[list[GaussianSce
         levels.append([merged.subset(np.arange(bounds[j], bounds[j + 1]))
                        for j in range(tree.node_count(level))])
     return levels
+
+
+#: Views the visibility of a scene's Gaussians is measured in when the encoder has no
+#: cameras: orbits at two elevations, this many each, small (only shares of views count).
+VISIBILITY_VIEWS = 8
+#: Their width in pixels (height 3/4 of it).
+VISIBILITY_WIDTH = 200
+
+
+def scene_visibility(scene: GaussianScene, cameras=None) -> np.ndarray | None:
+    """(N,) each Gaussian's blending weights summed over ``cameras`` (a list of
+    :class:`~csgs_codec.scene.camera.Camera`), or without cameras over orbits at 20 and 60
+    degrees of elevation (:data:`VISIBILITY_VIEWS` each); None where the renderer cannot run
+    (numba not installed: colours then merge by footprint alone)."""
+    from csgs_codec.render.numba_loader import numba_available
+
+    if not len(scene) or not numba_available():
+        return None
+    from csgs_codec.render.sensitivity import blend_sensitivity
+    from csgs_codec.scene.orbit import orbit_cameras
+
+    views = list(cameras) if cameras else [
+        camera for elevation in (20.0, 60.0)
+        for camera in orbit_cameras(scene, VISIBILITY_VIEWS, width=VISIBILITY_WIDTH,
+                                    height=VISIBILITY_WIDTH * 3 // 4, elevation_deg=elevation)]
+    return blend_sensitivity(scene, views).weight_sum
 
 
 def level_grid(grid: PositionGrid, level: int) -> PositionGrid:
@@ -63,7 +93,7 @@ def encode_levels(encoder, scene: GaussianScene, grid: PositionGrid, settings: P
     check_tiling(len(scene), tile_size)
     encoder.progress("levels", 0, 0)
     tree = LevelTree.build(scene.positions, tile_size, levels)
-    scenes = level_scenes(scene, tree)
+    scenes = level_scenes(scene, tree, scene_visibility(scene, encoder.config.cameras))
     use_prior = encoder.config.fits_hyperprior if hyperprior is None else hyperprior
     config = replace(encoder.config, hyperprior=use_prior, tile_size=None, workers=1,
                      ray=None, view_pruning=False, cameras=None, levels=1)

@@ -6,12 +6,16 @@ Gaussian whose
 
 - centre and covariance are the group's weighted first and second moments: mu = sum w_i mu_i /
   W and Sigma = sum w_i (Sigma_i + (mu_i - mu)(mu_i - mu)^T) / W (W = sum w_i);
-- colour is the weighted mean of every SH coefficient (DC and rest);
+- colour is the mean of every SH coefficient (DC and rest) weighted by how much of the views
+  each member makes (``visibility``, its blending weights summed over a set of views), so a
+  group's hidden members (the inside of a surface) do not tint what is seen of it; a group
+  no view sees takes the weights above;
 - opacity keeps the group's opacity mass: alpha = min(W / a, ALPHA_CAP), a from the merged
   scales as a_i from a member's (a group of one is that Gaussian, up to rounding);
-- semantic row (feature vector) and label are those of the group's heaviest instance: the
-  distinct feature row (label) whose members weigh most together, the first such row on a
-  tie, so merged features stay among the scene's own rows (an instance codebook stays one).
+- semantic row (feature vector) and label are those of the group's heaviest instance (by the
+  colour weights): the distinct feature row (label) whose members weigh most together, the
+  smallest on a tie, so merged features stay among the scene's own rows (an instance
+  codebook stays one).
 
 Arithmetic in float64; the result is rounded to float32 once.
 """
@@ -29,23 +33,35 @@ ALPHA_CAP = 0.995
 MIN_WEIGHT = 1e-30
 
 
-def merge_groups(scene: GaussianScene, groups: np.ndarray) -> GaussianScene:
+def merge_groups(scene: GaussianScene, groups: np.ndarray,
+                 visibility: np.ndarray | None = None) -> tuple[GaussianScene, np.ndarray]:
     """The scene of ``groups`` (N,) int64 ids 0..G-1 (every id present) of ``scene``'s
-    Gaussians merged, one Gaussian per group in id order; semantic names and instance table
-    carried over."""
+    Gaussians merged, one Gaussian per group in id order (semantic names and instance table
+    carried over), and each merged Gaussian's visibility (G,): its members' summed.
+
+    Args:
+        visibility: (N,) >= 0, how much each Gaussian shows in a set of views (blending
+            weights summed, pixels), or None (all alike: colours by footprint weight).
+    """
     g = np.asarray(groups, np.int64)
     count = int(g.max()) + 1 if len(g) else 0
-    alpha = 1.0 / (1.0 + np.exp(-scene.opacity.astype(np.float64)))
+    with np.errstate(over="ignore"):  # exp(-logit) overflows below -709: alpha 0
+        alpha = 1.0 / (1.0 + np.exp(-scene.opacity.astype(np.float64)))
     scales = np.exp(scene.scales.astype(np.float64))
     weight = np.maximum(alpha * footprint_area(scales), MIN_WEIGHT)
     total = np.bincount(g, weight, count)
+    seen = np.zeros(len(g)) if visibility is None else np.asarray(visibility, np.float64)
+    seen_total = np.bincount(g, seen, count)
+    colour_weight = np.where(seen_total[g] > 0, seen, weight)
+    colour_total = np.bincount(g, colour_weight, count)
 
-    def mean(values: np.ndarray) -> np.ndarray:
+    def mean(values: np.ndarray, w: np.ndarray = weight, sums: np.ndarray = total
+             ) -> np.ndarray:
         flat = values.reshape(len(values), -1).astype(np.float64)
-        out = np.stack([np.bincount(g, weight * flat[:, k], count)
+        out = np.stack([np.bincount(g, w * flat[:, k], count)
                         for k in range(flat.shape[1])], axis=1) if flat.shape[1] else (
             np.zeros((count, 0)))
-        return (out / total[:, None]).reshape((count,) + values.shape[1:])
+        return (out / sums[:, None]).reshape((count,) + values.shape[1:])
 
     centre = mean(scene.positions)
     spread = scene.positions.astype(np.float64) - centre[g]
@@ -53,20 +69,21 @@ def merge_groups(scene: GaussianScene, groups: np.ndarray) -> GaussianScene:
     merged_cov = mean(covariance)
     merged_scales, merged_rotations = decompose(merged_cov)
     merged_alpha = np.minimum(total / footprint_area(merged_scales), ALPHA_CAP)
-    rows = heaviest_rows(scene, g, weight, count)
-    return GaussianScene(
+    rows = heaviest_rows(scene, g, colour_weight, count)
+    merged = GaussianScene(
         positions=centre.astype(np.float32),
-        sh_dc=mean(scene.sh_dc).astype(np.float32),
-        sh_rest=mean(scene.sh_rest).astype(np.float32),
+        sh_dc=mean(scene.sh_dc, colour_weight, colour_total).astype(np.float32),
+        sh_rest=mean(scene.sh_rest, colour_weight, colour_total).astype(np.float32),
         opacity=np.log(merged_alpha / (1.0 - merged_alpha)).astype(np.float32),
         scales=np.log(merged_scales).astype(np.float32),
         rotations=merged_rotations.astype(np.float32),
         semantic=None if scene.semantic is None else scene.semantic[rows],
         semantic_names=scene.semantic_names,
-        labels=None if scene.labels is None else scene.labels[_label_rows(scene, g, weight,
-                                                                         count)],
+        labels=None if scene.labels is None else scene.labels[
+            _label_rows(scene, g, colour_weight, count)],
         instances=scene.instances,
     )
+    return merged, seen_total
 
 
 def footprint_area(scales: np.ndarray) -> np.ndarray:

@@ -42,7 +42,7 @@ def test_groups_are_spatial_neighbours():
 
 def test_a_group_of_one_is_its_gaussian():
     scene = random_scene(200, sh_degree=2, seed=4)
-    merged = merge_groups(scene, np.arange(200))
+    merged, _ = merge_groups(scene, np.arange(200))
     assert np.allclose(merged.positions, scene.positions, atol=1e-6)
     assert np.allclose(merged.sh_rest, scene.sh_rest, atol=1e-6)
     keep = 1 / (1 + np.exp(-scene.opacity)) < ALPHA_CAP
@@ -60,7 +60,8 @@ def test_two_gaussians_merge_to_their_moments():
         opacity=np.zeros(2, np.float32),  # alpha 0.5 each
         scales=np.log(np.full((2, 3), 0.1, np.float32)),
         rotations=np.array([[1, 0, 0, 0]] * 2, np.float32))
-    m = merge_groups(scene, np.zeros(2, np.int64))
+    m, seen = merge_groups(scene, np.zeros(2, np.int64))
+    assert seen.tolist() == [0.0]
     assert np.allclose(m.positions, [[1, 0, 0]])
     assert np.allclose(m.sh_dc, [[0.5, 0.5, 0]])
     cov = covariances(m.rotations, np.exp(m.scales.astype(np.float64)))[0]
@@ -79,9 +80,9 @@ def test_semantic_rows_and_labels_come_from_the_heaviest_instance():
     scene.semantic = rows
     scene.labels = np.array([7, 7, 7, 9, 9, 9], np.int32)
     keep = np.array([0, 1, 2, 3])  # three of A, one of B (weighs 4): B wins 4 to 3
-    m = merge_groups(scene.subset(keep), np.zeros(4, np.int64))
+    m, _ = merge_groups(scene.subset(keep), np.zeros(4, np.int64))
     assert np.array_equal(m.semantic, [[0, 1]]) and m.labels.tolist() == [9]
-    m = merge_groups(scene.subset(np.array([0, 1, 2])), np.zeros(3, np.int64))
+    m, _ = merge_groups(scene.subset(np.array([0, 1, 2])), np.zeros(3, np.int64))
     assert np.array_equal(m.semantic, [[1, 0]]) and m.labels.tolist() == [7]
 
 
@@ -94,3 +95,18 @@ def test_quaternions_round_trip_rotations():
     # 180-degree turns (w = 0) too
     flips = rotation_matrices(np.array([[0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]]))
     assert np.allclose(rotation_matrices(quaternions(flips)), flips, atol=1e-12)
+
+
+def test_colours_follow_what_the_views_see():
+    """A group whose front member is seen and whose back member is hidden takes the front
+    one's colour; a group nobody sees falls back to footprint weights; visibility adds up."""
+    scene = GaussianScene(
+        positions=np.zeros((4, 3), np.float32), sh_dc=np.array(
+            [[1, 0, 0], [0, 1, 0], [1, 0, 0], [0, 1, 0]], np.float32),
+        sh_rest=np.zeros((4, 0, 3), np.float32), opacity=np.zeros(4, np.float32),
+        scales=np.log(np.full((4, 3), 0.1, np.float32)),
+        rotations=np.array([[1, 0, 0, 0]] * 4, np.float32))
+    groups = np.array([0, 0, 1, 1])
+    merged, seen = merge_groups(scene, groups, np.array([5.0, 0.0, 0.0, 0.0]))
+    assert np.allclose(merged.sh_dc, [[1, 0, 0], [0.5, 0.5, 0]])
+    assert seen.tolist() == [5.0, 0.0]
