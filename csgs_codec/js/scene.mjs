@@ -89,6 +89,21 @@ export async function decodeScene(data, options) {
   return joinTiledScenes(tiled, scenes, numbers);
 }
 
+/**
+ * One tile of a tiled file decoded from its frames alone (a reader of byte ranges, as the
+ * viewer streaming levels of detail): ``container`` {toc (the tile's entries), payloads (a
+ * Map of entry index to checked payload), size (bytes of the whole file)}; checked against
+ * its index entry ``info`` (count, box) as tile ``number``.
+ */
+export async function decodeTileContainer(container, number, info, options) {
+  const lanes = options.lanes && options.lanes.length ? options.lanes : [new LocalLane()];
+  const layers = new Set(['color', ...(options.layers || [])]);
+  const prep = prepareContainer(container, container.size, layers, options);
+  const scene = await decodePrepared(null, prep, lanes, null, options.onProgress);
+  checkTile(scene, number, info, container);
+  return scene;
+}
+
 /** The tiles a decode of level ``lod`` (default 0, the scene) reads: that level's tiles,
  * increasing (every tile of a file without levels). A RangeError names a level the file
  * does not have. */
@@ -136,10 +151,13 @@ export function sceneArrays(scene) {
   return arrays;
 }
 
-/** The scene (or tile) of one prepared container, decoded on ``lanes``. */
+/** The scene (or tile) of one prepared container, decoded on ``lanes``; ``data`` the file's
+ * bytes, or null when the container holds its payloads alone (sent to the lanes as they
+ * are). */
 async function decodePrepared(data, prep, lanes, onStage, onProgress) {
   const plan = planDecode(prep, { priorParts: lanes.length });
-  plan.source = { data, entries: prep.container.toc.entries, layers: prep.layers };
+  plan.source = data ? { data, entries: prep.container.toc.entries, layers: prep.layers }
+    : { payloads: prep.container.payloads, size: prep.container.size, entries: prep.container.toc.entries, layers: prep.layers };
   const results = await runPlan(plan, lanes, {
     onStage: onStage && ((stage, done) => { if (stage !== 'semantic') onStage(stage, sceneOf(plan, done, stage)); }),
     onTask: onProgress && ((task, done, total) => onProgress(done / total)),

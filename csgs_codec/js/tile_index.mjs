@@ -26,11 +26,11 @@ export function isTiled(toc) {
  * its faults are found before any other frame's, as in the Python decoder.
  * @param {Uint8Array} data the file (or the prefix at hand)
  * @param {object} toc readToc's result for ``data``
+ * @param {number} size bytes of the whole file (default: ``data``'s), for the count limit
  * @returns {{count: number, lower: number[], upper: number[], level: number,
  *   parent: number|null}[]} one entry per tile (level 0 and no parent in version 1)
  */
-export function readTileIndex(data, toc, maxPerByte) {
-  const size = data.length;
+export function readTileIndex(data, toc, maxPerByte, size = data.length) {
   const found = toc.entries.filter((e) => e.type === 'TIDX');
   if (found.length > 1) throw new FormatError(`chunk TIDX appears ${found.length} times`, { chunk: 'TIDX', offset: found[1].tocOffset });
   const entry = found[0];
