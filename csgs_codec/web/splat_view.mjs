@@ -82,6 +82,7 @@ export class SplatView {
     this.app.root.addChild(this.cameraEntity);
     this.splat = null;
     this.data = null;
+    this.tiles = new Map(); // tile number -> entity, a file with levels of detail
     this.frames = 0;
     this.sorts = 0; // sort results received since the scene was shown
     this.app.scene.on('gsplat:sorted', () => { this.sorts++; });
@@ -112,8 +113,63 @@ export class SplatView {
   /** Drawing-buffer size in pixels. */
   get size() { return { width: this.app.graphicsDevice.width, height: this.app.graphicsDevice.height }; }
 
+  /**
+   * Draw exactly the tiles ``numbers`` of a file with levels of detail, ``scenes`` holding
+   * every tile's decoded arrays: a tile drawn before keeps its entity (shown or hidden, all
+   * sorted together by the engine); a new one gets its own.
+   */
+  showTiles(numbers, scenes) {
+    if (this.splat) { this.splat.destroy(); this.splat = null; this.data = null; }
+    if (this.joined) { this.joined.destroy(); this.joined = null; }
+    for (const number of numbers) {
+      if (this.tiles.has(number)) continue;
+      const scene = scenes.get(number);
+      if (!scene.count) continue;
+      const entity = new pc.Entity(`tile ${number}`);
+      entity.addComponent('gsplat', { resource: new pc.GSplatResource(this.app.graphicsDevice, splatData(scene)) });
+      this.app.root.addChild(entity);
+      this.tiles.set(number, entity);
+    }
+    for (const [number, entity] of this.tiles) entity.enabled = numbers.has(number);
+    this.sorts = 0;
+  }
+
+  /**
+   * Draw the tiles ``numbers`` as one splat set, their Gaussians in tile order, as a page
+   * decoding the whole file draws the same tiles (the engine's order among splats it sorts
+   * alike follows their place in its buffers, so one set in file order draws the whole-file
+   * page's frame exactly); the tile entities are hidden until showTiles draws them again.
+   */
+  joinTiles(numbers, scenes) {
+    if (this.joined) this.joined.destroy();
+    const parts = [...numbers].sort((a, b) => a - b).map((n) => scenes.get(n)).filter((s) => s.count);
+    const field = (name) => {
+      const out = new Float32Array(parts.reduce((n, s) => n + s[name].length, 0));
+      let at = 0;
+      for (const s of parts) { out.set(s[name], at); at += s[name].length; }
+      return out;
+    };
+    const joined = {
+      count: parts.reduce((n, s) => n + s.count, 0), positions: field('positions'), sh_dc: field('sh_dc'),
+      sh_rest: field('sh_rest'), opacity: field('opacity'), scales: field('scales'), rotations: field('rotations'),
+    };
+    this.joined = new pc.Entity('joined tiles');
+    this.joined.addComponent('gsplat', { resource: new pc.GSplatResource(this.app.graphicsDevice, splatData(joined)) });
+    this.app.root.addChild(this.joined);
+    for (const entity of this.tiles.values()) entity.enabled = false;
+    this.sorts = 0;
+  }
+
+  /** Remove every tile entity (another file is opened). */
+  clearTiles() {
+    for (const entity of this.tiles.values()) entity.destroy();
+    this.tiles.clear();
+    if (this.joined) { this.joined.destroy(); this.joined = null; }
+  }
+
   /** Replace the drawn scene with ``scene`` (decoded arrays). */
   show(scene) {
+    this.clearTiles();
     if (this.splat) this.splat.destroy();
     this.splat = null;
     this.data = null;
