@@ -12,8 +12,8 @@ import pytest
 from csgs_cli.main import main
 from csgs_codec.format.source import open_source
 from csgs_codec.format.toc import read_toc
-from csgs_codec.scene.orbit import orbit_cameras
 from csgs_codec.interchange.ply_io import read_ply
+from csgs_codec.scene.orbit import orbit_cameras
 from csgs_codec.web.server import ViewerServer
 from tests.conftest import SAMPLE
 from tests.web.browser import psnr, show_camera, wait_for_state
