@@ -210,3 +210,14 @@ def test_cli_encodes_levels_and_decodes_one(tmp_path, capsys):
     assert "level 2 is not in the file" in capsys.readouterr().err
     assert main(["encode", str(ply), "-o", str(tmp_path / "y.csgs"), "--levels", "0",
                  "--quiet"]) == 2
+
+
+def test_coarser_levels_code_with_coarser_steps():
+    from csgs_codec.codec.level_encoder import level_settings
+    from csgs_codec.decisions.presets import preset
+
+    base = preset(5)
+    assert level_settings(base, 0) == base
+    two = level_settings(base, 2)
+    assert two.dc_step == 4 * base.dc_step and two.rotation_step == 4 * base.rotation_step
+    assert two.semantic_step == base.semantic_step and two.position_bits == base.position_bits
