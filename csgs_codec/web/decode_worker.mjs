@@ -193,7 +193,7 @@ async function open(request, post) {
       const index = await source.read(prefix.length, entries[0].end);
       const indexed = concat([prefix, index]);
       if (hasLevels(toc, index)) {
-        levelStream = await openLevels({ source, indexed, toc, fileEnd, tablesReady,
+        levelStream = await openLevels({ source, indexed, toc, fileEnd, wanted, tablesReady,
           lanes: decoding, post, progress, mark });
         post({ kind: 'done' });
         return;

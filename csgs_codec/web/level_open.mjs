@@ -9,8 +9,9 @@
  * frames joined) and decoded on the decode lanes in the order asked.
  *
  * Messages out (besides progress/mark/error): {kind: 'levels', tiles, levels, fileEnd,
- * indexBytes} and {kind: 'tile', number, scene, bytesRead, decodeMs}, ``bytesRead`` the
- * scene bytes read so far (header, TOC and index included).
+ * indexBytes, layers} and {kind: 'tile', number, scene, bytesRead, decodeMs}, ``bytesRead``
+ * the scene bytes read so far (header, TOC and index included). A tile's semantic frames are
+ * read with its color frames when the page asks for the semantic layer and the file has one.
  */
 
 import { FormatError } from '../js/errors.mjs';
@@ -30,15 +31,16 @@ export function hasLevels(toc, indexFrame) {
  * Stream a file with levels. ``indexed``: the file's bytes from 0 to the end of the TIDX frame
  * (header, TOC, index); returns {fetch(numbers)}, the handler of the page's tile requests.
  */
-export async function openLevels({ source, indexed, toc, fileEnd, tablesReady, lanes, post, progress, mark }) {
+export async function openLevels({ source, indexed, toc, fileEnd, wanted, tablesReady, lanes, post, progress, mark }) {
   const tiles = readTileIndex(indexed, toc, MAX_GAUSSIANS_PER_BYTE, fileEnd);
   const levels = levelCount(tiles);
   let bytesRead = indexed.length;
-  post({ kind: 'levels', tiles, levels, fileEnd, indexBytes: indexed.length });
+  const semantic = wanted.has('semantic') && toc.entries.some((e) => e.layer === 2);
+  const layers = semantic ? ['color', 'semantic'] : ['color'];
+  post({ kind: 'levels', tiles, levels, fileEnd, indexBytes: indexed.length, layers });
   mark(post, 'indexRead');
   const tables = await tablesReady;
   let first = null; // the first tile decoded: every other must be of its kind (§12.22)
-  const layers = ['color'];
 
   async function fetchTiles(numbers) {
     const entries = tileEntries(toc, numbers, layers);
@@ -54,7 +56,7 @@ export async function openLevels({ source, indexed, toc, fileEnd, tablesReady, l
     for (const number of numbers) {
       const t0 = performance.now();
       const container = tileContainerOf(toc, entries, number, payloads, fileEnd);
-      const scene = await decodeTileContainer(container, number, tiles[number], { tables, lanes });
+      const scene = await decodeTileContainer(container, number, tiles[number], { tables, lanes, layers: layers.slice(1) });
       first ??= { number, rest: scene.sh_rest.length / Math.max(scene.count, 1) };
       if (scene.sh_rest.length / Math.max(scene.count, 1) !== first.rest) {
         throw new FormatError(`tile ${number} differs from tile ${first.number} in SH degree`, { chunk: 'SCNE', offset: container.toc.entries.find((e) => e.type === 'SCNE')?.offset + 8 });

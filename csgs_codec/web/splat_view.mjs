@@ -53,6 +53,39 @@ function splatData(scene) {
   return new pc.GSplatData([{ name: 'vertex', count: n, properties }]);
 }
 
+/** The base colors and opacities of ``data`` (restored when a selection is cleared). */
+function originalColors(data) {
+  return {
+    dc: [0, 1, 2].map((k) => Float32Array.from(data.getProp(`f_dc_${k}`))),
+    opacity: Float32Array.from(data.getProp('opacity')),
+  };
+}
+
+/** Dim the splats of ``data`` outside ``mask`` (null: restore ``original``'s colors). */
+function dimData(data, original, mask) {
+  const dc = [0, 1, 2].map((k) => data.getProp(`f_dc_${k}`));
+  const op = data.getProp('opacity');
+  const { dc: dc0, opacity: op0 } = original;
+  for (let i = 0; i < op.length; i++) {
+    if (!mask || mask[i]) {
+      for (let k = 0; k < 3; k++) dc[k][i] = dc0[k][i];
+      op[i] = op0[i];
+    } else {
+      for (let k = 0; k < 3; k++) dc[k][i] = (DIM_COLOR * (0.5 + SH_C0 * dc0[k][i]) - 0.5) / SH_C0;
+      const alpha = DIM_OPACITY / (1 + Math.exp(-op0[i]));
+      op[i] = Math.log(alpha / (1 - alpha));
+    }
+  }
+}
+
+/** dimData on a tile entity's splats, uploaded. */
+function dim(entity, mask) {
+  const { data, original } = entity.csgsSplats;
+  dimData(data, original, mask);
+  entity.gsplat.resource.updateColorData(data);
+  entity.gsplat.workBufferUpdate = pc.WORKBUFFER_UPDATE_ONCE;
+}
+
 export class SplatView {
   /**
    * @param {HTMLCanvasElement} canvas
@@ -126,7 +159,9 @@ export class SplatView {
       const scene = scenes.get(number);
       if (!scene.count) continue;
       const entity = new pc.Entity(`tile ${number}`);
-      entity.addComponent('gsplat', { resource: new pc.GSplatResource(this.app.graphicsDevice, splatData(scene)) });
+      const data = splatData(scene);
+      entity.addComponent('gsplat', { resource: new pc.GSplatResource(this.app.graphicsDevice, data) });
+      entity.csgsSplats = { data, original: originalColors(data) };
       this.app.root.addChild(entity);
       this.tiles.set(number, entity);
     }
@@ -154,10 +189,34 @@ export class SplatView {
       sh_rest: field('sh_rest'), opacity: field('opacity'), scales: field('scales'), rotations: field('rotations'),
     };
     this.joined = new pc.Entity('joined tiles');
-    this.joined.addComponent('gsplat', { resource: new pc.GSplatResource(this.app.graphicsDevice, splatData(joined)) });
+    const data = splatData(joined);
+    this.joined.addComponent('gsplat', { resource: new pc.GSplatResource(this.app.graphicsDevice, data) });
+    this.joined.csgsSplats = { data, original: originalColors(data), tiles: [...numbers].filter((n) => this.tiles.has(n)).sort((a, b) => a - b) };
     this.app.root.addChild(this.joined);
     for (const entity of this.tiles.values()) entity.enabled = false;
     this.sorts = 0;
+  }
+
+  /**
+   * Dim everything outside the selection in the tiles drawn: ``masks`` maps a tile number
+   * to its Uint8Array (1 = selected); null restores every tile's colors.
+   */
+  highlightTiles(masks) {
+    for (const [number, entity] of this.tiles) {
+      dim(entity, masks ? masks.get(number) || new Uint8Array(entity.csgsSplats.data.numSplats) : null);
+    }
+    if (this.joined) {
+      const { tiles } = this.joined.csgsSplats;
+      if (!masks) {
+        dim(this.joined, null);
+      } else {
+        const parts = tiles.map((n) => masks.get(n) || new Uint8Array(this.tiles.get(n).csgsSplats.data.numSplats));
+        const joined = new Uint8Array(parts.reduce((n, p) => n + p.length, 0));
+        let at = 0;
+        for (const p of parts) { joined.set(p, at); at += p.length; }
+        dim(this.joined, joined);
+      }
+    }
   }
 
   /** Remove every tile entity (another file is opened). */
@@ -175,10 +234,7 @@ export class SplatView {
     this.data = null;
     if (!scene.count) return; // nothing to draw (an empty scene is valid)
     this.data = splatData(scene);
-    this.original = {
-      dc: [0, 1, 2].map((k) => Float32Array.from(this.data.getProp(`f_dc_${k}`))),
-      opacity: Float32Array.from(this.data.getProp('opacity')),
-    };
+    this.original = originalColors(this.data);
     this.resource = new pc.GSplatResource(this.app.graphicsDevice, this.data);
     this.splat = new pc.Entity('scene');
     this.splat.addComponent('gsplat', { resource: this.resource });
@@ -236,19 +292,7 @@ export class SplatView {
   /** Dim everything outside ``mask`` (Uint8Array, 1 = selected); null restores the colors. */
   highlight(mask) {
     if (!this.data) return;
-    const dc = [0, 1, 2].map((k) => this.data.getProp(`f_dc_${k}`));
-    const op = this.data.getProp('opacity');
-    const { dc: dc0, opacity: op0 } = this.original;
-    for (let i = 0; i < op.length; i++) {
-      if (!mask || mask[i]) {
-        for (let k = 0; k < 3; k++) dc[k][i] = dc0[k][i];
-        op[i] = op0[i];
-      } else {
-        for (let k = 0; k < 3; k++) dc[k][i] = (DIM_COLOR * (0.5 + SH_C0 * dc0[k][i]) - 0.5) / SH_C0;
-        const alpha = DIM_OPACITY / (1 + Math.exp(-op0[i]));
-        op[i] = Math.log(alpha / (1 - alpha));
-      }
-    }
+    dimData(this.data, this.original, mask);
     this.resource.updateColorData(this.data);
     this.splat.gsplat.workBufferUpdate = pc.WORKBUFFER_UPDATE_ONCE;
   }

@@ -135,7 +135,8 @@ function showStatus() {
     const levels = lod.drawnLevels.map((n, k) => (n ? `${n} of level ${k}` : '')).filter(Boolean).join(', ');
     setMessage(`${state.count.toLocaleString()} Gaussians drawn (tiles ${levels}); read `
       + `${lod.bytesRead.toLocaleString()} of ${state.fileEnd.toLocaleString()} bytes`
-      + `${lod.complete ? '' : ', reading more detail'}. Levels of detail: no click selection yet`);
+      + `${lod.complete ? '' : ', reading more detail'}`
+      + (state.semanticReady ? '; click an object to select it' : ''));
     return;
   }
   if (!state.colorShown) {
@@ -246,6 +247,7 @@ function drawTiles(drawn, scenes, id) {
   drawing = drawing.then(async () => {
     await viewReady;
     if (id !== requestId) return;
+    if (state.selection) clearSelection(); // the selection was made on other tiles
     view.showTiles(drawn, scenes);
     state.lod.joined = false;
     state.count = streamer.count;
@@ -311,6 +313,7 @@ async function tileArrived(message, id) {
     view.setCamera(rig.camera(width, height));
     streamer.camera = rig.camera(width, height);
   }
+  if (message.scene.semantic || message.scene.labels) state.semanticReady = true;
   streamer.arrived(message.number, message.scene);
   setProgress(Math.min(0.99, state.lod.bytesRead / state.fileEnd), `read ${state.lod.bytesRead.toLocaleString()} bytes, ${state.lod.decoded} tiles`);
   noteComplete();
@@ -349,7 +352,8 @@ worker.onmessage = (event) => {
   } else if (message.kind === 'levels') {
     state.phase = 'streaming';
     state.fileEnd = message.fileEnd;
-    state.layers = ['color'];
+    state.layers = message.layers;
+    state.hasSemantic = message.layers.includes('semantic');
     state.lod = {
       levels: message.levels, tiles: message.tiles.length, decoded: 0, drawn: [], drawnLevels: [],
       bytesRead: message.indexBytes, firstFrameBytes: null, complete: false, completeMs: null,
@@ -385,8 +389,34 @@ worker.onmessage = (event) => {
 
 /** Select the object under drawing-buffer pixel (column, row): by instance when the scene
  * has instances, else by cosine; updates the page. */
+/**
+ * The drawn tiles of a streamed file as one scene (tile order) with its semantic arrays, and
+ * each tile's share of it: {scene, semantic, parts: [[number, start, count], ...]}.
+ */
+function drawnScene() {
+  const numbers = [...streamer.drawn].sort((a, b) => a - b);
+  const parts = [];
+  let at = 0;
+  for (const n of numbers) { parts.push([n, at, streamer.scenes.get(n).count]); at += streamer.scenes.get(n).count; }
+  const scenes = numbers.map((n) => streamer.scenes.get(n));
+  const join = (name, Type = Float32Array) => {
+    if (scenes.some((s) => !s[name])) return null;
+    const out = new Type(scenes.reduce((n, s) => n + s[name].length, 0));
+    let k = 0;
+    for (const s of scenes) { out.set(s[name], k); k += s[name].length; }
+    return out;
+  };
+  const joined = { count: at, positions: join('positions'), sh_dc: join('sh_dc'), sh_rest: join('sh_rest'),
+    opacity: join('opacity'), scales: join('scales'), rotations: join('rotations') };
+  const channels = scenes[0].semanticNames ? scenes[0].semanticNames.length : 0;
+  const features = join('semantic');
+  const labels = join('labels', Int32Array);
+  const instances = elementInstances(labels, features, channels);
+  return { scene: joined, semantic: (features || labels) ? { features, channels, instances } : null, parts };
+}
+
 function selectAt(column, row) {
-  if (state.lod) throw new Error('click selection is not available in files with levels of detail yet');
+  if (state.lod) return selectInStreamed(column, row);
   if (!scene) throw new Error('no scene is open');
   if (!semantic) throw new Error('the semantic layer is not loaded, so there is nothing to select by');
   const { width, height } = view.size;
@@ -409,15 +439,43 @@ function selectAt(column, row) {
   return result;
 }
 
+/** selectAt on the tiles a streamed file draws: the same rules on their Gaussians joined. */
+function selectInStreamed(column, row) {
+  if (!streamer || !streamer.drawn.size) throw new Error('nothing is drawn yet');
+  const { scene: drawn, semantic: meaning, parts } = drawnScene();
+  if (!meaning) throw new Error('the semantic layer is not loaded, so there is nothing to select by');
+  const { width, height } = view.size;
+  const camera = rig.camera(width, height);
+  let result;
+  let rule;
+  let threshold = null;
+  if (meaning.instances) {
+    result = selectInstanceAtPixel(drawn, meaning.instances.ids, camera, column, row);
+    rule = `instance from ${meaning.instances.source}`;
+  } else {
+    threshold = Number($('threshold').value) || DEFAULT_THRESHOLD;
+    result = selectAtPixel(drawn, meaning.features, meaning.channels, camera, column, row, threshold);
+    rule = `threshold ${threshold}`;
+  }
+  const masks = new Map(parts.map(([n, start, count]) => [n, result.mask.subarray(start, start + count)]));
+  state.selection = { count: result.count, column, row, alpha: result.alpha, threshold, rule, mask: result.mask, tiles: parts.map((p) => p[0]) };
+  view.highlightTiles(masks);
+  drawAgain();
+  $('selection').textContent = `selected ${result.count.toLocaleString()} of ${drawn.count.toLocaleString()} Gaussians drawn (pixel ${column},${row}, ${rule})`;
+  return result;
+}
+
 function clearSelection() {
+  const streamed = Boolean(state.lod);
   state.selection = null;
-  if (view) view.highlight(null);
+  if (view && streamed) view.highlightTiles(null);
+  else if (view) view.highlight(null);
   drawAgain();
   $('selection').textContent = '';
 }
 
 $('canvas').addEventListener('click', (e) => {
-  if ((rig.lastDragPixels || 0) > 3 || !scene) return;
+  if ((rig.lastDragPixels || 0) > 3 || (!scene && !state.lod)) return;
   const canvas = $('canvas');
   const column = Math.floor(e.offsetX * canvas.width / canvas.clientWidth);
   const row = Math.floor(e.offsetY * canvas.height / canvas.clientHeight);

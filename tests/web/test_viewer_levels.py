@@ -107,3 +107,38 @@ def test_the_view_picks_coarse_levels_for_a_distant_camera(browser, files):
     assert state["error"] is None
     assert state["lod"]["drawnLevels"] == [0, 0, 1]
     assert state["lod"]["decoded"] == 1 and state["count"] < 1000
+
+
+def test_click_selects_the_labelled_object_in_a_streamed_file(browser, tmp_path):
+    """Selection works on the tiles drawn: at full detail, as in the whole file."""
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
+    from csgs_codec import Decoder, Encoder
+    from csgs_codec.semantic.evaluation import mask_iou, object_click_points
+    from csgs_codec.semantic.selection import select_at_click
+    from csgs_codec.semantic.synthetic import labelled_blob_scene, overview_camera
+    from tests.web.browser import viewer_state
+
+    path = tmp_path / "objects.csgs"
+    path.write_bytes(Encoder(levels=2, tile_size=500).encode(labelled_blob_scene(5, 400, seed=3)))
+    scene = Decoder().decode(path.read_bytes(), "color,semantic")  # level 0, tile order
+    width, height = 480, 360
+    camera = overview_camera(scene.positions, width=width, height=height)
+    with ViewerServer(path) as server:
+        browser.get(f"{server.url}?size={width}x{height}&lodpx=0.001")
+        wait_for_state(browser, lambda s: s["error"] or (s["lod"] and s["lod"]["complete"]))
+        show_camera(browser, camera)
+        state = wait_for_state(browser, lambda s: s["error"] or s["lod"]["joined"])
+        assert state["error"] is None and state["semanticReady"]
+        assert state["count"] == len(scene) and state["lod"]["drawnLevels"] == [4, 0]
+        canvas = browser.find_element(By.ID, "canvas")
+        for label, (x, y) in sorted(object_click_points(scene.positions, scene.labels,
+                                                        camera).items()):
+            ActionChains(browser).move_to_element_with_offset(
+                canvas, int(x) - width // 2, int(y) - height // 2).click().perform()
+            selected = np.zeros(len(scene), bool)
+            selected[browser.execute_script("return window.csgsViewer.selectionIndices()")] = True
+            assert viewer_state(browser)["selection"]["count"] == selected.sum()
+            assert mask_iou(selected, scene.labels == label) >= 0.9, label
+            assert mask_iou(selected, select_at_click(scene, camera, x, y)) >= 0.99, label
