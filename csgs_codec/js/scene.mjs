@@ -81,6 +81,7 @@ export async function decodeScene(data, options) {
     return decodePrepared(data, prep, lanes, options.onStage, options.onProgress);
   }
   const numbers = chosenTiles(tiled.tiles, options.lod);
+  tiled.read(numbers);
   const scenes = [];
   for (const [k, i] of numbers.entries()) {
     const progress = options.onProgress && ((f) => options.onProgress((k + f) / numbers.length));
@@ -167,18 +168,25 @@ async function decodePrepared(data, prep, lanes, onStage, onProgress) {
 
 /**
  * A tiled file (§12.22) read and checked up to its tiles' decoding: {tiles (index entries),
- * containers (one per tile), layers, prepare(i) (tile i's prepareScene)}; null for a file
- * without a tile index. Tiles are prepared when decoded, so errors come in tile order.
+ * read(numbers) (reads and checks the frames of those tiles, in file order, as the Python
+ * decoder does before decoding any: a frame of another tile, another level's say, is never
+ * read), containers (one per tile, after read), layers, prepare(i) (tile i's prepareScene)};
+ * null for a file without a tile index. Tiles are prepared when decoded, so errors come in
+ * tile order.
  */
 export function tiledScene(data, options) {
   const layers = new Set(['color', ...(options.layers || [])]);
   const toc = readToc(data);
   if (!isTiled(toc)) return null;
   const tiles = readTileIndex(data, toc, options.maxGaussiansPerByte ?? MAX_GAUSSIANS_PER_BYTE);
-  const container = readPayloads(data, toc, layers);
-  const containers = tiles.map((_, number) => tileContainer(container, number));
-  const prepare = (i) => prepareContainer(containers[i], data.length, layers, options);
-  return { tiles, containers, layers, prepare };
+  const tiled = { tiles, containers: [], layers };
+  tiled.read = (numbers) => {
+    const chosen = new Set(numbers);
+    const container = readPayloads(data, { ...toc, entries: toc.entries.filter((e) => chosen.has(e.tile) && e.type !== 'TIDX') }, layers);
+    tiled.containers = tiles.map((_, number) => tileContainer(container, number));
+  };
+  tiled.prepare = (i) => prepareContainer(tiled.containers[i], data.length, layers, options);
+  return tiled;
 }
 
 /** Tile ``i``'s decoded scene after checking it against its index entry (count, box). */
