@@ -1,7 +1,8 @@
 """Fuzz the JavaScript receiver against the Python decoder with mutated real files.
 
     python benchmarks/fuzz_js_receiver.py --inputs 20000 [--seed 0] [--batch 100]
-        [--seeds campaign|default-encodes] [--out fuzz_js.json] [--crash-dir DIR]
+        [--seeds campaign|default-encodes] [--only-seeds TEXT] [--out fuzz_js.json]
+        [--crash-dir DIR]
 
 Inputs are the reproducible mutant sequence of tests/fuzz/campaign.py over either the decoder
 campaign's standard-scene seeds (``campaign``) or the default encodes (``Encoder()``, what
@@ -12,7 +13,11 @@ process that died or hung, one decoder accepting what the other refuses, differe
 different kind of error, or a rejection naming another chunk or byte offset. The JSON document
 (schema csgs-bench/1) is rewritten after every batch. Disagreeing inputs are written to
 ``--crash-dir`` as ``<index>.csgs`` with a ``.json`` beside each. Exit status 1 when any
-input disagreed.
+input disagreed. The known receiver fault of tests/fuzz/js_differential.py (a level decode
+that reads every tile's frames) is counted apart as ``unread_frame_refusals`` (those inputs
+are written to the crash folder too) and does not set the exit status. ``--only-seeds TEXT`` keeps the seeds whose name contains one of TEXT's
+comma-separated parts (e.g. ``level,tiled`` for the files with a tile index), as
+benchmarks/fuzz_decoder.py does.
 """
 
 from __future__ import annotations
@@ -59,12 +64,17 @@ def _result(summary: DifferentialSummary, args, seeds, elapsed: float) -> dict:
         "disagreement_details": [
             {"index": d.index, "seed": d.seed, "operators": list(d.operators), "kind": d.kind,
              "detail": d.detail[:500]} for d in summary.disagreements[:50]],
+        "unread_frame_refusals": len(summary.unread_frames),
+        "unread_frame_details": [
+            {"index": d.index, "seed": d.seed, "operators": list(d.operators),
+             "detail": d.detail[:500]} for d in summary.unread_frames[:20]],
         "python_outcomes": dict(summary.outcomes),
         "receiver_slowest_ms": [{"index": i, "ms": round(ms, 3)}
                                 for ms, i in summary.slowest_ms],
         "receiver_max_rss_bytes": summary.max_rss_bytes,
         "campaign_seed": args.seed,
         "seed_set": args.seeds,
+        "only_seeds": args.only_seeds,
         "seeds": [{"name": s.name, "bytes": len(s.data), "weight": s.weight} for s in seeds],
         "batch": args.batch,
         "elapsed_s": round(elapsed, 1),
@@ -76,7 +86,7 @@ def _save(summary: DifferentialSummary, crash_dir: Path | None) -> None:
     save_failing_inputs(crash_dir, [
         (str(d.index), d.data, {"index": d.index, "seed": d.seed, "operators": list(d.operators),
                                 "kind": d.kind, "detail": d.detail})
-        for d in summary.disagreements])
+        for d in summary.disagreements + summary.unread_frames])
 
 
 def main() -> int:
@@ -88,10 +98,17 @@ def main() -> int:
     parser.add_argument("--seeds", choices=("campaign", "default-encodes"), default="campaign")
     parser.add_argument("--out", help="write the JSON here (rewritten after every batch)")
     parser.add_argument("--crash-dir", type=Path, help="write disagreeing inputs here")
+    parser.add_argument("--only-seeds", default=None, metavar="TEXT",
+                        help="fuzz only the seeds whose name contains TEXT")
     args = parser.parse_args()
 
     seeds = (standard_seeds(build_seeds()) if args.seeds == "campaign"
              else default_encode_seeds())
+    if args.only_seeds is not None:
+        parts = [part for part in args.only_seeds.split(",") if part]
+        seeds = [s for s in seeds if any(part in s.name for part in parts)]
+        if not seeds:
+            parser.error(f"no seed name contains {args.only_seeds!r}")
     total = DifferentialSummary()
     began = time.perf_counter()
     for start in range(0, args.inputs, args.batch):

@@ -7,6 +7,18 @@ and byte offset; the receiver must never throw anything else, die or hang. FORMA
 error reports informative, but both decoders follow its conventions and §8's order (frames in
 TOC order, fields in payload order), so a file with several faults is refused for the same one.
 
+A file with levels of detail (FORMAT §12.22) is decoded by both at every level, level 0 first
+(tests/fuzz/oracle.py's decode_levels; the arrays of level k > 0 named "lod<k>/<name>"),
+so damage in a coarse tile is compared too.
+
+One disagreement is known and counted apart (``unread_frames``): the receiver reads every
+frame of a tiled file before decoding the tiles asked for (csgs_codec/js/scene.mjs
+``tiledScene`` calls ``readPayloads`` on the whole TOC), where FORMAT §12.22 has a decoder of
+a level read the frames of that level's tiles only, as the Python decoder does; so on a file
+with levels whose first fault lies in a frame of another level, the receiver refuses for
+that frame. :func:`unread_frame_refusal` recognises it: reading every frame of the file in
+TOC order fails at the chunk and offset the receiver names.
+
 A file whose TOC lists an ANCH chunk (an anchor scene, FORMAT §17) is decoded by the
 reference AnchorDecoder and the receiver's decodeAnchorScene, any other by the Decoder and
 decodeScene; outcomes count by kind ("ok" or "anchors-ok" for decoded files).
@@ -25,9 +37,10 @@ from pathlib import Path
 
 from benchmarks._js_receiver import anchor_hashes, node_executable, scene_hashes
 from csgs_codec.codec.anchor_decoder import AnchorDecoder, is_anchor_file
-from csgs_codec.codec.decoder import Decoder
 from csgs_codec.errors import CsgsError, FormatError, UnsupportedError
+from csgs_codec.format import read_layers
 from tests.fuzz.campaign import mutant_at
+from tests.fuzz.oracle import decode_levels
 from tests.fuzz.seeds import Seed
 
 ORACLE = Path(__file__).with_name("js_oracle.mjs")
@@ -67,6 +80,8 @@ class DifferentialSummary:
         slowest_ms: the :data:`SLOWEST_KEPT` slowest receiver decodes as (ms, index).
         max_rss_bytes: largest peak resident memory of a receiver process.
         disagreements: the inputs that failed the comparison.
+        unread_frames: the inputs that failed it only by the known receiver fault (see the
+            module docstring), kind "unread-frame".
     """
 
     inputs: int = 0
@@ -74,6 +89,7 @@ class DifferentialSummary:
     slowest_ms: list[tuple[float, int]] = field(default_factory=list)
     max_rss_bytes: int = 0
     disagreements: list[Disagreement] = field(default_factory=list)
+    unread_frames: list[Disagreement] = field(default_factory=list)
 
     def merge(self, other: DifferentialSummary) -> None:
         """Add ``other``'s totals to these."""
@@ -82,6 +98,7 @@ class DifferentialSummary:
         self.slowest_ms = heapq.nlargest(SLOWEST_KEPT, self.slowest_ms + other.slowest_ms)
         self.max_rss_bytes = max(self.max_rss_bytes, other.max_rss_bytes)
         self.disagreements.extend(other.disagreements)
+        self.unread_frames.extend(other.unread_frames)
 
 
 def lists_anchor_chunk(data: bytes) -> bool:
@@ -111,8 +128,11 @@ def python_outcome(data: bytes) -> dict:
             scene = AnchorDecoder().decode(data, layers=LAYERS)
             hashes = anchor_hashes(scene)
         else:
-            scene = Decoder().decode(data, layers=LAYERS)
+            scene, *coarse = decode_levels(data)
             hashes = scene_hashes(scene)
+            for level, other in enumerate(coarse, 1):
+                hashes.update({f"lod{level}/{name}": value
+                               for name, value in scene_hashes(other).items()})
     except (FormatError, UnsupportedError) as err:
         return {"ok": False, "error": type(err).__name__, "chunk": err.chunk,
                 "offset": err.offset, "message": str(err)}
@@ -175,6 +195,19 @@ def compare(python: dict, receiver: dict) -> tuple[str, str] | None:
     return None
 
 
+def unread_frame_refusal(data: bytes, receiver: dict) -> bool:
+    """Whether the receiver's refusal of ``data`` is the one reading every frame gives:
+    ``read_layers`` of both layers (all frames, TOC order) fails at the chunk and byte
+    offset the receiver names."""
+    if receiver["ok"] or receiver["error"] != "FormatError":
+        return False
+    try:
+        read_layers(data, LAYERS)
+    except FormatError as err:
+        return (err.chunk, err.offset) == (receiver["chunk"], receiver["offset"])
+    return False
+
+
 def run_differential(seeds: Sequence[Seed], start: int, count: int, campaign_seed: int = 0,
                      batch: int = 100) -> DifferentialSummary:
     """Decode inputs ``start .. start + count - 1`` of the campaign with both decoders and
@@ -208,6 +241,12 @@ def _count(summary: DifferentialSummary, index: int, mutant, python: dict,
     else:
         summary.outcomes[python["error"]] += 1
     differ = compare(python, receiver)
-    if differ is not None:
+    if differ is None:
+        return
+    if differ[0] in ("accept", "place", "error-kind") and unread_frame_refusal(mutant.data,
+                                                                              receiver):
+        summary.unread_frames.append(Disagreement(index, mutant.seed, mutant.operators,
+                                                  "unread-frame", differ[1], mutant.data))
+    else:
         summary.disagreements.append(Disagreement(index, mutant.seed, mutant.operators,
                                                   *differ, mutant.data))
