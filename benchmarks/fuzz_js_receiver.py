@@ -1,6 +1,6 @@
 """Fuzz the JavaScript receiver against the Python decoder with mutated real files.
 
-    python benchmarks/fuzz_js_receiver.py --inputs 20000 [--seed 0] [--batch 100]
+    python benchmarks/fuzz_js_receiver.py --inputs 20000 [--seed 0] [--batch 100] [--start I]
         [--seeds campaign|default-encodes] [--only-seeds TEXT] [--out fuzz_js.json]
         [--crash-dir DIR]
 
@@ -15,9 +15,12 @@ different kind of error, or a rejection naming another chunk or byte offset. The
 ``--crash-dir`` as ``<index>.csgs`` with a ``.json`` beside each. Exit status 1 when any
 input disagreed. The known receiver fault of tests/fuzz/js_differential.py (a level decode
 that reads every tile's frames) is counted apart as ``unread_frame_refusals`` (those inputs
-are written to the crash folder too) and does not set the exit status. ``--only-seeds TEXT`` keeps the seeds whose name contains one of TEXT's
-comma-separated parts (e.g. ``level,tiled`` for the files with a tile index), as
-benchmarks/fuzz_decoder.py does.
+are written to the crash folder too) and does not set the exit status.
+
+``--only-seeds TEXT`` keeps the seeds whose name contains one of TEXT's comma-separated parts
+(e.g. ``level,tiled`` for the files with a tile index), as benchmarks/fuzz_decoder.py does;
+``--start I`` begins at input I (a stopped run goes on from where its JSON's ``inputs`` say
+it stopped).
 """
 
 from __future__ import annotations
@@ -58,6 +61,7 @@ def default_encode_seeds() -> list[Seed]:
 def _result(summary: DifferentialSummary, args, seeds, elapsed: float) -> dict:
     return {
         "requested_inputs": args.inputs,
+        "start": args.start,
         "inputs": summary.inputs,
         "complete": summary.inputs == args.inputs,
         "disagreements": len(summary.disagreements),
@@ -95,6 +99,7 @@ def main() -> int:
     parser.add_argument("--inputs", type=int, default=10_000)
     parser.add_argument("--seed", type=int, default=0, help="campaign seed")
     parser.add_argument("--batch", type=int, default=100, help="inputs per receiver process")
+    parser.add_argument("--start", type=int, default=0, help="first input index")
     parser.add_argument("--seeds", choices=("campaign", "default-encodes"), default="campaign")
     parser.add_argument("--out", help="write the JSON here (rewritten after every batch)")
     parser.add_argument("--crash-dir", type=Path, help="write disagreeing inputs here")
@@ -111,8 +116,9 @@ def main() -> int:
             parser.error(f"no seed name contains {args.only_seeds!r}")
     total = DifferentialSummary()
     began = time.perf_counter()
-    for start in range(0, args.inputs, args.batch):
-        part = run_differential(seeds, start, min(args.batch, args.inputs - start), args.seed,
+    end = args.start + args.inputs
+    for start in range(args.start, end, args.batch):
+        part = run_differential(seeds, start, min(args.batch, end - start), args.seed,
                                 batch=args.batch)
         total.merge(part)
         _save(part, args.crash_dir)
