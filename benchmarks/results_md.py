@@ -88,8 +88,9 @@ VIEWS: dict[str, list[View]] = {
     "formats": [View(["scene", "format", "bytes", "bits_per_gaussian", "write_s", "read_s"])],
     "fuzz_decoder": [View(["inputs", "complete", "crashes", "hang", "max_seconds_per_input",
                            "max_seconds_alone", "max_share_of_memory_bound", "elapsed_s"])],
-    "fuzz_js_receiver": [View(["seed_set", "inputs", "complete", "disagreements",
-                               "python_outcomes.ok", "python_outcomes.FormatError",
+    "fuzz_js_receiver": [View(["seed_set", "only_seeds", "inputs", "complete",
+                               "disagreements", "unread_frame_refusals", "python_outcomes.ok",
+                               "python_outcomes.FormatError",
                                "receiver_max_rss_bytes", "elapsed_s"])],
     "fuzz_readers": [
         View(["inputs", "complete", "crashes", "timeouts", "typed_errors", "parsed_ok",
