@@ -1,7 +1,8 @@
 """Fuzz the JavaScript receiver against the Python decoder with mutated real files.
 
-    python benchmarks/fuzz_js_receiver.py --inputs 20000 [--seed 0] [--batch 100]
-        [--seeds campaign|default-encodes] [--out fuzz_js.json] [--crash-dir DIR]
+    python benchmarks/fuzz_js_receiver.py --inputs 20000 [--seed 0] [--batch 100] [--start I]
+        [--seeds campaign|default-encodes] [--only-seeds TEXT] [--out fuzz_js.json]
+        [--crash-dir DIR]
 
 Inputs are the reproducible mutant sequence of tests/fuzz/campaign.py over either the decoder
 campaign's standard-scene seeds (``campaign``) or the default encodes (``Encoder()``, what
@@ -13,6 +14,11 @@ different kind of error, or a rejection naming another chunk or byte offset. The
 (schema csgs-bench/1) is rewritten after every batch. Disagreeing inputs are written to
 ``--crash-dir`` as ``<index>.csgs`` with a ``.json`` beside each. Exit status 1 when any
 input disagreed.
+
+``--only-seeds TEXT`` keeps the seeds whose name contains one of TEXT's comma-separated parts
+(e.g. ``level,tiled`` for the files with a tile index), as benchmarks/fuzz_decoder.py does;
+``--start I`` begins at input I (a stopped run goes on from where its JSON's ``inputs`` say
+it stopped).
 """
 
 from __future__ import annotations
@@ -53,6 +59,7 @@ def default_encode_seeds() -> list[Seed]:
 def _result(summary: DifferentialSummary, args, seeds, elapsed: float) -> dict:
     return {
         "requested_inputs": args.inputs,
+        "start": args.start,
         "inputs": summary.inputs,
         "complete": summary.inputs == args.inputs,
         "disagreements": len(summary.disagreements),
@@ -65,6 +72,7 @@ def _result(summary: DifferentialSummary, args, seeds, elapsed: float) -> dict:
         "receiver_max_rss_bytes": summary.max_rss_bytes,
         "campaign_seed": args.seed,
         "seed_set": args.seeds,
+        "only_seeds": args.only_seeds,
         "seeds": [{"name": s.name, "bytes": len(s.data), "weight": s.weight} for s in seeds],
         "batch": args.batch,
         "elapsed_s": round(elapsed, 1),
@@ -85,17 +93,26 @@ def main() -> int:
     parser.add_argument("--inputs", type=int, default=10_000)
     parser.add_argument("--seed", type=int, default=0, help="campaign seed")
     parser.add_argument("--batch", type=int, default=100, help="inputs per receiver process")
+    parser.add_argument("--start", type=int, default=0, help="first input index")
     parser.add_argument("--seeds", choices=("campaign", "default-encodes"), default="campaign")
     parser.add_argument("--out", help="write the JSON here (rewritten after every batch)")
     parser.add_argument("--crash-dir", type=Path, help="write disagreeing inputs here")
+    parser.add_argument("--only-seeds", default=None, metavar="TEXT",
+                        help="fuzz only the seeds whose name contains TEXT")
     args = parser.parse_args()
 
     seeds = (standard_seeds(build_seeds()) if args.seeds == "campaign"
              else default_encode_seeds())
+    if args.only_seeds is not None:
+        parts = [part for part in args.only_seeds.split(",") if part]
+        seeds = [s for s in seeds if any(part in s.name for part in parts)]
+        if not seeds:
+            parser.error(f"no seed name contains {args.only_seeds!r}")
     total = DifferentialSummary()
     began = time.perf_counter()
-    for start in range(0, args.inputs, args.batch):
-        part = run_differential(seeds, start, min(args.batch, args.inputs - start), args.seed,
+    end = args.start + args.inputs
+    for start in range(args.start, end, args.batch):
+        part = run_differential(seeds, start, min(args.batch, end - start), args.seed,
                                 batch=args.batch)
         total.merge(part)
         _save(part, args.crash_dir)

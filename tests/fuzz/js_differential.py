@@ -7,6 +7,10 @@ and byte offset; the receiver must never throw anything else, die or hang. FORMA
 error reports informative, but both decoders follow its conventions and §8's order (frames in
 TOC order, fields in payload order), so a file with several faults is refused for the same one.
 
+A file with levels of detail (FORMAT §12.22) is decoded by both at every level, level 0 first
+(tests/fuzz/oracle.py's decode_levels; the arrays of level k > 0 named "lod<k>/<name>"),
+so damage in a coarse tile is compared too.
+
 A file whose TOC lists an ANCH chunk (an anchor scene, FORMAT §17) is decoded by the
 reference AnchorDecoder and the receiver's decodeAnchorScene, any other by the Decoder and
 decodeScene; outcomes count by kind ("ok" or "anchors-ok" for decoded files).
@@ -25,9 +29,9 @@ from pathlib import Path
 
 from benchmarks._js_receiver import anchor_hashes, node_executable, scene_hashes
 from csgs_codec.codec.anchor_decoder import AnchorDecoder, is_anchor_file
-from csgs_codec.codec.decoder import Decoder
 from csgs_codec.errors import CsgsError, FormatError, UnsupportedError
 from tests.fuzz.campaign import mutant_at
+from tests.fuzz.oracle import decode_levels
 from tests.fuzz.seeds import Seed
 
 ORACLE = Path(__file__).with_name("js_oracle.mjs")
@@ -111,8 +115,11 @@ def python_outcome(data: bytes) -> dict:
             scene = AnchorDecoder().decode(data, layers=LAYERS)
             hashes = anchor_hashes(scene)
         else:
-            scene = Decoder().decode(data, layers=LAYERS)
+            scene, *coarse = decode_levels(data)
             hashes = scene_hashes(scene)
+            for level, other in enumerate(coarse, 1):
+                hashes.update({f"lod{level}/{name}": value
+                               for name, value in scene_hashes(other).items()})
     except (FormatError, UnsupportedError) as err:
         return {"ok": False, "error": type(err).__name__, "chunk": err.chunk,
                 "offset": err.offset, "message": str(err)}
@@ -208,6 +215,7 @@ def _count(summary: DifferentialSummary, index: int, mutant, python: dict,
     else:
         summary.outcomes[python["error"]] += 1
     differ = compare(python, receiver)
-    if differ is not None:
-        summary.disagreements.append(Disagreement(index, mutant.seed, mutant.operators,
-                                                  *differ, mutant.data))
+    if differ is None:
+        return
+    summary.disagreements.append(Disagreement(index, mutant.seed, mutant.operators, *differ,
+                                              mutant.data))

@@ -4,7 +4,8 @@ truncation; CRCs recomputed for most mutants.
 A mutant is made in three stages, each applying zero or more operators (at least one in all):
 
 1. chunk operators edit the chunk list (payload bytes, splices from another seed, swaps,
-   drops, duplicates); the container is then laid out truthfully around the new chunks;
+   drops, duplicates, a tile index's levels and parents: tests/fuzz/tile_index_edit.py);
+   the container is then laid out truthfully around the new chunks;
 2. layout operators make the header, TOC or frames lie (lengths, offsets, layers, types,
    tiles, versions, flags, CRCs);
 3. byte operators flip or set bytes anywhere in the file, or cut it short.
@@ -23,6 +24,7 @@ from dataclasses import dataclass, replace
 from csgs_codec.format import encode_varint
 from tests.fuzz.container_edit import Layout, RawChunk, layout_of, repair_crcs
 from tests.fuzz.seeds import Seed
+from tests.fuzz.tile_index_edit import edit_tile_index
 
 #: Share of mutants whose CRCs are recomputed after mutation.
 REPAIR_PROBABILITY = 0.9
@@ -167,7 +169,7 @@ def _duplicate(rng, chunks, donors):
 
 
 CHUNK_OPERATORS = (_edit_payload, _edit_payload, _edit_payload, _edit_payload, _splice, _swap,
-                   _drop, _duplicate)
+                   _drop, _duplicate, edit_tile_index)
 
 
 # ---------------------------------------------------------------- layout operators

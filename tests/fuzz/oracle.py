@@ -3,7 +3,9 @@
 Behaving means ``Decoder().decode(data, layers="color,semantic")`` (``AnchorDecoder`` when the
 TOC lists an anchor-scene chunk, as a caller that dispatches on
 :func:`~csgs_codec.codec.anchor_decoder.is_anchor_file` would) either returns a scene whose
-float arrays (and MLP weights) are all finite, or raises one of :data:`ALLOWED_ERRORS`; and the
+float arrays (and MLP weights) are all finite, or raises one of :data:`ALLOWED_ERRORS`; a
+file with levels of detail (FORMAT §12.22) is decoded at every level, level 0 first, so
+damage in a coarse tile is read too (the first error ends it); and the
 Python heap peak (tracemalloc, which sees numpy's buffers) stays within :func:`memory_bound`.
 Anything else (any other exception, a non-finite value, an allocation over the bound) is a
 crash.
@@ -17,8 +19,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from csgs_codec.chunks.tile_index import TileIndex
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.errors import CsgsError, FormatError, UnsupportedError
+from csgs_codec.format.reader import read_frame
+from csgs_codec.format.source import open_source
+from csgs_codec.format.toc import read_toc
 
 try:  # the anchor-scene decoder, where this checkout has it
     from csgs_codec.codec.anchor_decoder import AnchorDecoder, is_anchor_file
@@ -113,6 +119,28 @@ def decode(data: bytes):
     return Decoder().decode(data, layers=LAYERS)
 
 
+def decode_every_level(data: bytes) -> list:
+    """Every level of ``data`` as :func:`decode` would decode it, level 0 first (one scene
+    for a file without levels of detail or an anchor scene); raises what a decode raises."""
+    if AnchorDecoder is not None and is_anchor_file(data):
+        return [AnchorDecoder().decode(data, layers=LAYERS)]
+    return decode_levels(data)
+
+
+def decode_levels(data: bytes) -> list:
+    """Every level of detail of the Gaussian scene ``data`` decoded by ``Decoder``, level 0
+    first (one scene for a file without levels); raises what a decode raises."""
+    scenes = [Decoder().decode(data, LAYERS)]
+    return scenes + [Decoder().decode(data, LAYERS, lod=k) for k in range(1, levels_of(data))]
+
+
+def levels_of(data: bytes) -> int:
+    """Levels of detail of ``data``, a file that decodes (1 without a tile index)."""
+    src = open_source(data)
+    entry = next((e for e in read_toc(src).entries if e.type == "TIDX"), None)
+    return 1 if entry is None else TileIndex.from_bytes(read_frame(src, entry)).levels
+
+
 def run_decoder(data: bytes, trace: bool = True) -> Outcome:
     """Decode ``data`` under the oracle.
 
@@ -125,23 +153,23 @@ def run_decoder(data: bytes, trace: bool = True) -> Outcome:
         before = tracemalloc.get_traced_memory()[0]
     start = time.perf_counter()
     kind, detail, stage = "ok", "", None
+    scenes = []
     try:
-        scene = decode(data)
+        scenes = decode_every_level(data)
     except ALLOWED_ERRORS as err:
         kind, stage = type(err).__name__, error_stage(err)
-        scene = None
     except CsgsError as err:  # a CsgsError, but not the right one for damaged bytes
         kind, detail = "crash", f"{type(err).__name__}: {err}"
-        scene = None
     except Exception as err:  # noqa: BLE001 - any other exception is what we hunt for
         kind, detail = "crash", f"{type(err).__name__}: {err}"
-        scene = None
     seconds = time.perf_counter() - start
     peak = tracemalloc.get_traced_memory()[1] - before if trace else 0
-    if scene is not None:
+    for level, scene in enumerate(scenes):
         bad = _nonfinite_field(scene)
         if bad is not None:
-            kind, detail = "crash", f"non-finite value in decoded {bad}"
+            where = f" of level {level}" if level else ""
+            kind, detail = "crash", f"non-finite value in decoded {bad}{where}"
+            break
     if trace and kind != "crash" and peak > memory_bound(len(data)):
         kind, detail = "crash", f"heap peak {peak} bytes exceeds {memory_bound(len(data))}"
     return Outcome(kind, detail, seconds, peak, len(data), stage, trace)

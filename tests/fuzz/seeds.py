@@ -6,7 +6,10 @@ SH-3 fixture ../shared/data/fixtures/sh3_iter7000.ply, and a 200-Gaussian random
 four semantic channels and labels, the same with labels that follow the positions (SEMR
 runs) or its instances (SEMR map), each at qualities 2 and 8; multi-tile files (TIDX,
 FORMAT §12.22) of the semantic scene in 4 tiles and of the outlier scene in 4 tiles (far
-points in a tile of their own grid), at quality 5; plus every .csgs under
+points in a tile of their own grid), at quality 5; a file with levels of detail (TIDX
+version 2, FORMAT §12.22): a 3,000-Gaussian random scene with semantics and labels in 3
+levels, 16 leaves of at most 200 Gaussians, 2 level-1 tiles and a root (19 tiles); plus every
+.csgs under
 spec/vectors/scenes and (anchor scenes, where present) spec/vectors/anchors. The large donut
 vectors (45,624 Gaussians) get a small weight so they
 are fuzzed without dominating the run time.
@@ -38,6 +41,8 @@ LARGE_BYTES = 100_000
 LARGE_WEIGHT = 0.02
 #: Seed scenes also encoded in spatial tiles of this many Gaussians (quality 5).
 TILED = {"semantic200": 50, "outliers300": 75, "instances200": 50}
+#: Seed scenes also encoded with levels of detail: (Gaussians, levels, tile size, quality).
+LEVELS = {"levels3000": (3000, 3, 200, 5)}
 #: Vector folders whose .csgs files are seeds (a missing folder adds none).
 SEED_VECTOR_FAMILIES = ("scenes", "anchors")
 
@@ -86,6 +91,12 @@ def seed_scenes() -> dict[str, GaussianScene]:
     return scenes
 
 
+def level_seed_scene(count: int) -> GaussianScene:
+    """The scene of the levels seeds: ``count`` random Gaussians (SH 1) with four semantic
+    channels and labels, so the coarse levels merge colours, features and labels."""
+    return random_scene(count, sh_degree=1, seed=9, semantic=4, labels=True)
+
+
 def _seed(name: str, data: bytes) -> Seed:
     weight = LARGE_WEIGHT if len(data) > LARGE_BYTES else 1.0
     return Seed(name, data, tuple(split_chunks(data)), weight)
@@ -100,6 +111,10 @@ def build_seeds(vectors_dir: Path = VECTORS_DIR) -> list[Seed]:
         if name in TILED:
             data = Encoder(quality=5, tile_size=TILED[name]).encode(scene)
             seeds.append(_seed(f"{name}_tiled", data))
+    for name, (count, levels, tile_size, quality) in LEVELS.items():
+        data = Encoder(quality=quality, levels=levels, tile_size=tile_size).encode(
+            level_seed_scene(count))
+        seeds.append(_seed(f"{name}_l{levels}", data))
     for family in SEED_VECTOR_FAMILIES:
         for path in current(sorted((vectors_dir / family).glob("*.csgs"))):
             seeds.append(_seed(f"vector:{path.stem}", path.read_bytes()))

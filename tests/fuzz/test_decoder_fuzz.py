@@ -8,12 +8,13 @@ import dataclasses
 import numpy as np
 import pytest
 
+from csgs_codec.chunks.tile_index import TileIndex
 from csgs_codec.codec.decoder import Decoder
 from csgs_codec.errors import InputError
 from tests.conformance import VECTORS_DIR
 from tests.fuzz.campaign import mutant_at, run_campaign
 from tests.fuzz.campaign_process import CampaignProcessError, run_in_child
-from tests.fuzz.container_edit import build, repair_crcs, split_chunks
+from tests.fuzz.container_edit import build, layout_of, repair_crcs, split_chunks
 from tests.fuzz.mutators import PAYLOAD_EDITS
 from tests.fuzz.oracle import error_stage, memory_bound, run_decoder
 from tests.fuzz.seeds import build_seeds
@@ -28,7 +29,7 @@ OPERATORS = {"payload_bit_flip", "payload_byte_set", "payload_resize", "payload_
              "chunk_duplicate", "toc_length_lie", "frame_length_lie", "toc_offset_lie",
              "toc_layer_lie", "toc_tile_lie", "toc_type_lie", "toc_row_count_lie",
              "toc_size_lie", "minor_version", "flag_bit", "major_version", "crc_lie",
-             "bit_flip", "byte_set", "truncate", "crc_repaired"}
+             "bit_flip", "byte_set", "truncate", "crc_repaired", "tile_index_edit"}
 
 
 @pytest.fixture(scope="module")
@@ -87,6 +88,24 @@ def test_seeds_include_multi_tile_files(seeds):
         seed = next(s for s in seeds if s.name == name)
         assert seed.chunks[0].type == b"TIDX", name
         assert sum(c.type == b"SCNE" for c in seed.chunks) == 4, name
+
+
+def test_seeds_include_a_file_with_three_levels_of_detail(seeds):
+    seed = next(s for s in seeds if s.name == "levels3000_l3")
+    index = TileIndex.from_bytes(seed.chunks[0].payload)
+    assert index.levels == 3 and index.count > 3000
+    assert [len(index.level_tiles(k)) for k in range(3)] == [16, 2, 1]
+
+
+def test_the_oracle_decodes_every_level_of_a_file_with_levels(seeds):
+    seed = next(s for s in seeds if s.name == "levels3000_l3")
+    layout = layout_of(list(seed.chunks))
+    layout.frames[1].crc = 0  # a chunk of the root tile (level 2): level 0 never reads it
+    data = layout.to_bytes()
+    Decoder().decode(data, layers="color,semantic")
+    outcome = run_decoder(data, trace=False)
+    assert outcome.kind == "FormatError" and outcome.stage == "crc"
+    assert run_decoder(seed.data, trace=False).kind == "ok"
 
 
 def test_split_and_build_reproduce_a_seed_byte_for_byte(seeds):
