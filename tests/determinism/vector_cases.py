@@ -48,12 +48,12 @@ def json_digest(value) -> str:
 
 
 def _scene_cases(folder: Path) -> list[Case]:
-    def compute(data_path: Path, layers: str) -> Callable[[], str]:
+    def compute(data_path: Path, layers: str, lod: int | None) -> Callable[[], str]:
         def run() -> str:
             from csgs_codec.codec.decoder import Decoder
             from csgs_codec.interchange.ply_io import ply_bytes
 
-            scene = Decoder().decode(data_path.read_bytes(), layers=layers)
+            scene = Decoder().decode(data_path.read_bytes(), layers=layers, lod=lod)
             return hashlib.sha256(ply_bytes(scene)).hexdigest()
         return run
 
@@ -62,9 +62,11 @@ def _scene_cases(folder: Path) -> list[Case]:
         doc = json.loads(meta_path.read_text())
         for read in doc["reads"]:
             if read["outcome"] == "ok":
-                out.append(Case(f"scenes/{meta_path.stem}[{read['layers']}]",
+                level = "" if read.get("lod") is None else f", level {read['lod']}"
+                out.append(Case(f"scenes/{meta_path.stem}[{read['layers']}{level}]",
                                 read["ply_sha256"],
-                                compute(meta_path.with_suffix(".csgs"), read["layers"])))
+                                compute(meta_path.with_suffix(".csgs"), read["layers"],
+                                        read.get("lod"))))
     return out
 
 
