@@ -233,6 +233,7 @@ def _replay_rows(jobs, offsets, ids, means2d, conics, opacities, values, width, 
         trans = np.empty(cols, np.float32)
         stop = np.empty(cols, np.int64)
         running = np.empty((cols, channels), np.float32)
+        g_values = np.empty(channels, np.float32)
         for py in range(y0, min(y0 + tile_size, height)):
             deepest = 0
             for j in range(cols):
@@ -246,34 +247,49 @@ def _replay_rows(jobs, offsets, ids, means2d, conics, opacities, values, width, 
             pyc = np.float32(py) + HALF
             row_columns(packed, count, x0, cols, py, lows, highs)
             for k in range(deepest):
+                lo, hi = lows[k], highs[k]
+                if lo >= hi:
+                    continue
                 g = ids[start + k]
                 slot = start + k
-                for j in range(lows[k], highs[k]):
+                # The slot's sums in registers across the row's lanes: the same additions in
+                # the same order as adding to slot_grads pixel by pixel.
+                g_mx, g_my = slot_grads[slot, 0], slot_grads[slot, 1]
+                g_a, g_b, g_c = slot_grads[slot, 2], slot_grads[slot, 3], slot_grads[slot, 4]
+                g_op = slot_grads[slot, 5]
+                for ch in range(channels):
+                    g_values[ch] = slot_grads[slot, 6 + ch]
+                a_k, b_k, c_k, opacity_k = packed[k, 2], packed[k, 3], packed[k, 4], packed[k, 5]
+                for j in range(lo, hi):
                     if k >= stop[j]:
                         continue
                     px = x0 + j
                     alpha, falloff, dx, dy = alpha_at(packed, k, np.float32(px) + HALF, pyc)
                     if alpha == 0:
                         continue
-                    raw = packed[k, 5] * falloff
+                    raw = opacity_k * falloff
                     keep = ONE - alpha
-                    weight = alpha * trans[j]
+                    before = trans[j]
+                    weight = alpha * before
                     grad_alpha = -grad_transmittance[py, px] * transmittance[py, px] / keep
                     for ch in range(channels):
                         value = values[g, ch]
                         running[j, ch] += weight * value
                         behind = out[py, px, ch] - running[j, ch]
-                        grad_c = grad_out[py, px, ch]
-                        grad_alpha += grad_c * (trans[j] * value - behind / keep)
-                        slot_grads[slot, 6 + ch] += grad_c * weight
+                        grad_ch = grad_out[py, px, ch]
+                        grad_alpha += grad_ch * (before * value - behind / keep)
+                        g_values[ch] += grad_ch * weight
                     if raw <= MAX_ALPHA32:  # the clamp passes no gradient above its bound
                         grad_power = grad_alpha * alpha
-                        slot_grads[slot, 0] += grad_power * (packed[k, 2] * dx
-                                                             + packed[k, 3] * dy)
-                        slot_grads[slot, 1] += grad_power * (packed[k, 4] * dy
-                                                             + packed[k, 3] * dx)
-                        slot_grads[slot, 2] -= HALF * dx * dx * grad_power
-                        slot_grads[slot, 3] -= dx * dy * grad_power
-                        slot_grads[slot, 4] -= HALF * dy * dy * grad_power
-                        slot_grads[slot, 5] += grad_alpha * falloff
-                    trans[j] = trans[j] * keep
+                        g_mx += grad_power * (a_k * dx + b_k * dy)
+                        g_my += grad_power * (c_k * dy + b_k * dx)
+                        g_a -= HALF * dx * dx * grad_power
+                        g_b -= dx * dy * grad_power
+                        g_c -= HALF * dy * dy * grad_power
+                        g_op += grad_alpha * falloff
+                    trans[j] = before * keep
+                slot_grads[slot, 0], slot_grads[slot, 1] = g_mx, g_my
+                slot_grads[slot, 2], slot_grads[slot, 3], slot_grads[slot, 4] = g_a, g_b, g_c
+                slot_grads[slot, 5] = g_op
+                for ch in range(channels):
+                    slot_grads[slot, 6 + ch] = g_values[ch]
