@@ -151,6 +151,7 @@ def _composite_rows(jobs, offsets, ids, means2d, conics, opacities, values, widt
         trans = np.empty(cols, np.float32)
         stop = np.empty(cols, np.int64)
         acc = np.empty((cols, channels), np.float32)
+        colour = np.empty(channels, np.float32)
         for py in range(y0, min(y0 + tile_size, height)):
             pyc = np.float32(py) + HALF
             row_columns(packed, count, x0, cols, py, lows, highs)
@@ -161,8 +162,13 @@ def _composite_rows(jobs, offsets, ids, means2d, conics, opacities, values, widt
                     acc[j, ch] = np.float32(0.0)
             still_open = cols
             for k in range(count):
+                lo, hi = lows[k], highs[k]
+                if lo >= hi:
+                    continue
                 g = ids[start + k]
-                for j in range(lows[k], highs[k]):
+                for ch in range(channels):
+                    colour[ch] = values[g, ch]
+                for j in range(lo, hi):
                     if stop[j] != count:
                         continue
                     alpha, _, _, _ = alpha_at(packed, k, np.float32(x0 + j) + HALF, pyc)
@@ -175,7 +181,7 @@ def _composite_rows(jobs, offsets, ids, means2d, conics, opacities, values, widt
                         continue
                     weight = alpha * trans[j]
                     for ch in range(channels):
-                        acc[j, ch] += weight * values[g, ch]
+                        acc[j, ch] += weight * colour[ch]
                     trans[j] = after
                 if still_open == 0:
                     break
@@ -234,6 +240,7 @@ def _replay_rows(jobs, offsets, ids, means2d, conics, opacities, values, width, 
         stop = np.empty(cols, np.int64)
         running = np.empty((cols, channels), np.float32)
         g_values = np.empty(channels, np.float32)
+        colour = np.empty(channels, np.float32)
         for py in range(y0, min(y0 + tile_size, height)):
             deepest = 0
             for j in range(cols):
@@ -259,6 +266,7 @@ def _replay_rows(jobs, offsets, ids, means2d, conics, opacities, values, width, 
                 g_op = slot_grads[slot, 5]
                 for ch in range(channels):
                     g_values[ch] = slot_grads[slot, 6 + ch]
+                    colour[ch] = values[g, ch]
                 a_k, b_k, c_k, opacity_k = packed[k, 2], packed[k, 3], packed[k, 4], packed[k, 5]
                 for j in range(lo, hi):
                     if k >= stop[j]:
@@ -273,7 +281,7 @@ def _replay_rows(jobs, offsets, ids, means2d, conics, opacities, values, width, 
                     weight = alpha * before
                     grad_alpha = -grad_transmittance[py, px] * transmittance[py, px] / keep
                     for ch in range(channels):
-                        value = values[g, ch]
+                        value = colour[ch]
                         running[j, ch] += weight * value
                         behind = out[py, px, ch] - running[j, ch]
                         grad_ch = grad_out[py, px, ch]
