@@ -3,7 +3,7 @@ capture (``--capture``), or views rendered from a shared trained scene.
 
     .venv/bin/python benchmarks/train_real.py --capture DIR [--resolution 384]
         [--test-every 8] [--lambdas 0.004 0.01 0.02] [--iterations 2000 | --budget S]
-        [--anchors 2000] [--max-anchors 20000] [--out FILE]
+        [--anchors 2000] [--max-anchors 20000] [--semantic-iterations 150] [--out FILE]
     .venv/bin/python benchmarks/train_real.py [--scene donut] [--lambdas 0.004 0.01 0.02]
         [--views 24] [--size 160x120] [--iterations 2000] [--anchors 2000] [--out FILE]
 
@@ -55,7 +55,11 @@ from csgs_codec.render.rasterizer import render  # noqa: E402
 from csgs_codec.scene.camera import Camera  # noqa: E402
 from csgs_codec.scene.orbit import orbit_cameras  # noqa: E402
 from csgs_codec.train.color_stage import ColorStageSettings  # noqa: E402
-from csgs_codec.train.defaults import MAX_ANCHORS, RATE_WEIGHT_PRESETS  # noqa: E402
+from csgs_codec.train.defaults import (  # noqa: E402
+    MAX_ANCHORS,
+    RATE_WEIGHT_PRESETS,
+    SEMANTIC_ITERATIONS,
+)
 from csgs_codec.train.evaluation import image_click_miou, score_views, split_views  # noqa: E402
 from csgs_codec.train.initial_points import random_points  # noqa: E402
 from csgs_codec.train.pipeline import TrainSettings, train_scene  # noqa: E402
@@ -121,7 +125,9 @@ def run_one(train, test, points, weight: float, args) -> dict:
     color = ColorStageSettings(iterations=args.iterations, rate_weight=weight,
                                initial_anchors=args.anchors, max_anchors=args.max_anchors,
                                seed=args.seed)
-    settings = TrainSettings(color, budget_seconds=args.budget)
+    settings = TrainSettings(color, semantic_iterations=args.semantic_iterations,
+                             stage3_iterations=max(1, 2 * args.semantic_iterations // 3),
+                             budget_seconds=args.budget)
     cpu, wall = time.process_time(), time.perf_counter()
 
     def report(stage: str, step) -> None:
@@ -172,6 +178,9 @@ def main() -> int:
     parser.add_argument("--size", default="160x120")
     parser.add_argument("--iterations", type=int, default=2000)
     parser.add_argument("--anchors", type=int, default=2000)
+    parser.add_argument("--semantic-iterations", type=int, default=SEMANTIC_ITERATIONS,
+                        help="stage-2 steps (stage 3 runs two thirds as many, as in csgs "
+                             "train)")
     parser.add_argument("--max-anchors", type=int,
                         help=f"default {MAX_ANCHORS} (csgs train's) with --capture, else 8000")
     parser.add_argument("--initial-points", choices=("scene", "random", "sfm"),
