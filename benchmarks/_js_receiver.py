@@ -22,11 +22,14 @@ def node_executable() -> str | None:
 
 def run_js(files: list[Path], *, layers: str = "color", container: bool = False,
            repeat: int = 1, threads: int = 2, range_coder: str = "wasm",
-           timeout: float = 600) -> list[dict]:
+           timeout: float = 600, lod: int | None = None) -> list[dict]:
     """Decode ``files`` with the JavaScript CLI (on ``threads`` threads, 1 or 2, with the
-    'wasm' or 'js' range decoder loop); one result dict per file, in order."""
+    'wasm' or 'js' range decoder loop; level of detail ``lod``, default the scene); one
+    result dict per file, in order."""
     args = [node_executable(), str(CLI), *map(str, files), "--layers", layers,
             "--threads", str(threads), "--range-coder", range_coder]
+    if lod is not None:
+        args += ["--lod", str(lod)]
     if container:
         args.append("--container")
     if repeat > 1:

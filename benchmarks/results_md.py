@@ -158,6 +158,10 @@ VIEWS: dict[str, list[View]] = {
     "web_viewer": [View(["scene", "encode", "page", "gaussians", "first_frame_ms_median",
                          "color_frame_ms_median", "color_decode_ms_median",
                          "fetched_ratio_color_to_file"])],
+    "web_levels": [View(["scene", "gaussians", "link_mbit_s", "levels_file_bytes",
+                         "whole_file_bytes", "first_frame_ms_median",
+                         "first_frame_share_of_file", "all_detail_ms_median",
+                         "whole_color_frame_ms_median", "all_detail_over_whole"])],
 }
 
 

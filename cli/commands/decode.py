@@ -29,6 +29,10 @@ def add_arguments(parser) -> None:
                              "--region=-1,... both work")
     parser.add_argument("--tiles", type=tiles_option, default=None, metavar="LIST",
                         help="decode only these tiles, e.g. 0,3,5")
+    parser.add_argument("--lod", type=int, default=None, metavar="K",
+                        help="a file with levels of detail (csgs encode --levels): decode "
+                             "level K, 0 (default: the scene itself) to the coarsest; with "
+                             "--region, its tiles meeting the box")
     anchors = parser.add_argument_group("anchor scenes")
     anchors.add_argument("--sh-degree", type=int, default=None, choices=(0, 1, 2, 3),
                          help="SH degree of the baked colour (default 3)")
@@ -102,8 +106,9 @@ def run(args) -> int:
     from csgs_codec.interchange.writers import write_scene, writer_for
 
     if is_anchor_file(args.bitstream):
-        if args.region is not None or args.tiles is not None:
-            raise InputError("--region and --tiles apply to 3DGS scenes, not anchor scenes",
+        if args.region is not None or args.tiles is not None or args.lod is not None:
+            raise InputError("--region, --tiles and --lod apply to 3DGS scenes, not anchor "
+                             "scenes",
                              file=args.bitstream)
         return _decode_anchors(args)
     for option in ("sh_degree", "cameras", "checkpoint", "refine_bake"):
@@ -126,7 +131,7 @@ def run(args) -> int:
     try:
         report = Decoder().decode_with_report(args.bitstream, layers=args.layers,
                                               tiles=args.tiles, region=args.region,
-                                              progress=progress)
+                                              lod=args.lod, progress=progress)
     finally:
         if bar:
             bar[0].close()
@@ -145,7 +150,9 @@ def run(args) -> int:
     print(f"{args.output}: {len(scene):,} Gaussians, SH degree {scene.sh_degree_stored}"
           f"{extra} (decoded in {seconds:.2f} s)")
     share = 100.0 * report.bytes_read / max(report.file_bytes, 1)
-    print(f"tiles {_tile_list(report.tiles)} of {report.tile_count}; read "
+    level = (f"level {report.level} of {report.levels}, " if report.levels > 1
+             and report.level is not None else "")
+    print(f"{level}tiles {_tile_list(report.tiles)} of {report.tile_count}; read "
           f"{report.bytes_read:,} of {report.file_bytes:,} bytes ({share:.1f}%)")
     return 0
 

@@ -107,6 +107,12 @@ def add_arguments(parser) -> None:
                              "2,000,000 Gaussians, else one tile (the file is then as without "
                              "tiles). At least 1,000 (a scene under 16,000 Gaussians: a 16th "
                              "of it), and at most 4,095 tiles")
+    parser.add_argument("--levels", type=int, default=1, metavar="L",
+                        help="3DGS scenes: levels of detail for streaming viewers (default 1: "
+                             "none). L > 1 adds L - 1 coarser versions of the scene, each "
+                             "about 1/8 of the one below, coded first, in tiles of --tile-size "
+                             "(default 65,536); decoders give the scene itself unless asked "
+                             "for a level (csgs decode --lod K)")
     parser.add_argument("--workers", type=int, default=1, metavar="N",
                         help="local processes coding tiles side by side (default 1); the "
                              "file is the same for any N")
@@ -156,11 +162,11 @@ def run(args) -> int:
                            tile_size=args.tile_size,
                            rotation_steps=args.rotation_steps,
                            step_allocation=args.step_allocation, refine=args.refine,
-                           workers=args.workers, ray=args.ray)
+                           workers=args.workers, ray=args.ray, levels=args.levels)
     searching = args.target_psnr is not None or args.lambda_ is not None
     view_pruning = config.prunes_views
     streamed = (not searching and not view_pruning and args.prune_opacity is None
-                and not args.sanitize and not args.refine
+                and not args.sanitize and not args.refine and args.levels == 1
                 and _tiled_binary_ply(scene_path, args.tile_size))
     scene = None
     if not streamed:
@@ -209,7 +215,9 @@ def run(args) -> int:
     print(f"{args.output}: {len(result.data):,} bytes, {n:,} Gaussians, {bits:.2f} bits/Gaussian"
           f", {in_bytes / max(len(result.data), 1):.1f}x smaller than the input, "
           f"{seconds:.2f} s")
-    if result.tiles > 1:
+    if result.levels > 1:
+        print(f"{result.tiles} tiles in {result.levels} levels of detail")
+    elif result.tiles > 1:
         print(f"{result.tiles} spatial tiles")
     if result.rate_control is not None:
         print(f"rate control: {result.rate_control.summary()}")
@@ -230,11 +238,13 @@ def _encode_anchors(args, write_atomically) -> int:
 
     if (args.prune_opacity is not None or args.sanitize or args.target_psnr is not None
             or args.cameras is not None or args.view_pruning or args.tile_size is not None
+            or args.levels != 1
             or args.workers != 1 or args.ray is not None
             or args.rotation_steps != DEFAULT_ROTATION_STEPS or args.refine
             or args.order_out is not None):
         raise InputError("--prune-opacity, --sanitize, --target-psnr, --cameras, "
-                         "--view-prune, --tile-size, --workers, --ray, --rotation-steps, "
+                         "--view-prune, --tile-size, --levels, --workers, --ray, "
+                         "--rotation-steps, "
                          "--refine and --order-out apply to 3DGS PLY input, not to "
                          "anchor scenes",
                          file=args.scene)

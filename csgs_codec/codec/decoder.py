@@ -54,7 +54,10 @@ class DecodeReport:
     Attributes:
         scene: the decoded Gaussians (None when a region met no tile).
         tiles: the tile numbers decoded, increasing.
-        tile_count: tiles in the file (1 for a file without a tile index).
+        tile_count: tiles in the file (1 for a file without a tile index), every level's.
+        level: the level of detail decoded (0: the scene's own Gaussians; None when
+            ``tiles`` chose them).
+        levels: levels of detail in the file (1 without levels).
         bytes_read: bytes read from the source (header, TOC, tile index and the chunks of
             the tiles and layers decoded).
         file_bytes: bytes of the whole file (from its TOC).
@@ -65,6 +68,8 @@ class DecodeReport:
     tile_count: int
     bytes_read: int
     file_bytes: int
+    level: int | None = 0
+    levels: int = 1
 
 
 def check_region(region) -> tuple[float, ...] | None:
@@ -137,6 +142,23 @@ def check_tiles(tiles) -> frozenset[int] | None:
     return frozenset(int(n) for n in numbers)
 
 
+def check_lod(lod, tiles) -> int | None:
+    """``lod`` as a level number, or None (level 0 unless ``tiles`` are given).
+
+    Raises:
+        InputError: not an integer >= 0, or given with ``tiles`` (which name their tiles,
+            whatever their level).
+    """
+    if lod is None:
+        return None
+    if isinstance(lod, bool) or not isinstance(lod, int | np.integer) or lod < 0:
+        raise InputError(f"lod must be a level number >= 0, got {lod!r}", property="lod")
+    if tiles is not None:
+        raise InputError("give tiles or lod, not both (tile numbers name tiles of any "
+                         "level)", property="lod")
+    return int(lod)
+
+
 class Decoder:
     """Decodes .csgs bitstreams written by :class:`csgs_codec.codec.encoder.Encoder`.
 
@@ -159,7 +181,8 @@ class Decoder:
         if self.threads < 1:
             raise InputError(f"threads must be at least 1, got {threads}", property="threads")
 
-    def decode(self, source, layers="color", *, tiles=None, region=None) -> GaussianScene:
+    def decode(self, source, layers="color", *, tiles=None, region=None,
+               lod=None) -> GaussianScene:
         """Decode ``source`` (bytes, a path, a seekable binary file or a range reader:
         :mod:`csgs_codec.format.source`).
 
@@ -167,6 +190,8 @@ class Decoder:
             layers: "color" or ``Layer.COLOR`` (geometry + color; never reads semantic
                 bytes), or "color,semantic" or ``Layer.SEMANTIC`` (see :func:`check_layers`).
             tiles, region: decode only some spatial tiles (see :meth:`decode_with_report`).
+            lod: the level of detail to decode, 0 (default: the scene's own Gaussians) ..
+                levels - 1 (the coarsest) of a file with levels (FORMAT §12.22).
 
         Returns:
             The decoded scene: in canonical (geometry) order, tile after tile in a tiled file.
@@ -175,26 +200,30 @@ class Decoder:
             FormatError: any malformed, missing or inconsistent chunk, naming it and the
                 byte offset.
             InputError: a bad ``layers``, an empty or malformed tile list, a tile number the
-                file does not have, a malformed region, or a region that meets no tile.
+                file does not have, a malformed region, a region that meets no tile, or a
+                level the file does not have.
         """
-        report = self.decode_with_report(source, layers, tiles=tiles, region=region)
+        report = self.decode_with_report(source, layers, tiles=tiles, region=region, lod=lod)
         if report.scene is None:
             raise InputError("no tile meets the region (nothing to decode)", property="region",
                              file=source if isinstance(source, str | os.PathLike) else None)
         return report.scene
 
     def decode_with_report(self, source, layers="color", *, tiles=None, region=None,
-                           progress=None) -> DecodeReport:
+                           lod=None, progress=None) -> DecodeReport:
         """Decode ``source`` as :meth:`decode` does, reading only the chunks of the tiles
         asked for, and report which tiles and how many bytes were read.
 
         Args:
-            tiles: tile numbers to decode (any order; decoded in increasing order), or None.
+            tiles: tile numbers to decode (any order; decoded in increasing order; of any
+                level), or None.
             region: (xmin, ymin, zmin, xmax, ymax, zmax) world units: decode the tiles whose
                 bounding box (from the tile index) meets this closed box, or None. With
                 both None, every tile is decoded. A file without tiles is one tile (0),
                 whose box is not known before decoding: a region always selects it. The
                 tiles are decoded whole (their Gaussians outside the region included).
+            lod: the level of detail (default 0): the tiles of that level (those meeting
+                ``region`` when given). Not with ``tiles``.
             progress: called as ``progress(done, total)`` as tiles finish, or None.
 
         Returns:
@@ -208,16 +237,19 @@ class Decoder:
         wanted = check_layers(layers)
         box = check_region(region)
         chosen = check_tiles(tiles)
+        level = check_lod(lod, tiles)
         src = CountingSource(open_source(source))
+        levels = 1
         try:
             toc = read_toc(src)
             if any(e.type == "TIDX" for e in toc.entries):
-                scene, numbers, count = self._decode_tiled(src, toc, wanted, chosen, box,
-                                                           progress)
+                scene, numbers, count, levels = self._decode_tiled(
+                    src, toc, wanted, chosen, box, level, progress)
             else:
                 if chosen is not None and chosen - {0}:
                     raise InputError(f"tile {max(chosen)} is not in the file (it has one "
                                      "tile: 0)", property="tiles")
+                _check_level(level, 1)
                 numbers, count = [0], 1
                 container = _read_container(src, toc, toc.entries, wanted)
                 scene = self._decode_container(container, wanted, self.threads)
@@ -230,10 +262,12 @@ class Decoder:
             raise
         finally:
             src.close()
-        return DecodeReport(scene, numbers, count, src.bytes_read, toc.file_size)
+        return DecodeReport(scene, numbers, count, src.bytes_read, toc.file_size,
+                            None if chosen is not None else level or 0, levels)
 
-    def _decode_tiled(self, src, toc, wanted: set[str], chosen, box, progress):
-        """(scene, tile numbers decoded, tiles in the file) of a file with a tile index."""
+    def _decode_tiled(self, src, toc, wanted: set[str], chosen, box, level, progress):
+        """(scene, tile numbers decoded, tiles in the file, levels) of a file with a tile
+        index: the tiles ``chosen``, else those of ``level`` (default 0), meeting ``box``."""
         index = _tile_index(src, toc)
         count = len(index.tiles)
         limit = self.max_gaussians_per_byte * src.size
@@ -245,7 +279,8 @@ class Decoder:
         if chosen is not None and max(chosen, default=-1) >= count:
             raise InputError(f"tile {max(chosen)} is not in the file (it has {count} tiles: "
                              f"0..{count - 1})", property="tiles")
-        numbers = set(range(count)) if chosen is None else set(chosen)
+        _check_level(level, index.levels)
+        numbers = set(index.level_tiles(level or 0)) if chosen is None else set(chosen)
         if box is not None:
             numbers &= set(index.select(box[:3], box[3:]))
         numbers = sorted(numbers)
@@ -259,9 +294,8 @@ class Decoder:
         for (container, number, _), scene in zip(jobs, scenes):
             _check_same_kind(scene, number, scenes[0], numbers[0], container)
         if not scenes:
-            return None, numbers, count
-
-        return GaussianScene.concatenate(scenes), numbers, count
+            return None, numbers, count, index.levels
+        return GaussianScene.concatenate(scenes), numbers, count, index.levels
 
     def _decode_tiles(self, jobs, wanted, progress) -> list[GaussianScene]:
         """The scenes of the tiles ``jobs`` ((container, number, TileInfo) each), tiles side
@@ -410,6 +444,13 @@ class Decoder:
     # ------------------------------------------------------------------ semantic layer
     def _semantic(self, container, header: SceneHeader, scene: GaussianScene) -> None:
         read_semantic_layer(container, header.count, scene)
+
+
+def _check_level(level: int | None, levels: int) -> None:
+    """InputError when ``level`` is not one of a file's ``levels`` levels of detail."""
+    if level is not None and level >= levels:
+        have = "one level (0)" if levels == 1 else f"levels 0..{levels - 1}"
+        raise InputError(f"level {level} is not in the file (it has {have})", property="lod")
 
 
 def _read_container(src, toc, entries, wanted: set[str]) -> Container:

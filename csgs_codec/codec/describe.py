@@ -17,6 +17,8 @@ def describe_bitstream(source, *, verify: bool = True) -> dict:
     """:func:`csgs_codec.format.describe` facts, plus, when the file holds a scene header:
     ``gaussians``, ``sh_degree_stored`` / ``sh_degree_coded``, ``quality``, ``grid_bits``,
     ``tiles`` (spatial tiles: one scene header each; counts are summed over them),
+    ``levels`` in a file with levels of detail (per level: ``level``, ``tiles``,
+    ``gaussians``, ``bytes`` of its chunk frames; ``gaussians`` is then level 0's),
     ``far_outliers`` (positions coded apart from the grid: ``far_relative`` of them with
     relative precision in OUTQ, ``far_exact`` as float32 in OUTL), ``views`` (the viewing
     distribution view pruning followed, when the file records one) and
@@ -44,6 +46,10 @@ def describe_bitstream(source, *, verify: bool = True) -> dict:
     header = headers[0]
     n = sum(h.count for h in headers)
     far = sum(h.far_count for h in headers)
+    levels = _levels(container, facts["chunks"])
+    if levels is not None:
+        facts["levels"] = levels
+        n = levels[0]["gaussians"]  # the scene: level 0 (coarser levels are extra)
     facts.update(gaussians=n, sh_degree_stored=header.sh_degree_stored,
                  sh_degree_coded=max(h.sh_degree_coded for h in headers),
                  quality=header.quality, grid_bits=max(h.grid_bits for h in headers),
@@ -71,6 +77,28 @@ def describe_bitstream(source, *, verify: bool = True) -> dict:
         for chunk in facts["chunks"]:
             chunk["bits_per_gaussian"] = 8 * chunk["bytes"] / n
     return facts
+
+
+def _levels(container, chunks: list[dict]) -> list[dict] | None:
+    """Per level of detail of a file whose tile index has levels: its tiles, Gaussians and
+    chunk bytes (frames); None for a file without levels."""
+    from csgs_codec.chunks.tile_index import TileIndex
+
+    entry = next((e for e in container.toc if e.type == "TIDX"), None)
+    if entry is None:
+        return None
+    index = TileIndex.from_bytes(bytes(container.payloads[entry.index]), entry.offset + 8)
+    if index.levels == 1:
+        return None
+    level_of = {i: t.level for i, t in enumerate(index.tiles)}
+    out = [{"level": k, "tiles": 0, "gaussians": 0, "bytes": 0} for k in range(index.levels)]
+    for tile in index.tiles:
+        out[tile.level]["tiles"] += 1
+        out[tile.level]["gaussians"] += tile.count
+    for chunk in chunks:
+        if chunk["type"] != "TIDX" and chunk["tile"] in level_of:
+            out[level_of[chunk["tile"]]]["bytes"] += chunk["bytes"]
+    return out
 
 
 def _first_frame(source, container, code: str):

@@ -30,6 +30,8 @@ class EncodeReport:
         rate_control: the :class:`~csgs_codec.decisions.rate_control.RateControlReport` of a
             target-PSNR encode, the :class:`~csgs_codec.decisions.rate_control.LambdaReport`
             (chosen multiplier and cost J) of a lambda encode, else None.
+        tiles: tiles in the file (1 without a tile index), every level's together.
+        levels: levels of detail (1: the scene's own Gaussians only).
         allocation: the :class:`~csgs_codec.decisions.step_allocation.StepAllocation` the
             encoder chose for a quality encode, or None when it kept the preset's steps
             (allocation off, fast mode, a target or lambda search).
@@ -49,5 +51,6 @@ class EncodeReport:
     views: str | None = None
     rate_control: object | None = None
     tiles: int = 1
+    levels: int = 1
     allocation: object | None = None
     sorted_axes: bool | None = None

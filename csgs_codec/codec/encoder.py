@@ -154,6 +154,12 @@ class Encoder:
         ray: the address of a Ray cluster whose workers code the tiles instead
             (``"local"`` starts one on this machine; needs ``pip install ray``); the file is
             the same as with local workers.
+        levels: levels of detail (default 1: none). With L > 1 the file also holds L - 1
+            coarser versions of the scene, each about 1/8 of the Gaussians of the one below
+            (neighbours merged), in tiles of their own that a viewer fetches first
+            (:mod:`csgs_codec.codec.level_encoder`; FORMAT §12.22); the scene is cut into
+            tiles of ``tile_size``, default 65,536. The decoder outputs level 0, the scene,
+            unless asked for another (``Decoder.decode(..., lod=k)``).
         progress: not a config field: ``progress(stage, done, total)``, told when a stage
             starts (``done == total == 0``) and of the steps of the stages that count
             them (:data:`COUNTED_STAGES`: hyperprior fit steps, views, tiles, refinement
@@ -213,7 +219,7 @@ class Encoder:
             kept = np.flatnonzero(keep)
         else:
             original = scene
-        if len(scene) <= effective_tile_size(len(scene), self.config.tile_size):
+        if len(scene) <= effective_tile_size(len(scene), self.config.leaf_tile_size):
             check_count(len(scene))  # a tiled scene's limit is per tile
         self._sensitivity = self._render_sensitivity(scene)
         if (self.config.target_psnr is None and self.config.lambda_ is None) or not len(original):
@@ -237,6 +243,7 @@ class Encoder:
         # A tiled scene keeps the preset: its streamed encode (csgs encode of a large binary
         # PLY) never holds the whole scene, and must write what a whole read writes.
         if (self.config.fast or self.config.step_allocation is False or len(scene) < MIN_GAUSSIANS
+                or self.config.levels > 1
                 or len(scene) > effective_tile_size(len(scene), self.config.tile_size)
                 or (self.config.step_allocation is None and not scene.sh_degree_in_use())):
             return None
@@ -356,8 +363,13 @@ class Encoder:
         start = time.perf_counter()
         self._stage("geometry")
         grid = PositionGrid.fit(scene.positions, settings.position_bits)
-        tile_size = effective_tile_size(len(scene), self.config.tile_size)
-        if len(scene) > tile_size:
+        tile_size = effective_tile_size(len(scene), self.config.leaf_tile_size)
+        if self.config.levels > 1:
+            from csgs_codec.codec.level_encoder import encode_levels
+
+            result = encode_levels(self, scene, grid, settings, tile_size, self.config.levels,
+                                   hyperprior=hyperprior, record=record)
+        elif len(scene) > tile_size:
             from csgs_codec.codec.tile_encoder import encode_tiled
 
             if self.config.refine:

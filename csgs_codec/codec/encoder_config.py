@@ -44,7 +44,7 @@ class EncoderConfig:
         view_pruning, cameras (a tuple of cameras, or None), view_budget, refine.
 
     Tiling:
-        tile_size, workers, ray.
+        tile_size, workers, ray, levels (of detail: 1 is the scene alone).
 
     Raises:
         InputError: a value out of range or of the wrong kind, naming the field.
@@ -67,6 +67,7 @@ class EncoderConfig:
     tile_size: int | None = None
     workers: int = 1
     ray: str | None = None
+    levels: int = 1
 
     def __post_init__(self) -> None:
         if self.lambda_ is not None and (self.quality is not None
@@ -106,6 +107,13 @@ class EncoderConfig:
             raise InputError(f"refine must be a step count in [0, 100000], got {refine!r}",
                              property="refine")
         check_tile_size(self.tile_size)
+        levels = self.levels
+        if isinstance(levels, bool) or not isinstance(levels, int) or not 1 <= levels <= 16:
+            raise InputError(f"levels must be an integer in 1..16, got {levels!r}",
+                             property="levels")
+        if levels > 1 and self.refine:
+            raise InputError("refinement works on scenes of one tile: a file with levels "
+                             "of detail has several", property="refine")
         workers = self.workers
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
             raise InputError(f"workers must be an integer >= 1, got {workers!r}",
@@ -126,6 +134,16 @@ class EncoderConfig:
         """Whether the encode leaves out what the views barely see: ``view_pruning``, or
         when it is None, whether cameras were given."""
         return self.cameras is not None if self.view_pruning is None else self.view_pruning
+
+    @property
+    def leaf_tile_size(self) -> int | None:
+        """The tile size the scene is cut with: ``tile_size``, or with levels of detail
+        and none given, :data:`~csgs_codec.codec.level_tree.LOD_TILE_SIZE`."""
+        if self.tile_size is None and self.levels > 1:
+            from csgs_codec.codec.level_tree import LOD_TILE_SIZE
+
+            return LOD_TILE_SIZE
+        return self.tile_size
 
     @property
     def fits_hyperprior(self) -> bool:

@@ -121,13 +121,20 @@ def encode_tiled(encoder, scene: GaussianScene, grid: PositionGrid, settings: Pr
 
 
 def assemble(encoder, jobs: list[TileJob], outputs: list[TileOutput], count: int,
-             record: Chunk | None = None):
+             record: Chunk | None = None, links: list[tuple[int, int | None]] | None = None):
     """The EncodeReport of coded tiles: the container (TIDX first), the reconstruction
-    (tiles in order; None when the tiles did not keep theirs) and the order into the input."""
+    (tiles in order; None when the tiles did not keep theirs) and the order into the input.
+    ``links`` gives each tile's (level, parent) in a file with levels of detail: the
+    reconstruction and order are then those of the level-0 tiles (the scene's own
+    Gaussians), and ``count`` counts the Gaussians of every level."""
     from csgs_codec.codec.encoder_checks import decodable_container
 
     encoder.progress("container", 0, 0)
-    index = TileIndex(tuple(out.info for out in outputs))
+    infos = [out.info for out in outputs]
+    if links is not None:
+        infos = [replace(info, level=level, parent=parent)
+                 for info, (level, parent) in zip(infos, links)]
+    index = TileIndex(tuple(infos))
     chunks = [Chunk("TIDX", "base", index.to_bytes())]
     for number, out in enumerate(outputs):
         chunks += [replace(c, tile=number) for c in out.chunks]
@@ -137,11 +144,13 @@ def assemble(encoder, jobs: list[TileJob], outputs: list[TileOutput], count: int
     for c in chunks:
         stream_bytes[c.type] = stream_bytes.get(c.type, 0) + len(c.payload)
     data = decodable_container(chunks, count)
-    order = np.concatenate([job.rows[out.order] for job, out in zip(jobs, outputs)])
-    kept = [out.reconstruction for out in outputs]
+    full = [i for i, info in enumerate(infos) if info.level == 0]
+    order = np.concatenate([jobs[i].rows[outputs[i].order] for i in full])
+    kept = [outputs[i].reconstruction for i in full]
     reconstruction = None if any(r is None for r in kept) else GaussianScene.concatenate(kept)
     return EncodeReport(data=data, reconstruction=reconstruction, order=order,
-                        stream_bytes=stream_bytes, tiles=len(outputs))
+                        stream_bytes=stream_bytes, tiles=len(outputs),
+                        levels=index.levels)
 
 
 def _run_tiles(encoder, jobs: list[TileJob]) -> list[TileOutput]:

@@ -90,6 +90,9 @@ def format_description(facts: dict) -> str:
                      f"{facts['sh_degree_stored']} ({facts['sh_degree_coded']} coded), "
                      f"quality {facts['quality']}, {facts['bits_per_gaussian']:.2f} "
                      "bits/Gaussian")
+    for level in facts.get("levels", ()):
+        lines.append(f"  level {level['level']:<2}         {level['gaussians']:,} Gaussians in "
+                     f"{level['tiles']} tiles, {level['bytes']:,} bytes")
     if facts.get("far_outliers"):
         relative = facts.get("far_relative", 0)
         lines.append(f"  coded apart      {facts['far_outliers']:,} positions outside the grid "

@@ -111,20 +111,39 @@ export function readFrame(data, entry) {
   if (entry.end > data.length) {
     throw new FormatError(`truncated: the chunk needs bytes up to ${entry.end}`, { chunk: entry.type, offset: data.length });
   }
-  const view = new DataView(data.buffer, data.byteOffset + entry.offset, entry.length + FRAME_OVERHEAD);
+  return framePayload(data, entry.offset, entry);
+}
+
+/**
+ * The payload of one chunk frame fetched on its own (``frame``: its bytes, from the frame's
+ * first byte), checked as readFrame checks it; errors name file offsets. A reader of byte
+ * ranges (the viewer streaming levels of detail) reads frames this way.
+ * @returns {Uint8Array} a view of the payload
+ */
+export function checkFrame(frame, entry) {
+  if (frame.length < entry.length + FRAME_OVERHEAD) {
+    throw new FormatError(`truncated: the chunk needs bytes up to ${entry.end}`, { chunk: entry.type, offset: entry.offset + frame.length });
+  }
+  return framePayload(frame, 0, entry);
+}
+
+/** The payload of the frame of ``entry`` that starts at ``start`` in ``data``. */
+function framePayload(data, start, entry) {
+  const shift = entry.offset - start; // file offset of data[0]
+  const view = new DataView(data.buffer, data.byteOffset + start, entry.length + FRAME_OVERHEAD);
   if (view.getUint32(0, true) !== entry.length) {
     throw new FormatError('frame length differs from the TOC', { chunk: entry.type, offset: entry.offset });
   }
   for (let i = 0; i < 4; i++) {
-    if (data[entry.offset + 4 + i] !== entry.type.charCodeAt(i)) {
+    if (data[start + 4 + i] !== entry.type.charCodeAt(i)) {
       throw new FormatError('frame type differs from the TOC', { chunk: entry.type, offset: entry.offset + 4 });
     }
   }
-  const crcAt = entry.offset + 8 + entry.length;
-  if (crc32(data.subarray(entry.offset + 4, crcAt)) !== view.getUint32(8 + entry.length, true)) {
-    throw new FormatError('chunk CRC mismatch', { chunk: entry.type, offset: crcAt });
+  const crcAt = start + 8 + entry.length;
+  if (crc32(data.subarray(start + 4, crcAt)) !== view.getUint32(8 + entry.length, true)) {
+    throw new FormatError('chunk CRC mismatch', { chunk: entry.type, offset: crcAt + shift });
   }
-  return data.subarray(entry.offset + 8, crcAt);
+  return data.subarray(start + 8, crcAt);
 }
 
 /**

@@ -3,7 +3,7 @@
  * Command line of the JavaScript receiver.
  *
  *   node decode_cli.mjs FILE... [--layers color|color,semantic] [--container] [--repeat N]
- *                                [--threads N] [--range-coder wasm|js]
+ *                                [--threads N] [--range-coder wasm|js] [--lod K]
  *
  * Prints one JSON object per file, one per line, with the file's name under "file". Scene mode (default): {"ok": true, "count": N, "arrays": {name:
  * {"shape": [...], "sha256": hex}}, "semantic_names": [...], "decode_s": seconds} where each
@@ -63,7 +63,7 @@ function containerSummary(data, layers) {
   };
 }
 
-const USAGE = 'usage: node decode_cli.mjs FILE... [--layers color|color,semantic] [--container] [--repeat N] [--threads N] [--range-coder wasm|js]';
+const USAGE = 'usage: node decode_cli.mjs FILE... [--layers color|color,semantic] [--container] [--repeat N] [--threads N] [--range-coder wasm|js] [--lod K]';
 const LAYER_NAMES = ['color', 'semantic'];
 
 /** A bad command line: main prints its message and the usage on one line, exit status 2. */
@@ -90,7 +90,7 @@ function inputError(message) {
   return [2, { ok: false, error: 'InputError', chunk: null, offset: null, message }];
 }
 
-async function decodeFile(file, wanted, container, repeat, tables, lanes) {
+async function decodeFile(file, wanted, container, repeat, tables, lanes, lod = null) {
   const [data, failure] = readInput(file);
   if (failure) return failure;
   try {
@@ -103,7 +103,7 @@ async function decodeFile(file, wanted, container, repeat, tables, lanes) {
     for (let i = 0; i < repeat; i++) {
       const cpu = process.cpuUsage();
       const start = performance.now();
-      const options = { layers: [...wanted], tables: loaded, lanes };
+      const options = { layers: [...wanted], tables: loaded, lanes, lod };
       // Anchor scenes decode on this thread (their lanes are not implemented).
       scene = isAnchorFile(data) ? await decodeAnchorScene(data, options) : await decodeScene(data, options);
       const wall = (performance.now() - start) / 1000;
@@ -120,6 +120,7 @@ async function decodeFile(file, wanted, container, repeat, tables, lanes) {
         ok: false, error: err.name, chunk: format ? err.chunk : null, offset: format ? err.offset : null, message: err.message,
       }];
     }
+    if (err instanceof RangeError) return inputError(err.message); // a level the file lacks
     throw err;
   }
 }
@@ -134,9 +135,9 @@ function valueOf(args, i) {
 const MAX_THREADS = 256;
 
 /** A positive integer option value (at most `most`), or a UsageError. */
-function countOf(name, text, most = Number.MAX_SAFE_INTEGER) {
-  if (!/^[0-9]+$/.test(text) || Number(text) < 1 || Number(text) > most) {
-    const range = most < Number.MAX_SAFE_INTEGER ? `1..${most}` : '>= 1';
+function countOf(name, text, most = Number.MAX_SAFE_INTEGER, least = 1) {
+  if (!/^[0-9]+$/.test(text) || Number(text) < least || Number(text) > most) {
+    const range = most < Number.MAX_SAFE_INTEGER ? `${least}..${most}` : `>= ${least}`;
     throw new UsageError(`${name} must be a whole number ${range}, got '${text}'`);
   }
   return Number(text);
@@ -155,13 +156,14 @@ function layersOf(text) {
 
 /** The options of the command line `args` (process.argv without node and the script). */
 function parseArgs(args) {
-  const options = { files: [], layers: ['color'], container: false, repeat: 1, threads: 2, rangeCoder: 'wasm' };
+  const options = { files: [], layers: ['color'], container: false, repeat: 1, threads: 2, rangeCoder: 'wasm', lod: null };
   for (let i = 0; i < args.length; i++) {
     const arg = args[i];
     if (arg === '--layers') options.layers = layersOf(valueOf(args, i++));
     else if (arg === '--container') options.container = true;
     else if (arg === '--repeat') options.repeat = countOf(arg, valueOf(args, i++));
     else if (arg === '--threads') options.threads = countOf(arg, valueOf(args, i++), MAX_THREADS);
+    else if (arg === '--lod') options.lod = countOf(arg, valueOf(args, i++), 15, 0);
     else if (arg === '--range-coder') {
       options.rangeCoder = valueOf(args, i++);
       if (!['wasm', 'js'].includes(options.rangeCoder)) throw new UsageError(`--range-coder takes wasm or js, got '${options.rangeCoder}'`);
@@ -181,7 +183,7 @@ async function main(argv) {
     process.stderr.write(`decode_cli.mjs: error: ${err.message}; ${USAGE}\n`);
     return 2;
   }
-  const { files, layers, container, repeat, threads, rangeCoder } = options;
+  const { files, layers, container, repeat, threads, rangeCoder, lod } = options;
   setRangeCoder(rangeCoder);
   setIntNetKernel(rangeCoder);
   const wanted = new Set(layers);
@@ -191,7 +193,7 @@ async function main(argv) {
   let status = 0;
   try {
     for (const file of files) {
-      const [code, result] = await decodeFile(file, wanted, container, repeat, tables, lanes);
+      const [code, result] = await decodeFile(file, wanted, container, repeat, tables, lanes, lod);
       status = Math.max(status, code);
       process.stdout.write(`${JSON.stringify({ file, ...result })}\n`);
     }

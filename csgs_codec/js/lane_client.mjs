@@ -34,12 +34,16 @@ export class RemoteLane {
     });
   }
 
-  /** Tell the thread about ``plan``'s scene (its file bytes, the first time they are used). */
+  /** Tell the thread about ``plan``'s scene (its file bytes, the first time they are used;
+   * or, for a container read frame by frame, its payloads and the file's size). */
   open(plan) {
     if (this.openedPlan === plan) return;
     const { data, entries, layers } = plan.source;
     const message = { kind: 'scene', entries, layers: [...layers] };
-    if (this.sentData !== data) {
+    if (plan.source.payloads) {
+      message.payloads = plan.source.payloads;
+      message.size = plan.source.size;
+    } else if (this.sentData !== data) {
       message.data = data;
       this.sentData = data;
     }

@@ -47,10 +47,13 @@ export function serveLane(port, loadTables) {
       if (message.data) data = message.data;
       failure = null;
       try {
-        const payloads = new Map();
-        for (const e of message.entries) payloads.set(e.index, data.subarray(e.offset + 8, e.offset + 8 + e.length));
+        let payloads = message.payloads;
+        if (!payloads) {
+          payloads = new Map();
+          for (const e of message.entries) payloads.set(e.index, data.subarray(e.offset + 8, e.offset + 8 + e.length));
+        }
         const container = { toc: { entries: message.entries }, payloads };
-        prep = prepareContainer(container, data.length, new Set(message.layers), { tables });
+        prep = prepareContainer(container, message.size ?? data.length, new Set(message.layers), { tables });
       } catch (err) {
         failure = errorRecord(err);
       }

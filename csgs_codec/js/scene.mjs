@@ -13,7 +13,7 @@ import { readLayers, readPayloads, readToc } from './container.mjs';
 import { planDecode, sceneOf } from './decode_plan.mjs';
 import { LocalLane, runPlan } from './decode_runner.mjs';
 import { FormatError, UnsupportedError } from './errors.mjs';
-import { checkSameKind, checkTile, isTiled, joinTiles, readTileIndex, tileContainer } from './tile_index.mjs';
+import { checkSameKind, checkTile, isTiled, joinTiles, levelCount, levelTiles, readTileIndex, tileContainer } from './tile_index.mjs';
 
 const MAX_GAUSSIANS = 2 ** 24;
 const MAX_GAUSSIANS_PER_BYTE = 64;
@@ -80,12 +80,41 @@ export async function decodeScene(data, options) {
     const prep = prepareScene(data, options);
     return decodePrepared(data, prep, lanes, options.onStage, options.onProgress);
   }
+  const numbers = chosenTiles(tiled.tiles, options.lod);
+  tiled.read(numbers);
   const scenes = [];
-  for (let i = 0; i < tiled.tiles.length; i++) {
-    const progress = options.onProgress && ((f) => options.onProgress((i + f) / tiled.tiles.length));
+  for (const [k, i] of numbers.entries()) {
+    const progress = options.onProgress && ((f) => options.onProgress((k + f) / numbers.length));
     scenes.push(checkedTile(tiled, i, await decodePrepared(data, tiled.prepare(i), lanes, null, progress)));
   }
-  return joinTiledScenes(tiled, scenes);
+  return joinTiledScenes(tiled, scenes, numbers);
+}
+
+/**
+ * One tile of a tiled file decoded from its frames alone (a reader of byte ranges, as the
+ * viewer streaming levels of detail): ``container`` {toc (the tile's entries), payloads (a
+ * Map of entry index to checked payload), size (bytes of the whole file)}; checked against
+ * its index entry ``info`` (count, box) as tile ``number``.
+ */
+export async function decodeTileContainer(container, number, info, options) {
+  const lanes = options.lanes && options.lanes.length ? options.lanes : [new LocalLane()];
+  const layers = new Set(['color', ...(options.layers || [])]);
+  const prep = prepareContainer(container, container.size, layers, options);
+  const scene = await decodePrepared(null, prep, lanes, null, options.onProgress);
+  checkTile(scene, number, info, container);
+  return scene;
+}
+
+/** The tiles a decode of level ``lod`` (default 0, the scene) reads: that level's tiles,
+ * increasing (every tile of a file without levels). A RangeError names a level the file
+ * does not have. */
+export function chosenTiles(tiles, lod = null) {
+  const levels = levelCount(tiles);
+  const level = lod ?? 0;
+  if (!Number.isInteger(level) || level < 0 || level >= levels) {
+    throw new RangeError(`level ${level} is not in the file (it has ${levels === 1 ? 'one level (0)' : `levels 0..${levels - 1}`})`);
+  }
+  return levelTiles(tiles, level);
 }
 
 /**
@@ -123,10 +152,13 @@ export function sceneArrays(scene) {
   return arrays;
 }
 
-/** The scene (or tile) of one prepared container, decoded on ``lanes``. */
+/** The scene (or tile) of one prepared container, decoded on ``lanes``; ``data`` the file's
+ * bytes, or null when the container holds its payloads alone (sent to the lanes as they
+ * are). */
 async function decodePrepared(data, prep, lanes, onStage, onProgress) {
   const plan = planDecode(prep, { priorParts: lanes.length });
-  plan.source = { data, entries: prep.container.toc.entries, layers: prep.layers };
+  plan.source = data ? { data, entries: prep.container.toc.entries, layers: prep.layers }
+    : { payloads: prep.container.payloads, size: prep.container.size, entries: prep.container.toc.entries, layers: prep.layers };
   const results = await runPlan(plan, lanes, {
     onStage: onStage && ((stage, done) => { if (stage !== 'semantic') onStage(stage, sceneOf(plan, done, stage)); }),
     onTask: onProgress && ((task, done, total) => onProgress(done / total)),
@@ -136,18 +168,25 @@ async function decodePrepared(data, prep, lanes, onStage, onProgress) {
 
 /**
  * A tiled file (§12.22) read and checked up to its tiles' decoding: {tiles (index entries),
- * containers (one per tile), layers, prepare(i) (tile i's prepareScene)}; null for a file
- * without a tile index. Tiles are prepared when decoded, so errors come in tile order.
+ * read(numbers) (reads and checks the frames of those tiles, in file order, as the Python
+ * decoder does before decoding any: a frame of another tile, another level's say, is never
+ * read), containers (one per tile, after read), layers, prepare(i) (tile i's prepareScene)};
+ * null for a file without a tile index. Tiles are prepared when decoded, so errors come in
+ * tile order.
  */
 export function tiledScene(data, options) {
   const layers = new Set(['color', ...(options.layers || [])]);
   const toc = readToc(data);
   if (!isTiled(toc)) return null;
   const tiles = readTileIndex(data, toc, options.maxGaussiansPerByte ?? MAX_GAUSSIANS_PER_BYTE);
-  const container = readPayloads(data, toc, layers);
-  const containers = tiles.map((_, number) => tileContainer(container, number));
-  const prepare = (i) => prepareContainer(containers[i], data.length, layers, options);
-  return { tiles, containers, layers, prepare };
+  const tiled = { tiles, containers: [], layers };
+  tiled.read = (numbers) => {
+    const chosen = new Set(numbers);
+    const container = readPayloads(data, { ...toc, entries: toc.entries.filter((e) => chosen.has(e.tile) && e.type !== 'TIDX') }, layers);
+    tiled.containers = tiles.map((_, number) => tileContainer(container, number));
+  };
+  tiled.prepare = (i) => prepareContainer(tiled.containers[i], data.length, layers, options);
+  return tiled;
 }
 
 /** Tile ``i``'s decoded scene after checking it against its index entry (count, box). */
@@ -156,8 +195,9 @@ export function checkedTile(tiled, i, scene) {
   return scene;
 }
 
-/** The scene of a tiled file from its tiles' checked scenes, in tile order. */
-export function joinTiledScenes(tiled, scenes) {
-  checkSameKind(scenes, tiled.containers);
+/** The scene of a tiled file from its tiles' checked scenes, in tile order (tiles
+ * ``numbers``; default all). */
+export function joinTiledScenes(tiled, scenes, numbers = null) {
+  checkSameKind(scenes, (numbers ?? tiled.containers.map((_, i) => i)).map((i) => tiled.containers[i]));
   return joinTiles(scenes);
 }

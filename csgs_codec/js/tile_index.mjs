@@ -1,6 +1,7 @@
 /**
- * Tiled scenes (spec/FORMAT.md §6.3, §12.22): the TIDX tile index, each tile's own container
- * view, the checks of a decoded tile against its entry, and joining tiles into one scene.
+ * Tiled scenes (spec/FORMAT.md §6.3, §12.22): the TIDX tile index (version 2: levels of
+ * detail, each tile with a level and a parent one level up), each tile's own container view,
+ * the checks of a decoded tile against its entry, and joining tiles into one scene.
  */
 
 import { ByteReader } from './bytes.mjs';
@@ -10,6 +11,8 @@ import { FormatError } from './errors.mjs';
 const MAX_TILES = 65535;
 const MAX_TILE_GAUSSIANS = 2 ** 24;
 const MIN_ENTRY_BYTES = 25;
+const MIN_LEVEL_ENTRY_BYTES = 27;
+const MAX_LEVELS = 16;
 
 /** True when ``toc`` (readToc's) lists a TIDX chunk (a tiled scene). */
 export function isTiled(toc) {
@@ -23,21 +26,25 @@ export function isTiled(toc) {
  * its faults are found before any other frame's, as in the Python decoder.
  * @param {Uint8Array} data the file (or the prefix at hand)
  * @param {object} toc readToc's result for ``data``
- * @returns {{count: number, lower: number[], upper: number[]}[]} one entry per tile
+ * @param {number} size bytes of the whole file (default: ``data``'s), for the count limit
+ * @returns {{count: number, lower: number[], upper: number[], level: number,
+ *   parent: number|null}[]} one entry per tile (level 0 and no parent in version 1)
  */
-export function readTileIndex(data, toc, maxPerByte) {
-  const size = data.length;
+export function readTileIndex(data, toc, maxPerByte, size = data.length) {
   const found = toc.entries.filter((e) => e.type === 'TIDX');
   if (found.length > 1) throw new FormatError(`chunk TIDX appears ${found.length} times`, { chunk: 'TIDX', offset: found[1].tocOffset });
   const entry = found[0];
   if (entry.index !== 0 || entry.tile !== 0) throw new FormatError('the tile index must be the first chunk, in tile 0', { chunk: 'TIDX', offset: entry.tocOffset });
   const r = new ByteReader(readFrame(data, entry), entry.offset + 8, 'TIDX');
   const version = r.u8('version');
-  if (version !== 1) throw r.error(`unknown tile index version ${version}`, r.offset - 1);
+  if (version !== 1 && version !== 2) throw r.error(`unknown tile index version ${version}`, r.offset - 1);
+  const leveled = version === 2;
   let at = r.offset;
   const count = r.varint('tile_count', MAX_TILES);
-  if (count < 1 || count > Math.floor(r.remaining / MIN_ENTRY_BYTES)) throw r.error(`tile_count ${count} is 0 or more than the bytes after it hold`, at);
+  const entryBytes = leveled ? MIN_LEVEL_ENTRY_BYTES : MIN_ENTRY_BYTES;
+  if (count < 1 || count > Math.floor(r.remaining / entryBytes)) throw r.error(`tile_count ${count} is 0 or more than the bytes after it hold`, at);
   const tiles = [];
+  const links = [];
   let total = 0;
   for (let i = 0; i < count; i++) {
     at = r.offset;
@@ -46,16 +53,61 @@ export function readTileIndex(data, toc, maxPerByte) {
     const boxAt = r.offset;
     const box = [0, 1, 2, 3, 4, 5].map(() => r.f32('bounds'));
     if (!box.every(Number.isFinite) || [0, 1, 2].some((a) => box[a] > box[a + 3])) throw r.error(`tile ${i}: bounds are not finite or lower > upper`, boxAt);
-    tiles.push({ count: n, lower: box.slice(0, 3), upper: box.slice(3) });
+    let level = 0;
+    let parent = null;
+    if (leveled) {
+      const levelAt = r.offset;
+      level = r.u8('level');
+      if (level >= MAX_LEVELS) throw r.error(`tile ${i}: level ${level} is above ${MAX_LEVELS - 1}`, levelAt);
+      const linkAt = r.offset;
+      const link = r.varint('parent', MAX_TILES);
+      parent = link === 0 ? null : link - 1;
+      links.push([levelAt, linkAt]);
+    }
+    tiles.push({ count: n, lower: box.slice(0, 3), upper: box.slice(3), level, parent });
     total += n;
   }
   r.expectEnd('the tile index');
+  if (leveled) checkTree(r, tiles, links);
   for (const e of toc.entries.slice(1)) {
     if (e.tile >= count) throw new FormatError(`tile ${e.tile} is not in the tile index (${count} tiles)`, { chunk: e.type, offset: e.tocOffset });
   }
   const limit = maxPerByte * size;
   if (total > limit) throw new FormatError(`the tile index declares ${total} Gaussians, above this decoder's limit of ${limit}`, { chunk: 'TIDX', offset: entry.offset + 8 });
   return tiles;
+}
+
+/** FormatError unless version 2's tiles form a tree of levels (§12.22), as the Python
+ * decoder checks it (same order, messages and offsets). */
+function checkTree(r, tiles, links) {
+  const top = Math.max(...tiles.map((t) => t.level));
+  if (top === 0) throw r.error('a version-2 tile index whose tiles are all of level 0', links[0][0]);
+  const hasChild = tiles.map(() => false);
+  tiles.forEach((tile, i) => {
+    const linkAt = links[i][1];
+    if (tile.level === top) {
+      if (tile.parent !== null) throw r.error(`tile ${i} is of the top level ${top} and has a parent`, linkAt);
+      return;
+    }
+    if (tile.parent === null) throw r.error(`tile ${i} of level ${tile.level} has no parent (only the top level ${top} has none)`, linkAt);
+    if (tile.parent >= tiles.length || tiles[tile.parent].level !== tile.level + 1) throw r.error(`tile ${i} of level ${tile.level}: parent ${tile.parent} is not a tile of level ${tile.level + 1}`, linkAt);
+    hasChild[tile.parent] = true;
+  });
+  tiles.forEach((tile, i) => {
+    if (tile.level > 0 && !hasChild[i]) throw r.error(`tile ${i} of level ${tile.level} is no tile's parent`, links[i][0]);
+  });
+}
+
+/** Levels of detail of a tile index: 1 + the highest tile level. */
+export function levelCount(tiles) {
+  return 1 + Math.max(...tiles.map((t) => t.level));
+}
+
+/** The tile numbers of level ``level``, increasing (level 0: the scene). */
+export function levelTiles(tiles, level) {
+  const out = [];
+  tiles.forEach((t, i) => { if (t.level === level) out.push(i); });
+  return out;
 }
 
 /** The container of tile ``number`` alone: its TOC entries (TIDX left out), shared payloads. */

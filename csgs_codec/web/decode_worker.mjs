@@ -8,11 +8,13 @@
  * posted as soon as they are decoded (stage 'first'), the SH bands after; then, when asked,
  * the semantic layer's bytes, decoded and posted. An anchor scene (TOC lists ANCH) is
  * decoded and baked into splats (anchor_open.mjs): a quick preview bake first, then the
- * reference decoder's bake.
+ * reference decoder's bake. A file with levels of detail (TIDX version 2) is streamed
+ * (level_open.mjs): the tile index, the coarsest level, then the tiles the page asks for.
  *
  * Its URL may say ``?lanes=N`` (see decodeLanes).
  * Messages in: {kind: 'open', url | file, layers: ['color'] | ['color', 'semantic'],
- *   hashes: bool}.
+ *   hashes: bool}; {kind: 'tiles', id, numbers} (a file with levels: read and decode these
+ *   tiles, after those asked for before).
  * Messages out (each with the open request's id):
  *   {kind: 'progress', stage, fraction, text}
  *   {kind: 'toc', fileEnd, colorEnd, hasSemantic, chunks}
@@ -25,6 +27,7 @@
  *   {kind: 'error', stage, message, chunk, offset, kind}   the receiver's errors name both;
  *     ``errorKind``: 'format', 'unsupported' or 'internal'
  *   {kind: 'mark', name, at}   when a step happened (epoch milliseconds)
+ *   {kind: 'levels', ...} and {kind: 'tile', ...}   a file with levels (level_open.mjs)
  *   {kind: 'done'}
  */
 
@@ -35,6 +38,7 @@ import { LocalLane } from '../js/decode_runner.mjs';
 import { FormatError, UnsupportedError } from '../js/errors.mjs';
 import { decodeScene, decodeSemanticLayer, sceneArrays } from '../js/scene.mjs';
 import { openAnchors } from './anchor_open.mjs';
+import { hasLevels, openLevels } from './level_open.mjs';
 import { loadTables, sha256Hex } from './tables_fetch.mjs';
 
 const HEADER_SIZE = 16;
@@ -43,6 +47,8 @@ const HEADER_SIZE = 16;
  * most this many. */
 const MAX_LANES = 4;
 let lanes = null;
+/** The open file's tile reader when it has levels of detail (level_open.mjs), else null. */
+let levelStream = null;
 
 /** The decode lanes, started when this worker starts, for every file it opens: ``asked``
  * Web Workers (null: one per core but one, at least one, at most MAX_LANES; 0: decode on
@@ -183,6 +189,17 @@ async function open(request, post) {
     if (source.size !== null && source.size > fileEnd) {
       throw new FormatError(`${source.size - fileEnd} bytes follow the last chunk`, { offset: fileEnd });
     }
+    if (entries.length && entries[0].type === 'TIDX') { // a tiled file: its index is next
+      const index = await source.read(prefix.length, entries[0].end);
+      const indexed = concat([prefix, index]);
+      if (hasLevels(toc, index)) {
+        levelStream = await openLevels({ source, indexed, toc, fileEnd, wanted, tablesReady,
+          lanes: decoding, post, progress, mark });
+        post({ kind: 'done' });
+        return;
+      }
+      prefix = indexed;
+    }
     if (entries.some((e) => e.type === 'ANCH')) {
       const stageOf = (name) => { stage = name; };
       await openAnchors({ source, prefix, colorEnd, fileEnd, hasSemantic, wanted, tablesReady,
@@ -249,8 +266,13 @@ decodeLanes(/^\d$/.test(lanesAsked || '') ? Number(lanesAsked) : null); // start
 
 self.onmessage = (event) => {
   const request = event.data;
-  if (request.kind !== 'open') return;
+  if (request.kind !== 'open' && request.kind !== 'tiles') return;
   const post = (message, transfer = []) => self.postMessage({ ...message, id: request.id }, transfer);
+  if (request.kind === 'tiles') {
+    if (levelStream) levelStream.fetch(request.numbers, (error) => post(errorMessage(error, 'color')));
+    return;
+  }
+  levelStream = null;
   post({ kind: 'mark', name: 'workerStarted', at: workerStarted });
   open(request, post);
 };

@@ -34,6 +34,7 @@ import '../js/residual.mjs';
 import '../js/scene.mjs';
 import '../js/semantic_layer.mjs';
 import '../js/tables.mjs';
+import '../js/tile_frames.mjs';
 import '../js/tile_index.mjs';
 import '../js/varints.mjs';
 import '../js/view_record.mjs';

@@ -24,7 +24,10 @@ gets 400 or 500 with a one-line body, never a traceback. A connection silent for
 at once (a further one is closed unanswered), so idle or piled-up clients hold no threads.
 
 The server counts the scene bytes it sends (:attr:`ViewerServer.scene_bytes_sent`), which is
-how ``benchmarks/web_viewer.py`` measures what the page fetches.
+how ``benchmarks/web_viewer.py`` measures what the page fetches, and logs the byte ranges of
+the scene it was asked for (:attr:`ViewerServer.scene_ranges`: which frames a streaming page
+read before its first frame). ``rate`` (bytes per second) paces the scene's bytes as a link
+of that speed would (benchmarks simulate a network with it).
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ import json
 import re
 import sys
 import threading
+import time
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
@@ -143,6 +147,8 @@ class ViewerServer(ThreadingHTTPServer):
             the installed package's; benchmarks/web_viewer.py serves an older page too).
         connection_timeout: seconds a connection may stay silent before it is closed.
         max_connections: connections served at once; a further one is closed unanswered.
+        rate: bytes per second the scene is sent at, all answers together (a simulated
+            link), or None (as fast as the machine goes).
     """
 
     daemon_threads = True
@@ -150,7 +156,7 @@ class ViewerServer(ThreadingHTTPServer):
     def __init__(self, scene: str | Path | None, *, layers: tuple[str, ...] = PAGE_LAYERS,
                  host: str = "127.0.0.1", port: int = 0, package_root: Path = PACKAGE_ROOT,
                  connection_timeout: float = CONNECTION_TIMEOUT,
-                 max_connections: int = MAX_CONNECTIONS):
+                 max_connections: int = MAX_CONNECTIONS, rate: float | None = None):
         self.scene = None if scene is None else Path(scene)
         self.connection_timeout = connection_timeout
         self._slots = threading.BoundedSemaphore(max_connections)
@@ -158,6 +164,9 @@ class ViewerServer(ThreadingHTTPServer):
         self.layers = tuple(layers)
         self._lock = threading.Lock()
         self._sent = 0
+        self._ranges: list[tuple[float, int, int]] = []
+        self.rate = rate
+        self._link_free_at = 0.0  # when the simulated link has sent what it was given
         self._thread: threading.Thread | None = None
         self.tag = package_tag(self.package_root)
         super().__init__((host, port), _Handler)
@@ -177,10 +186,36 @@ class ViewerServer(ThreadingHTTPServer):
         with self._lock:
             return self._sent
 
+    @property
+    def scene_ranges(self) -> list[tuple[float, int, int]]:
+        """The scene byte ranges asked for so far, in arrival order: (``time.monotonic()``
+        when the answer began, first byte, end byte (exclusive))."""
+        with self._lock:
+            return list(self._ranges)
+
     def reset_counter(self) -> None:
-        """Set :attr:`scene_bytes_sent` back to 0."""
+        """Set :attr:`scene_bytes_sent` back to 0 and forget the ranges asked for."""
         with self._lock:
             self._sent = 0
+            self._ranges.clear()
+
+    def log_range(self, first: int, end: int) -> None:
+        """Note that scene bytes ``first`` .. ``end`` (exclusive) are being sent."""
+        with self._lock:
+            self._ranges.append((time.monotonic(), first, end))
+
+    def pace(self, count: int) -> None:
+        """With a ``rate``, wait until a link of that speed shared by every answer has sent
+        ``count`` more bytes."""
+        if not self.rate:
+            return
+        with self._lock:
+            start = max(self._link_free_at, time.monotonic())
+            self._link_free_at = start + count / self.rate
+            until = self._link_free_at
+        delay = until - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
 
     def count_sent(self, count: int) -> None:
         """Add ``count`` bytes to :attr:`scene_bytes_sent`."""
@@ -393,12 +428,14 @@ class _Handler(BaseHTTPRequestHandler):
             self.end_headers()
             if not send_body:
                 return
+            self.server.log_range(first, first + count)
             fh.seek(first)
             left = count
             while left > 0:
                 block = fh.read(min(_BLOCK, left))
                 if not block:
                     break
+                self.server.pace(len(block))
                 self.wfile.write(block)
                 self.server.count_sent(len(block))
                 left -= len(block)

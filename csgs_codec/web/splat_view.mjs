@@ -53,6 +53,39 @@ function splatData(scene) {
   return new pc.GSplatData([{ name: 'vertex', count: n, properties }]);
 }
 
+/** The base colors and opacities of ``data`` (restored when a selection is cleared). */
+function originalColors(data) {
+  return {
+    dc: [0, 1, 2].map((k) => Float32Array.from(data.getProp(`f_dc_${k}`))),
+    opacity: Float32Array.from(data.getProp('opacity')),
+  };
+}
+
+/** Dim the splats of ``data`` outside ``mask`` (null: restore ``original``'s colors). */
+function dimData(data, original, mask) {
+  const dc = [0, 1, 2].map((k) => data.getProp(`f_dc_${k}`));
+  const op = data.getProp('opacity');
+  const { dc: dc0, opacity: op0 } = original;
+  for (let i = 0; i < op.length; i++) {
+    if (!mask || mask[i]) {
+      for (let k = 0; k < 3; k++) dc[k][i] = dc0[k][i];
+      op[i] = op0[i];
+    } else {
+      for (let k = 0; k < 3; k++) dc[k][i] = (DIM_COLOR * (0.5 + SH_C0 * dc0[k][i]) - 0.5) / SH_C0;
+      const alpha = DIM_OPACITY / (1 + Math.exp(-op0[i]));
+      op[i] = Math.log(alpha / (1 - alpha));
+    }
+  }
+}
+
+/** dimData on a tile entity's splats, uploaded. */
+function dim(entity, mask) {
+  const { data, original } = entity.csgsSplats;
+  dimData(data, original, mask);
+  entity.gsplat.resource.updateColorData(data);
+  entity.gsplat.workBufferUpdate = pc.WORKBUFFER_UPDATE_ONCE;
+}
+
 export class SplatView {
   /**
    * @param {HTMLCanvasElement} canvas
@@ -82,6 +115,7 @@ export class SplatView {
     this.app.root.addChild(this.cameraEntity);
     this.splat = null;
     this.data = null;
+    this.tiles = new Map(); // tile number -> entity, a file with levels of detail
     this.frames = 0;
     this.sorts = 0; // sort results received since the scene was shown
     this.app.scene.on('gsplat:sorted', () => { this.sorts++; });
@@ -112,17 +146,95 @@ export class SplatView {
   /** Drawing-buffer size in pixels. */
   get size() { return { width: this.app.graphicsDevice.width, height: this.app.graphicsDevice.height }; }
 
+  /**
+   * Draw exactly the tiles ``numbers`` of a file with levels of detail, ``scenes`` holding
+   * every tile's decoded arrays: a tile drawn before keeps its entity (shown or hidden, all
+   * sorted together by the engine); a new one gets its own.
+   */
+  showTiles(numbers, scenes) {
+    if (this.splat) { this.splat.destroy(); this.splat = null; this.data = null; }
+    if (this.joined) { this.joined.destroy(); this.joined = null; }
+    for (const number of numbers) {
+      if (this.tiles.has(number)) continue;
+      const scene = scenes.get(number);
+      if (!scene.count) continue;
+      const entity = new pc.Entity(`tile ${number}`);
+      const data = splatData(scene);
+      entity.addComponent('gsplat', { resource: new pc.GSplatResource(this.app.graphicsDevice, data) });
+      entity.csgsSplats = { data, original: originalColors(data) };
+      this.app.root.addChild(entity);
+      this.tiles.set(number, entity);
+    }
+    for (const [number, entity] of this.tiles) entity.enabled = numbers.has(number);
+    this.sorts = 0;
+  }
+
+  /**
+   * Draw the tiles ``numbers`` as one splat set, their Gaussians in tile order, as a page
+   * decoding the whole file draws the same tiles (the engine's order among splats it sorts
+   * alike follows their place in its buffers, so one set in file order draws the whole-file
+   * page's frame exactly); the tile entities are hidden until showTiles draws them again.
+   */
+  joinTiles(numbers, scenes) {
+    if (this.joined) this.joined.destroy();
+    const parts = [...numbers].sort((a, b) => a - b).map((n) => scenes.get(n)).filter((s) => s.count);
+    const field = (name) => {
+      const out = new Float32Array(parts.reduce((n, s) => n + s[name].length, 0));
+      let at = 0;
+      for (const s of parts) { out.set(s[name], at); at += s[name].length; }
+      return out;
+    };
+    const joined = {
+      count: parts.reduce((n, s) => n + s.count, 0), positions: field('positions'), sh_dc: field('sh_dc'),
+      sh_rest: field('sh_rest'), opacity: field('opacity'), scales: field('scales'), rotations: field('rotations'),
+    };
+    this.joined = new pc.Entity('joined tiles');
+    const data = splatData(joined);
+    this.joined.addComponent('gsplat', { resource: new pc.GSplatResource(this.app.graphicsDevice, data) });
+    this.joined.csgsSplats = { data, original: originalColors(data), tiles: [...numbers].filter((n) => this.tiles.has(n)).sort((a, b) => a - b) };
+    this.app.root.addChild(this.joined);
+    for (const entity of this.tiles.values()) entity.enabled = false;
+    this.sorts = 0;
+  }
+
+  /**
+   * Dim everything outside the selection in the tiles drawn: ``masks`` maps a tile number
+   * to its Uint8Array (1 = selected); null restores every tile's colors.
+   */
+  highlightTiles(masks) {
+    for (const [number, entity] of this.tiles) {
+      dim(entity, masks ? masks.get(number) || new Uint8Array(entity.csgsSplats.data.numSplats) : null);
+    }
+    if (this.joined) {
+      const { tiles } = this.joined.csgsSplats;
+      if (!masks) {
+        dim(this.joined, null);
+      } else {
+        const parts = tiles.map((n) => masks.get(n) || new Uint8Array(this.tiles.get(n).csgsSplats.data.numSplats));
+        const joined = new Uint8Array(parts.reduce((n, p) => n + p.length, 0));
+        let at = 0;
+        for (const p of parts) { joined.set(p, at); at += p.length; }
+        dim(this.joined, joined);
+      }
+    }
+  }
+
+  /** Remove every tile entity (another file is opened). */
+  clearTiles() {
+    for (const entity of this.tiles.values()) entity.destroy();
+    this.tiles.clear();
+    if (this.joined) { this.joined.destroy(); this.joined = null; }
+  }
+
   /** Replace the drawn scene with ``scene`` (decoded arrays). */
   show(scene) {
+    this.clearTiles();
     if (this.splat) this.splat.destroy();
     this.splat = null;
     this.data = null;
     if (!scene.count) return; // nothing to draw (an empty scene is valid)
     this.data = splatData(scene);
-    this.original = {
-      dc: [0, 1, 2].map((k) => Float32Array.from(this.data.getProp(`f_dc_${k}`))),
-      opacity: Float32Array.from(this.data.getProp('opacity')),
-    };
+    this.original = originalColors(this.data);
     this.resource = new pc.GSplatResource(this.app.graphicsDevice, this.data);
     this.splat = new pc.Entity('scene');
     this.splat.addComponent('gsplat', { resource: this.resource });
@@ -180,19 +292,7 @@ export class SplatView {
   /** Dim everything outside ``mask`` (Uint8Array, 1 = selected); null restores the colors. */
   highlight(mask) {
     if (!this.data) return;
-    const dc = [0, 1, 2].map((k) => this.data.getProp(`f_dc_${k}`));
-    const op = this.data.getProp('opacity');
-    const { dc: dc0, opacity: op0 } = this.original;
-    for (let i = 0; i < op.length; i++) {
-      if (!mask || mask[i]) {
-        for (let k = 0; k < 3; k++) dc[k][i] = dc0[k][i];
-        op[i] = op0[i];
-      } else {
-        for (let k = 0; k < 3; k++) dc[k][i] = (DIM_COLOR * (0.5 + SH_C0 * dc0[k][i]) - 0.5) / SH_C0;
-        const alpha = DIM_OPACITY / (1 + Math.exp(-op0[i]));
-        op[i] = Math.log(alpha / (1 - alpha));
-      }
-    }
+    dimData(this.data, this.original, mask);
     this.resource.updateColorData(this.data);
     this.splat.gsplat.workBufferUpdate = pc.WORKBUFFER_UPDATE_ONCE;
   }

@@ -8,7 +8,9 @@
  * the server's /config.json; ``hashes=1`` has the worker hash every decoded array
  * (``state.hashes``, compared with the Python decoder's by the tests); ``lanes=N`` decodes on
  * N Web Workers (0: on the decode worker's own thread; default one per core but one, at
- * most 4).
+ * most 4). A file with levels of detail is streamed (level_open.mjs, level_view.mjs):
+ * ``budget=N`` caps the Gaussians drawn (default 3,000,000), ``lodpx=X`` is the projected
+ * Gaussian size in pixels above which a tile is refined (default 1.5).
  *
  * ``window.csgsViewer`` is the page's state for scripts (the browser tests read it):
  * ``state`` (phase, timings, counts, error, selection), ``setCamera(camera)``,
@@ -18,10 +20,15 @@
  * frame drawn with every splat (base color), ``colorFrameMs`` the first with the whole color
  * layer (the same frame for a scene without SH bands); ``timeline`` has the steps before
  * them (workerStarted, tocRead, colorBytesRead, decodeStarted, colorDecoded from the worker;
- * rendererReady, 0 when it was ready before the file was opened).
+ * rendererReady, 0 when it was ready before the file was opened). A streamed file fills
+ * ``state.lod``: levels, tiles, decoded, drawn (tile numbers), drawnLevels, bytesRead,
+ * firstFrameBytes (scene bytes read when the first frame was drawn), complete (every tile the
+ * view wants is drawn), completeMs, and joined (the drawn tiles are one splat set, drawn as
+ * the whole-file page draws the same tiles, once the view stayed complete a moment).
  */
 
 import { CameraRig } from './camera_rig.mjs';
+import { DEFAULT_BUDGET, DEFAULT_PIXELS, LevelStreamer } from './level_view.mjs';
 import { DEFAULT_THRESHOLD, elementInstances, selectAtPixel, selectInstanceAtPixel } from './pick.mjs';
 
 const $ = (id) => document.getElementById(id);
@@ -31,13 +38,15 @@ const fixedSize = sizeMatch ? { width: Number(sizeMatch[1]), height: Number(size
 if (fixedSize) document.body.classList.add('fixed-size');
 const wantHashes = params.get('hashes') === '1';
 const lanesParam = /^\d$/.test(params.get('lanes') || '') ? Number(params.get('lanes')) : null;
+const budgetParam = /^\d{1,9}$/.test(params.get('budget') || '') ? Number(params.get('budget')) : DEFAULT_BUDGET;
+const pixelsParam = Number(params.get('lodpx')) > 0 ? Number(params.get('lodpx')) : DEFAULT_PIXELS;
 
 const state = {
   phase: 'starting', name: null, layers: ['color', 'semantic'], count: 0, fileEnd: null,
   colorEnd: null, hasSemantic: null, colorShown: false, semanticReady: false, firstFrameMs: null,
   colorFrameMs: null, colorMs: null, semanticMs: null, colorDecodeMs: null, shDecodeMs: null,
   semanticDecodeMs: null, colorBytesRead: null, semanticBytesRead: null, error: null,
-  selection: null, hashes: null, timeline: {},
+  selection: null, hashes: null, timeline: {}, lod: null,
 };
 // The decoder starts before the renderer loads: the two overlap.
 const worker = new Worker(new URL(`./decode_worker.mjs${lanesParam === null ? '' : `?lanes=${lanesParam}`}`, import.meta.url), { type: 'module' });
@@ -52,6 +61,8 @@ const viewReady = import('./splat_view.mjs').then(({ SplatView }) => {
 });
 let requestId = 0;
 let scene = null;
+/** The open file's LevelStreamer when it has levels of detail, else null. */
+let streamer = null;
 let semantic = null;
 let framesSinceChange = 0;
 let settledFrames = 0; // consecutive frames that ended with no sort in flight
@@ -90,6 +101,7 @@ function redraw() {
   if (!view) return;
   const { width, height } = view.size;
   view.setCamera(rig.camera(width, height));
+  if (streamer && streamer.scenes.size) streamer.update(rig.camera(width, height));
   drawAgain();
 }
 /** A promise of the next frame drawn after the splats were sorted for the current view. */
@@ -116,6 +128,15 @@ function showStatus() {
     setMessage(state.error.stage === 'semantic' && state.colorShown
       ? `The color layer is shown, but the semantic layer could not be read: ${text}${place}. ${advice(state.error)}`
       : `Cannot show this file: ${text}${place}. ${advice(state.error)}`, 'error');
+    return;
+  }
+  if (state.lod) {
+    const { lod } = state;
+    const levels = lod.drawnLevels.map((n, k) => (n ? `${n} of level ${k}` : '')).filter(Boolean).join(', ');
+    setMessage(`${state.count.toLocaleString()} Gaussians drawn (tiles ${levels}); read `
+      + `${lod.bytesRead.toLocaleString()} of ${state.fileEnd.toLocaleString()} bytes`
+      + `${lod.complete ? '' : ', reading more detail'}`
+      + (state.semanticReady ? '; click an object to select it' : ''));
     return;
   }
   if (!state.colorShown) {
@@ -159,9 +180,11 @@ function open(source, name, layers) {
     phase: 'loading', name, layers, count: 0, fileEnd: null, colorEnd: null, hasSemantic: null,
     colorShown: false, semanticReady: false, firstFrameMs: null, colorFrameMs: null,
     colorMs: null, semanticMs: null, colorDecodeMs: null, shDecodeMs: null, error: null,
-    selection: null, hashes: null, timeline: view ? { rendererReady: 0 } : {},
+    selection: null, hashes: null, timeline: view ? { rendererReady: 0 } : {}, lod: null,
   });
   scene = null;
+  streamer = null;
+  if (view) view.clearTiles();
   semantic = null;
   drawing = Promise.resolve();
   bands = null;
@@ -218,6 +241,84 @@ async function showBands(shRest, id) {
   showStatus();
 }
 
+/** Draw the tiles ``drawn`` of a streamed file (LevelStreamer's draw), then note the first
+ * frame and whether the view has all the detail it wants. */
+function drawTiles(drawn, scenes, id) {
+  drawing = drawing.then(async () => {
+    await viewReady;
+    if (id !== requestId) return;
+    if (state.selection) clearSelection(); // the selection was made on other tiles
+    view.showTiles(drawn, scenes);
+    state.lod.joined = false;
+    state.count = streamer.count;
+    Object.assign(state.lod, { drawn: [...drawn].sort((a, b) => a - b), drawnLevels: streamer.drawnLevels });
+    drawAgain();
+    await frameDrawn();
+    if (id !== requestId) return;
+    if (state.firstFrameMs === null) {
+      state.firstFrameMs = performance.now();
+      state.colorFrameMs = state.firstFrameMs;
+      state.colorShown = true;
+      state.lod.firstFrameBytes = state.lod.bytesRead;
+    }
+    noteComplete();
+  });
+}
+
+/** Milliseconds a streamed view must stay complete and unchanged before its tiles are
+ * joined into one splat set (joinTiles). */
+const JOIN_AFTER_MS = 400;
+
+/** Mark a streamed file complete when the view has every tile it wants drawn, and join its
+ * tiles once it has stayed so a moment. */
+function noteComplete() {
+  const complete = Boolean(streamer && streamer.complete && streamer.asked.size === 0);
+  if (complete && !state.lod.complete) {
+    state.lod.completeMs = performance.now();
+    state.phase = 'done';
+    setProgress(1, 'done');
+  }
+  state.lod.complete = complete;
+  if (complete && !state.lod.joined) {
+    const id = requestId;
+    const drawn = streamer.drawn;
+    setTimeout(() => {
+      if (id !== requestId || !streamer || streamer.drawn !== drawn || !state.lod.complete) return;
+      drawing = drawing.then(async () => {
+        if (id !== requestId || streamer.drawn !== drawn) return;
+        view.joinTiles(drawn, streamer.scenes);
+        drawAgain();
+        await frameDrawn();
+        if (id === requestId && streamer.drawn === drawn) state.lod.joined = true;
+      });
+    }, JOIN_AFTER_MS);
+  }
+  showStatus();
+}
+
+/** A tile of a streamed file arrived: hand it to the streamer (which may draw and ask for
+ * more), framing the view on the coarsest level once it is all here. */
+async function tileArrived(message, id) {
+  await viewReady;
+  if (id !== requestId || !streamer) return;
+  state.lod.decoded += 1;
+  state.lod.bytesRead = message.bytesRead;
+  const { width, height } = view.size;
+  const roots = streamer.tiles.map((t, i) => i).filter((i) => streamer.tiles[i].parent === null);
+  streamer.scenes.set(message.number, message.scene);
+  if (!streamer.camera && roots.every((r) => streamer.scenes.has(r))) {
+    const parts = roots.map((r) => streamer.scenes.get(r));
+    const join = (name) => Float32Array.from(parts.flatMap((p) => Array.from(p[name])));
+    rig.frame(join('positions'), join('opacity'), width, height);
+    view.setCamera(rig.camera(width, height));
+    streamer.camera = rig.camera(width, height);
+  }
+  if (message.scene.semantic || message.scene.labels) state.semanticReady = true;
+  streamer.arrived(message.number, message.scene);
+  setProgress(Math.min(0.99, state.lod.bytesRead / state.fileEnd), `read ${state.lod.bytesRead.toLocaleString()} bytes, ${state.lod.decoded} tiles`);
+  noteComplete();
+}
+
 worker.onmessage = (event) => {
   const message = event.data;
   const id = message.id;
@@ -248,11 +349,30 @@ worker.onmessage = (event) => {
       semanticDecodeMs: message.decodeMs, semanticBytesRead: message.bytesRead,
     });
     showStatus();
+  } else if (message.kind === 'levels') {
+    state.phase = 'streaming';
+    state.fileEnd = message.fileEnd;
+    state.layers = message.layers;
+    state.hasSemantic = message.layers.includes('semantic');
+    state.lod = {
+      levels: message.levels, tiles: message.tiles.length, decoded: 0, drawn: [], drawnLevels: [],
+      bytesRead: message.indexBytes, firstFrameBytes: null, complete: false, completeMs: null,
+      joined: false,
+      budget: budgetParam, pixels: pixelsParam,
+    };
+    streamer = new LevelStreamer({
+      tiles: message.tiles, levels: message.levels, budget: budgetParam, pixels: pixelsParam,
+      request: (numbers) => worker.postMessage({ kind: 'tiles', id, numbers }),
+      draw: (drawn, scenes) => drawTiles(drawn, scenes, id),
+    });
+  } else if (message.kind === 'tile') {
+    drawing = drawing.then(() => tileArrived(message, id));
   } else if (message.kind === 'mark') {
     state.timeline[message.name] = message.at - performance.timeOrigin;
   } else if (message.kind === 'hashes') {
     state.hashes = message.arrays;
   } else if (message.kind === 'done') {
+    if (state.lod) return; // a streamed file is done when the view has its detail
     state.phase = 'done';
     setProgress(1, 'done');
     showStatus();
@@ -269,7 +389,34 @@ worker.onmessage = (event) => {
 
 /** Select the object under drawing-buffer pixel (column, row): by instance when the scene
  * has instances, else by cosine; updates the page. */
+/**
+ * The drawn tiles of a streamed file as one scene (tile order) with its semantic arrays, and
+ * each tile's share of it: {scene, semantic, parts: [[number, start, count], ...]}.
+ */
+function drawnScene() {
+  const numbers = [...streamer.drawn].sort((a, b) => a - b);
+  const parts = [];
+  let at = 0;
+  for (const n of numbers) { parts.push([n, at, streamer.scenes.get(n).count]); at += streamer.scenes.get(n).count; }
+  const scenes = numbers.map((n) => streamer.scenes.get(n));
+  const join = (name, Type = Float32Array) => {
+    if (scenes.some((s) => !s[name])) return null;
+    const out = new Type(scenes.reduce((n, s) => n + s[name].length, 0));
+    let k = 0;
+    for (const s of scenes) { out.set(s[name], k); k += s[name].length; }
+    return out;
+  };
+  const joined = { count: at, positions: join('positions'), sh_dc: join('sh_dc'), sh_rest: join('sh_rest'),
+    opacity: join('opacity'), scales: join('scales'), rotations: join('rotations') };
+  const channels = scenes[0].semanticNames ? scenes[0].semanticNames.length : 0;
+  const features = join('semantic');
+  const labels = join('labels', Int32Array);
+  const instances = elementInstances(labels, features, channels);
+  return { scene: joined, semantic: (features || labels) ? { features, channels, instances } : null, parts };
+}
+
 function selectAt(column, row) {
+  if (state.lod) return selectInStreamed(column, row);
   if (!scene) throw new Error('no scene is open');
   if (!semantic) throw new Error('the semantic layer is not loaded, so there is nothing to select by');
   const { width, height } = view.size;
@@ -292,15 +439,43 @@ function selectAt(column, row) {
   return result;
 }
 
+/** selectAt on the tiles a streamed file draws: the same rules on their Gaussians joined. */
+function selectInStreamed(column, row) {
+  if (!streamer || !streamer.drawn.size) throw new Error('nothing is drawn yet');
+  const { scene: drawn, semantic: meaning, parts } = drawnScene();
+  if (!meaning) throw new Error('the semantic layer is not loaded, so there is nothing to select by');
+  const { width, height } = view.size;
+  const camera = rig.camera(width, height);
+  let result;
+  let rule;
+  let threshold = null;
+  if (meaning.instances) {
+    result = selectInstanceAtPixel(drawn, meaning.instances.ids, camera, column, row);
+    rule = `instance from ${meaning.instances.source}`;
+  } else {
+    threshold = Number($('threshold').value) || DEFAULT_THRESHOLD;
+    result = selectAtPixel(drawn, meaning.features, meaning.channels, camera, column, row, threshold);
+    rule = `threshold ${threshold}`;
+  }
+  const masks = new Map(parts.map(([n, start, count]) => [n, result.mask.subarray(start, start + count)]));
+  state.selection = { count: result.count, column, row, alpha: result.alpha, threshold, rule, mask: result.mask, tiles: parts.map((p) => p[0]) };
+  view.highlightTiles(masks);
+  drawAgain();
+  $('selection').textContent = `selected ${result.count.toLocaleString()} of ${drawn.count.toLocaleString()} Gaussians drawn (pixel ${column},${row}, ${rule})`;
+  return result;
+}
+
 function clearSelection() {
+  const streamed = Boolean(state.lod);
   state.selection = null;
-  if (view) view.highlight(null);
+  if (view && streamed) view.highlightTiles(null);
+  else if (view) view.highlight(null);
   drawAgain();
   $('selection').textContent = '';
 }
 
 $('canvas').addEventListener('click', (e) => {
-  if ((rig.lastDragPixels || 0) > 3 || !scene) return;
+  if ((rig.lastDragPixels || 0) > 3 || (!scene && !state.lod)) return;
   const canvas = $('canvas');
   const column = Math.floor(e.offsetX * canvas.width / canvas.clientWidth);
   const row = Math.floor(e.offsetY * canvas.height / canvas.clientHeight);

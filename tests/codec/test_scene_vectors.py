@@ -30,11 +30,11 @@ def test_vector_decodes_as_recorded(meta_path):
     for read in meta["reads"]:
         if read["outcome"] == "error":
             with pytest.raises(CsgsError) as info:
-                Decoder().decode(data, layers=read["layers"])
+                Decoder().decode(data, layers=read["layers"], lod=read.get("lod"))
             assert type(info.value).__name__ == read["error"]
             assert info.value.chunk == read["chunk"]
             continue
-        scene = Decoder().decode(data, layers=read["layers"])
+        scene = Decoder().decode(data, layers=read["layers"], lod=read.get("lod"))
         assert len(scene) == read["gaussians"]
         assert hashlib.sha256(ply_bytes(scene)).hexdigest() == read["ply_sha256"]
     if "arrays" in meta:

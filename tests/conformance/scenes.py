@@ -50,18 +50,23 @@ def small_semantic_scene() -> GaussianScene:
         labels=(i // 8).astype(np.int32))
 
 
-def _reads(data: bytes) -> list[dict]:
-    """The outcome of decoding ``data`` with each layer choice."""
+def _reads(data: bytes, levels: int = 0) -> list[dict]:
+    """The outcome of decoding ``data`` with each layer choice; with ``levels``, also of
+    each level of detail 0..levels-1 (reads with an ``lod`` key)."""
     reads = []
-    for layers in READS:
-        try:
-            scene = Decoder().decode(data, layers=layers)
-        except CsgsError as err:
-            reads.append({"layers": layers, "outcome": "error",
-                          "error": type(err).__name__, "chunk": err.chunk})
-            continue
-        reads.append({"layers": layers, "outcome": "ok", "gaussians": len(scene),
-                      "ply_sha256": hashlib.sha256(ply_bytes(scene)).hexdigest()})
+    for lod in [None] + list(range(levels)):
+        for layers in READS:
+            try:
+                scene = Decoder().decode(data, layers=layers, lod=lod)
+            except CsgsError as err:
+                reads.append({"layers": layers, "outcome": "error",
+                              "error": type(err).__name__, "chunk": err.chunk})
+                continue
+            read = {"layers": layers, "outcome": "ok", "gaussians": len(scene),
+                    "ply_sha256": hashlib.sha256(ply_bytes(scene)).hexdigest()}
+            if lod is not None:
+                read = {"lod": lod, **read}
+            reads.append(read)
     return reads
 
 
@@ -137,6 +142,7 @@ def generate(out_dir: Path) -> None:
     _far_point_vectors(out_dir, donut)
     _view_pruned_vectors(out_dir, donut)
     _tiled_vectors(out_dir, donut)
+    _level_vectors(out_dir, donut)
     _scored_steps_vectors(out_dir, donut)
     sh_colour_transform_vectors(out_dir)
 
@@ -425,6 +431,66 @@ def _tiled_vectors(out_dir: Path, donut: GaussianScene) -> None:
     bad = with_index(lambda t: t[:1] + [replace(t[1], upper=t[1].lower)] + t[2:])
     _write(out_dir, "tiled_box_misses_a_gaussian", bad,
            "tiled_q5 with tile 1's box in TIDX shrunk to its lower corner", _reads(bad))
+
+
+def _level_vectors(out_dir: Path, donut: GaussianScene) -> None:
+    """Levels of detail (TIDX version 2, §12.22): tiled_q5's scene with 3 levels, the
+    semantic 40-Gaussian scene with 2 (with each level's arrays), and damaged trees."""
+    from dataclasses import replace
+
+    from csgs_codec.chunks.tile_index import TileIndex
+
+    head = donut.subset(np.arange(0, len(donut), 6))
+    data = Encoder(quality=5, hyperprior=False, tile_size=1000, levels=3,
+                   **UNIFORM).encode(head)
+    _write(out_dir, "levels_q5", data,
+           "every 6th Gaussian of samples/donut.ply (7,604) at quality 5 with 3 levels of "
+           "detail: 8 level-0 tiles of 950-951, a level-1 tile of 951 merged Gaussians and a "
+           "level-2 tile of 119 (tiles 0..9, coarsest first)", _reads(data, levels=3))
+    small = Encoder(quality=6, tile_size=12, levels=2, **UNIFORM).encode(
+        small_semantic_scene())
+    _write(out_dir, "levels_semantic_small", small,
+           "semantic_small's scene (40 Gaussians, SH 1, 3 semantic channels, labels) at "
+           "quality 6 with 2 levels: 4 level-0 tiles of 10 under one level-1 tile of 5; "
+           "arrays: level 0; levels_semantic_small_lod1.npz: level 1", _reads(small, levels=2),
+           arrays=Decoder().decode(small, layers="color,semantic"))
+    coarse = Decoder().decode(small, layers="color,semantic", lod=1)
+    np.savez(out_dir / "levels_semantic_small_lod1.npz",
+             **{k: v for k, v in vars(coarse).items() if isinstance(v, np.ndarray)})
+
+    def with_raw_index(change) -> bytes:
+        container = read_layers(data, layers={"color", "semantic"})
+        chunks = [Chunk(e.type, e.layer, bytes(container.payloads[e.index]), e.tile)
+                  for e in container.toc]
+        tiles = change(list(TileIndex.from_bytes(chunks[0].payload).tiles))
+        out = bytearray([2, len(tiles)])
+        for t in tiles:
+            out += _entry_bytes(t)
+        chunks[0] = Chunk("TIDX", "base", bytes(out))
+        return write_container(chunks)
+
+    bad = with_raw_index(lambda t: t[:2] + [replace(t[2], parent=None)] + t[3:])
+    _write(out_dir, "levels_leaf_without_parent", bad,
+           "levels_q5 with level-0 tile 2's parent cleared in TIDX", _reads(bad))
+    bad = with_raw_index(lambda t: t[:2] + [replace(t[2], parent=0)] + t[3:])
+    _write(out_dir, "levels_parent_two_levels_up", bad,
+           "levels_q5 with level-0 tile 2's parent set to the level-2 tile 0", _reads(bad))
+    bad = with_raw_index(lambda t: t[:1] + [replace(t[1], level=0)] + t[2:])
+    _write(out_dir, "levels_tile_level_changed", bad,
+           "levels_q5 with tile 1 (level 1, the parent of tiles 2-9) marked level 0",
+           _reads(bad))
+
+
+def _entry_bytes(tile) -> bytes:
+    """One version-2 TIDX entry as written (count, box, level, parent)."""
+    from csgs_codec.format.primitives import ByteWriter
+
+    out = ByteWriter()
+    out.varint(tile.count)
+    out.array(np.asarray(tile.lower + tile.upper, np.float32), "<f4")
+    out.fixed("u8", tile.level)
+    out.varint(0 if tile.parent is None else tile.parent + 1)
+    return out.getvalue()
 
 
 def _scored_steps_vectors(out_dir: Path, donut: GaussianScene) -> None:

@@ -131,6 +131,7 @@ PACKAGE_RANKS = {
     "attributes": 4,                              # values <-> integers (FORMAT §12)
     "chunks": 5, "interchange": 5, "render": 5, "model": 5,
     "metrics": 6, "semantic": 6, "bake": 6,       # bake: anchors -> standard Gaussians
+    "levels": 6,                                  # coarser levels of detail by merging
     "decisions": 7,                               # what only the encoder decides
     "codec": 8,                                   # Encoder, Decoder, anchors, tiles, files
     "train": 9, "web": 9, "js": 9,

@@ -196,7 +196,7 @@ def test_damaged_tile_index_is_rejected(tiled):
             Decoder().decode(bad)
         assert err.value.chunk is not None, name
     with pytest.raises(FormatError, match="version"):
-        TileIndex.from_bytes(b"\x02\x01")
+        TileIndex.from_bytes(b"\x03\x01")
     with pytest.raises(FormatError, match="tile_count"):
         TileIndex.from_bytes(b"\x01\x05" + bytes(30))
 
