@@ -8,7 +8,9 @@ Stage 1 (csgs_codec/train/color_stage.py) runs ``--steps`` steps on a seeded syn
 dataset (5 objects x ``--gaussians-per-object`` Gaussians, ``--views`` views at ``--size``)
 from about ``--anchors`` anchors with ``--offsets`` Gaussian slots each (2,000 x 10: about
 20k slots), growth off so the slot count holds, through ``--rasterizer`` (auto: gsplat on
-CUDA when installed); the first 5 steps are a warm-up left out of the rate. The semantic
+CUDA when installed); the first 5 steps are a warm-up left out of the rate and out of
+``cpu_s_per_step``, the process's CPU seconds a timed step (every thread: on a machine other
+work shares it moves less than the wall-clock rate does). The semantic
 stage (csgs_codec/train/semantic_stage.py) trains ``--semantic-iterations`` steps on a small
 scene (3 objects x 50 Gaussians, 3 views at 32x24: the gpu test's case). The JSON (schema
 csgs-bench/1) has the device, steps/s, seconds, and on CUDA the peak GPU memory.
@@ -65,12 +67,13 @@ def stage_one_speed(device: str, width: int, height: int, steps: int, anchors: i
                                   **({} if all_slots is None else {"all_slots": all_slots}))
     state = initial_state(data.views, data.scene.positions, settings)
     slots = int(state.model.cells.shape[0]) * offsets
-    times = []
+    times, cpu_times = [], []
 
     def tick(*_args, **_kwargs) -> None:
         if device.startswith("cuda"):
             torch.cuda.synchronize()
         times.append(time.perf_counter())
+        cpu_times.append(time.process_time())
 
     start = time.perf_counter()
     train_color_stage(data.views, state, progress=tick, stop_at=WARMUP + steps)
@@ -84,7 +87,10 @@ def stage_one_speed(device: str, width: int, height: int, steps: int, anchors: i
         ops = count_step_ops(lambda: train_color_stage(data.views, state), count_ops)
     timed = times[WARMUP:] if len(times) > WARMUP + 1 else times
     rate = (len(timed) - 1) / (timed[-1] - timed[0]) if len(timed) > 1 else None
+    cpu = cpu_times[WARMUP:] if len(cpu_times) > WARMUP + 1 else cpu_times
+    cpu_per_step = (cpu[-1] - cpu[0]) / (len(cpu) - 1) if len(cpu) > 1 else None
     return {"steps": WARMUP + steps, "seconds": total, "steps_per_s": rate,
+            "cpu_s_per_step": cpu_per_step,
             "gaussian_slots": slots, "size": f"{width}x{height}",
             "rasterizer": resolve_training_rasterizer(rasterizer, device),
             "all_slots": all_slots}, ops

@@ -85,7 +85,9 @@ def score_and_slopes(stats: np.ndarray, c1: float, c2: float,
     rows = np.zeros(channels * out_h, np.float64)
     for job in numba.prange(channels * out_h):
         c, i = job // out_h, job % out_h
-        total = 0.0
+        # The row's scores first, then their sum in order: a loop with the running sum in
+        # it cannot be vectorised (float addition is not associative), one without can.
+        scores = np.empty(out_w, np.float64)
         for j in range(out_w):
             mu_a, mu_b = stats[0, c, i, j], stats[1, c, i, j]
             var_a = stats[2, c, i, j] - mu_a * mu_a
@@ -97,11 +99,14 @@ def score_and_slopes(stats: np.ndarray, c1: float, c2: float,
             den2 = var_a + var_b + c2
             den = den1 * den2
             score = num1 * num2 / den
-            total += score
+            scores[j] = score
             slopes[0, c, i, j] = (2 * mu_b * (num2 - num1) / den
                                   - score * 2 * mu_a * (1 / den1 - 1 / den2))
             slopes[1, c, i, j] = -score / den2
             slopes[2, c, i, j] = 2 * num1 / den
+        total = 0.0
+        for j in range(out_w):
+            total += scores[j]
         rows[job] = total
     return rows.sum()
 

@@ -56,8 +56,8 @@ def rasterize_for_training(means: torch.Tensor, log_scales: torch.Tensor, quats:
     Opacity comes as ``opacity_logits`` [N] (before the sigmoid) or as ``opacities`` [N] in
     [0, 1] (then ``opacity_logits`` is None); gsplat takes the second as it is, the torch
     reference takes the logit of it clamped into [:data:`OPACITY_EPS`, 1 - OPACITY_EPS].
-    ``with_depth=False`` lets gsplat skip the depth map (then None; the reference makes it
-    anyway).
+    ``with_depth=False`` skips the depth map (then None): gsplat and the reference composite
+    one value fewer per Gaussian, and the image, alpha and gradients are the same numbers.
 
     Returns:
         :class:`RasterTensors` (image [H, W, 3], alpha [H, W], depth [H, W]), differentiable
@@ -78,4 +78,4 @@ def rasterize_for_training(means: torch.Tensor, log_scales: torch.Tensor, quats:
     # reference to float32 rounding, several times faster), torch elsewhere.
     return rasterize_gaussians(means, log_scales, quats, opacity_logits, camera, colors=colors,
                                background=background, near_plane=near_plane,
-                               compositor="auto")
+                               compositor="auto", with_depth=with_depth)

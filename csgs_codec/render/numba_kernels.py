@@ -1,7 +1,10 @@
 """numba kernels of the fast forward rasterizer; importing this module needs numba.
 
 The compositing rule is the one in :mod:`csgs_codec.render.composite_torch`, evaluated in
-float32 pixel by pixel with an early exit per pixel. Tiles run in parallel.
+float32 pixel by pixel with an early exit per pixel (:mod:`csgs_codec.render.numba_pixel`);
+binning, blend weights, per-pixel blend records and the per-Gaussian sums of slot gradients
+are here, compositing and its gradients in :mod:`csgs_codec.render.numba_composite`. Tiles
+run in parallel.
 
 The kernels Python calls take turns across threads and run on the threading layer that
 :mod:`csgs_codec.render.numba_runtime` selects.
@@ -12,20 +15,20 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from csgs_codec.render.composite_torch import MAX_ALPHA, TRANSMITTANCE_STOP
+# Compositing and its replay for gradients live in numba_composite; re-exported here, the
+# module every caller takes the kernels from.
+from csgs_codec.render.numba_composite import (  # noqa: F401
+    composite_tiles,
+    composite_tiles_backward,
+)
+from csgs_codec.render.numba_pixel import ALPHA_THRESHOLD32 as _ALPHA_THRESHOLD
+from csgs_codec.render.numba_pixel import HALF as _HALF
+from csgs_codec.render.numba_pixel import ONE as _ONE
+from csgs_codec.render.numba_pixel import POWER_MARGIN as _POWER_MARGIN
+from csgs_codec.render.numba_pixel import T_STOP as _T_STOP
+from csgs_codec.render.numba_pixel import alpha_at as _alpha_at
+from csgs_codec.render.numba_pixel import pack_tile as _pack_tile
 from csgs_codec.render.numba_runtime import jit_kernel, one_launch_at_a_time
-from csgs_codec.render.projection import ALPHA_THRESHOLD
-
-# Typed constants keep the kernel arithmetic in float32, like the torch reference.
-_HALF = np.float32(0.5)
-_ONE = np.float32(1.0)
-_MAX_ALPHA = np.float32(MAX_ALPHA)
-_ALPHA_THRESHOLD = np.float32(ALPHA_THRESHOLD)
-_T_STOP = np.float32(TRANSMITTANCE_STOP)
-#: A pair whose exponent is this far below log(threshold / opacity) is skipped without exp();
-#: the margin dwarfs float32 rounding, so the exact alpha test still decides every close case.
-_POWER_MARGIN = np.float32(1e-3)
-
 
 #: Relative slack of the tile test (:func:`_row_spans`) on the float32 exponent, about 170
 #: float32 ulps of the exponent's largest term: a Gaussian leaves a tile's list only when no
@@ -142,90 +145,6 @@ def bin_tiles(rects: np.ndarray, order: np.ndarray, n_tiles: int, tiles_x: int,
     return offsets, ids
 
 
-@jit_kernel()
-def _pack_tile(ids: np.ndarray, start: int, count: int, means2d: np.ndarray,
-               conics: np.ndarray, opacities: np.ndarray) -> np.ndarray:
-    """[count, 7] float32 rows (mean x, mean y, conic a, b, c, opacity, the exponent below
-    which alpha misses the threshold) of a tile's Gaussians ``ids[start:start + count]``,
-    packed contiguously so the per-pixel loop stays in cache."""
-    packed = np.empty((count, 7), np.float32)
-    for k in range(count):
-        g = ids[start + k]
-        packed[k, 0] = means2d[g, 0]
-        packed[k, 1] = means2d[g, 1]
-        packed[k, 2] = conics[g, 0]
-        packed[k, 3] = conics[g, 1]
-        packed[k, 4] = conics[g, 2]
-        packed[k, 5] = opacities[g]
-        packed[k, 6] = np.log(_ALPHA_THRESHOLD / opacities[g]) - _POWER_MARGIN
-    return packed
-
-
-@jit_kernel(inline="always")
-def _alpha_at(packed: np.ndarray, k: int, pxc: np.float32,
-              pyc: np.float32) -> tuple[np.float32, np.float32, np.float32, np.float32]:
-    """(alpha, exp(power), dx, dy) of packed Gaussian ``k`` at the pixel centre (pxc, pyc),
-    in float32 by the compositing rule; alpha is 0 where it misses the 1/255 threshold."""
-    dx = pxc - packed[k, 0]
-    dy = pyc - packed[k, 1]
-    power = (-_HALF * (packed[k, 2] * dx * dx + packed[k, 4] * dy * dy)
-             - packed[k, 3] * dx * dy)
-    zero = np.float32(0.0)
-    if power < packed[k, 6]:
-        return zero, zero, dx, dy
-    falloff = np.exp(power)
-    alpha = min(_MAX_ALPHA, packed[k, 5] * falloff)
-    if alpha < _ALPHA_THRESHOLD:
-        return zero, falloff, dx, dy
-    return alpha, falloff, dx, dy
-
-
-@one_launch_at_a_time
-@jit_kernel(parallel=True)
-def composite_tiles(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
-                    conics: np.ndarray, opacities: np.ndarray, values: np.ndarray,
-                    width: int, height: int, tile_size: int, tiles_x: int,
-                    out: np.ndarray, transmittance: np.ndarray, walked: np.ndarray) -> None:
-    """Composite every tile into ``out`` [H, W, C] and ``transmittance`` [H, W] (float32).
-
-    ``out`` must start at zero; per-Gaussian inputs are float32: means2d [N, 2], conics
-    [N, 3], opacities [N], values [N, C]. ``walked`` [H, W] int32 receives how many of its
-    tile's Gaussians each pixel went through before it stopped (the backward pass replays
-    exactly those).
-    """
-    n_tiles = offsets.shape[0] - 1
-    channels = values.shape[1]
-    for t in numba.prange(n_tiles):
-        start = offsets[t]
-        count = offsets[t + 1] - start
-        if count == 0:
-            continue
-        packed = _pack_tile(ids, start, count, means2d, conics, opacities)
-        x0 = (t % tiles_x) * tile_size
-        y0 = (t // tiles_x) * tile_size
-        for py in range(y0, min(y0 + tile_size, height)):
-            pyc = np.float32(py) + _HALF
-            for px in range(x0, min(x0 + tile_size, width)):
-                pxc = np.float32(px) + _HALF
-                trans = _ONE
-                stop = count
-                for k in range(count):
-                    alpha, _, _, _ = _alpha_at(packed, k, pxc, pyc)
-                    if alpha == 0:
-                        continue
-                    after = trans * (_ONE - alpha)
-                    if after < _T_STOP:
-                        stop = k
-                        break
-                    weight = alpha * trans
-                    g = ids[start + k]
-                    for ch in range(channels):
-                        out[py, px, ch] += weight * values[g, ch]
-                    trans = after
-                transmittance[py, px] = trans
-                walked[py, px] = stop
-
-
 @one_launch_at_a_time
 @jit_kernel(parallel=True)
 def blend_weight_slots(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
@@ -264,82 +183,6 @@ def blend_weight_slots(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray
                     weight_sq[start + k] += weight * weight
                     weight_sum[start + k] += weight
                     trans = after
-
-
-@one_launch_at_a_time
-@jit_kernel(parallel=True)
-def composite_tiles_backward(offsets: np.ndarray, ids: np.ndarray, means2d: np.ndarray,
-                             conics: np.ndarray, opacities: np.ndarray, values: np.ndarray,
-                             width: int, height: int, tile_size: int, tiles_x: int,
-                             out: np.ndarray, transmittance: np.ndarray, walked: np.ndarray,
-                             grad_out: np.ndarray, grad_transmittance: np.ndarray,
-                             slot_grads: np.ndarray) -> None:
-    """Gradients of :func:`composite_tiles` for every (tile, Gaussian) slot of ``ids``.
-
-    Each pixel replays its forward walk (same float32 operations in the same order, so the
-    same pairs contribute) with ``out``, ``transmittance`` and ``walked`` from the forward
-    pass. For pair i of a pixel with weight w_i = alpha_i T_i and S_i the accumulated value
-    of the pairs behind it (``out`` minus the running sum up to i):
-
-        dL/dalpha_i = sum_c g_c (T_i v_ic - S_ic / (1 - alpha_i)) - g_T T_final / (1 - alpha_i)
-        dL/dv_ic = g_c w_i
-
-    and the chain rule through alpha = min(0.99, opacity exp(power)) gives the mean, conic
-    and opacity terms. ``slot_grads`` [I, 6 + C] float32 (zeroed by the caller) receives
-    (mean x, mean y, conic a, b, c, opacity, values...); slots belong to one tile each, so
-    tiles run in parallel without races and the caller sums slots per Gaussian.
-    """
-    n_tiles = offsets.shape[0] - 1
-    channels = values.shape[1]
-    for t in numba.prange(n_tiles):
-        start = offsets[t]
-        count = offsets[t + 1] - start
-        if count == 0:
-            continue
-        packed = _pack_tile(ids, start, count, means2d, conics, opacities)
-        running = np.empty(channels, np.float32)
-        x0 = (t % tiles_x) * tile_size
-        y0 = (t // tiles_x) * tile_size
-        for py in range(y0, min(y0 + tile_size, height)):
-            pyc = np.float32(py) + _HALF
-            for px in range(x0, min(x0 + tile_size, width)):
-                stop = walked[py, px]
-                if stop == 0:
-                    continue
-                pxc = np.float32(px) + _HALF
-                final = transmittance[py, px]
-                grad_t = grad_transmittance[py, px]
-                for ch in range(channels):
-                    running[ch] = np.float32(0.0)
-                trans = _ONE
-                for k in range(stop):
-                    alpha, falloff, dx, dy = _alpha_at(packed, k, pxc, pyc)
-                    if alpha == 0:
-                        continue
-                    raw = packed[k, 5] * falloff
-                    keep = _ONE - alpha
-                    weight = alpha * trans
-                    g = ids[start + k]
-                    slot = start + k
-                    grad_alpha = -grad_t * final / keep
-                    for ch in range(channels):
-                        value = values[g, ch]
-                        running[ch] += weight * value
-                        behind = out[py, px, ch] - running[ch]
-                        grad_c = grad_out[py, px, ch]
-                        grad_alpha += grad_c * (trans * value - behind / keep)
-                        slot_grads[slot, 6 + ch] += grad_c * weight
-                    if raw <= _MAX_ALPHA:  # the clamp passes no gradient above its bound
-                        grad_power = grad_alpha * alpha
-                        slot_grads[slot, 0] += grad_power * (packed[k, 2] * dx
-                                                             + packed[k, 3] * dy)
-                        slot_grads[slot, 1] += grad_power * (packed[k, 4] * dy
-                                                             + packed[k, 3] * dx)
-                        slot_grads[slot, 2] -= _HALF * dx * dx * grad_power
-                        slot_grads[slot, 3] -= dx * dy * grad_power
-                        slot_grads[slot, 4] -= _HALF * dy * dy * grad_power
-                        slot_grads[slot, 5] += grad_alpha * falloff
-                    trans = trans * keep
 
 
 @one_launch_at_a_time

@@ -35,7 +35,7 @@ class RasterTensors(NamedTuple):
         alpha: [H, W] accumulated opacity, 1 - final transmittance.
         depth: [H, W] expected camera-space z of what the pixel sees (accumulated weight * z
             divided by alpha), 0 where alpha is 0; None where the caller did not ask for it
-            and the rasterizer skips it (gsplat with ``with_depth=False``).
+            and the rasterizer skips it (``with_depth=False``).
         features: [H, W, F] accumulated weight * feature (no background), or None.
     """
 
@@ -109,7 +109,7 @@ def rasterize_gaussians(means: torch.Tensor, log_scales: torch.Tensor, quats: to
                         features: torch.Tensor | None = None,
                         background: torch.Tensor | tuple[float, float, float] | None = None,
                         near_plane: float = DEFAULT_NEAR_PLANE,
-                        compositor: str = "torch") -> RasterTensors:
+                        compositor: str = "torch", with_depth: bool = True) -> RasterTensors:
     """Render Gaussians to an image, differentiably (the reference rasterizer).
 
     Args:
@@ -127,6 +127,9 @@ def rasterize_gaussians(means: torch.Tensor, log_scales: torch.Tensor, quats: to
             CPU, several times faster forward and backward; needs numba) or "auto" (numba
             when the inputs allow it and numba is installed, else torch). Projection and
             colors are torch in every case.
+        with_depth: composite the depth map (False: ``depth`` is None, and the compositor
+            carries one value fewer per Gaussian; image, alpha and features are the same
+            numbers either way, and so are their gradients).
 
     Returns:
         :class:`RasterTensors`, each differentiable with respect to every tensor argument.
@@ -139,7 +142,7 @@ def rasterize_gaussians(means: torch.Tensor, log_scales: torch.Tensor, quats: to
                                  colors=colors, near_plane=near_plane)
     proj = prepared.projected
     n = means.shape[0]
-    parts = [prepared.colors, proj.depths[:, None]]
+    parts = [prepared.colors, proj.depths[:, None]] if with_depth else [prepared.colors]
     if features is not None:
         if features.ndim != 2 or features.shape[0] != n:
             raise InputError(f"expected [N, F] with N = {n}, got {tuple(features.shape)}",
@@ -157,9 +160,11 @@ def rasterize_gaussians(means: torch.Tensor, log_scales: torch.Tensor, quats: to
           else torch.as_tensor(background, dtype=dtype, device=means.device))
     image = acc[..., :3] + transmittance[..., None] * bg
     alpha = 1.0 - transmittance
-    has_alpha = alpha > 0
-    depth = torch.where(has_alpha, acc[..., 3] / torch.where(has_alpha, alpha,
-                                                             torch.ones_like(alpha)),
-                        torch.zeros_like(alpha))
-    feats = acc[..., 4:] if features is not None else None
+    depth = None
+    if with_depth:
+        has_alpha = alpha > 0
+        depth = torch.where(has_alpha, acc[..., 3] / torch.where(has_alpha, alpha,
+                                                                 torch.ones_like(alpha)),
+                            torch.zeros_like(alpha))
+    feats = acc[..., 4 if with_depth else 3:] if features is not None else None
     return RasterTensors(image, alpha, depth, feats)

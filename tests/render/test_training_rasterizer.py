@@ -46,3 +46,30 @@ def test_auto_on_the_cpu_renders_what_the_reference_renders():
     ref = rasterize_gaussians(*args, colors=colors, background=(0.1, 0.2, 0.3))
     torch.testing.assert_close(auto.image, ref.image, rtol=1e-5, atol=1e-5)
     assert float(auto.alpha.max()) > 0.1
+
+
+@pytest.mark.parametrize("compositor", ["torch", "numba"])
+def test_skipping_the_depth_map_changes_no_image_alpha_or_gradient_bit(compositor):
+    """``with_depth=False`` (what training asks for) composites one value fewer per
+    Gaussian; the image, alpha and every gradient of a loss on them are the same bits."""
+    if compositor == "numba":
+        pytest.importorskip("numba")
+    t = scene_tensors(random_scene(400, sh_degree=0, seed=5))
+    cam = look_at_camera(np.array([0.2, -0.4, -3.0]), np.zeros(3), np.array([0.0, -1.0, 0.0]),
+                         40, 30)
+    results = []
+    for with_depth in (True, False):
+        leaves = {k: v.detach().clone().requires_grad_() for k, v in t.items() if k != "sh"}
+        colors = torch.sigmoid(t["sh"][:, 0, :]).detach().requires_grad_()
+        out = rasterize_gaussians(leaves["means"], leaves["log_scales"], leaves["quats"],
+                                  leaves["opacity_logits"], cam, colors=colors,
+                                  background=(0.1, 0.2, 0.3), compositor=compositor,
+                                  with_depth=with_depth)
+        assert (out.depth is None) == (not with_depth)
+        weights = torch.rand(out.image.shape, generator=torch.Generator().manual_seed(3))
+        ((out.image * weights).sum() + 0.5 * out.alpha.square().sum()).backward()
+        grads = [leaves[k].grad for k in ("means", "log_scales", "quats", "opacity_logits")]
+        results.append([out.image.detach(), out.alpha.detach(), colors.grad, *grads])
+    assert float(results[0][1].max()) > 0.5, "the view must show something"
+    for with_depth, without in zip(*results):
+        assert torch.equal(with_depth, without)

@@ -157,6 +157,50 @@ def test_ssim_numba_kernels_give_the_reference_value_and_gradient(shape):
     assert float((grad - ref_grad).norm() / ref_grad.norm()) < 1e-5
 
 
+def test_ssim_score_pass_sums_each_row_in_order():
+    """The score pass forms a row's scores, then sums them: the same bits as the loop with
+    the running sum in it (the kernel as it was, parallel over rows like it)."""
+    numba = pytest.importorskip("numba")
+    from csgs_codec.metrics import ssim_kernels
+    from csgs_codec.metrics.ssim import SSIM_C1, SSIM_C2
+
+    @numba.njit(cache=False, parallel=True)
+    def plain(stats, c1, c2, slopes):
+        _, channels, out_h, out_w = stats.shape
+        rows = np.zeros(channels * out_h, np.float64)
+        for job in numba.prange(channels * out_h):
+            c, i = job // out_h, job % out_h
+            total = 0.0
+            for j in range(out_w):
+                mu_a, mu_b = stats[0, c, i, j], stats[1, c, i, j]
+                var_a = stats[2, c, i, j] - mu_a * mu_a
+                var_b = stats[3, c, i, j] - mu_b * mu_b
+                cov = stats[4, c, i, j] - mu_a * mu_b
+                num1 = 2 * mu_a * mu_b + c1
+                num2 = 2 * cov + c2
+                den1 = mu_a * mu_a + mu_b * mu_b + c1
+                den2 = var_a + var_b + c2
+                den = den1 * den2
+                score = num1 * num2 / den
+                total += score
+                slopes[0, c, i, j] = (2 * mu_b * (num2 - num1) / den
+                                      - score * 2 * mu_a * (1 / den1 - 1 / den2))
+                slopes[1, c, i, j] = -score / den2
+                slopes[2, c, i, j] = 2 * num1 / den
+            rows[job] = total
+        return rows.sum()
+
+    rng = np.random.default_rng(4)
+    a = rng.random((3, 40, 57), dtype=np.float32)
+    b = np.clip(a + 0.2 * rng.standard_normal(a.shape), 0, 1).astype(np.float32)
+    taps = np.exp(-0.5 * ((np.arange(11) - 5) / 1.5) ** 2)
+    stats = ssim_kernels.window_statistics(a, b, (taps / taps.sum()).astype(np.float32))
+    slopes = [np.empty((3,) + stats.shape[1:], np.float32) for _ in range(2)]
+    fast = ssim_kernels.score_and_slopes(stats, SSIM_C1, SSIM_C2, slopes[0])
+    assert fast == plain(stats, SSIM_C1, SSIM_C2, slopes[1])
+    np.testing.assert_array_equal(slopes[0], slopes[1])
+
+
 @pytest.mark.parametrize("shape", [(75, 90, 3), (11, 11, 1)])
 def test_ssim_numba_kernels_give_the_same_bits_on_one_and_two_threads(shape):
     numba = pytest.importorskip("numba")
