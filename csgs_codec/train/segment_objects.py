@@ -26,6 +26,12 @@ segments belong together:
    weight; pixels under :data:`MIN_ALPHA` take :data:`BACKGROUND_ID`. Objects are numbered
    from 1 by decreasing rendered weight over all views (ties: lowest group first).
 
+Measured (benchmarks/segment_auto.py, 24 views of 320x240, 3D click mIoU): real objects
+placed apart, 2 and 6 of them, 0.35 / 0.51 on the segmenter's masks as instances, 0.98 / 1.00
+with this step (the exact masks: 1.00); mary_rose trained without instance masks, 2D click IoU
+against its foreground masks 0.16 -> 0.96. Objects that touch stay one piece: fruit_drops'
+letters on their card 0.51 -> 0.12.
+
 The masks are consistent across views (one id per object everywhere), so the contrastive
 stage and the lifting that follow treat them as user instance masks. Everything is
 deterministic: stable sorts, minimum-label components, no random numbers.
