@@ -152,7 +152,8 @@ class ViewBatch:
             # except for the order torch adds a mask's entries in on tiny views).
             summed = torch.sparse_coo_tensor(
                 torch.stack([mask_of_pixel[pixel[keep]], group[keep]]), data[filled:end],
-                (max(count, 1), group_count), check_invariants=False).coalesce()
+                (max(count, 1), group_count), check_invariants=False,
+                device=device).coalesce()
             filled = end
             del coo, pixel, group, new_row, keep
             mask_rows.append(summed.indices()[0] + mask_offset)
@@ -251,9 +252,10 @@ def _sorted_csr_pair(row: torch.Tensor, col: torch.Tensor, data: torch.Tensor,
         t_col, t_data = row[order], data[order]
     with warnings.catch_warnings():  # torch calls its CSR support "beta" on every conversion
         warnings.filterwarnings("ignore", message=".*Sparse CSR tensor support.*")
-        matrix = torch.sparse_csr_tensor(crow, col, data, shape, check_invariants=False)
+        matrix = torch.sparse_csr_tensor(crow, col, data, shape, check_invariants=False,
+                                         device=device)
         transpose = torch.sparse_csr_tensor(t_crow, t_col, t_data, shape[::-1],
-                                            check_invariants=False)
+                                            check_invariants=False, device=device)
     return matrix, transpose
 
 
@@ -284,4 +286,5 @@ def _transposed_entries(row: torch.Tensor, col: torch.Tensor, data: torch.Tensor
         t_col[slot] = rows[start:start + TRANSPOSE_CHUNK]
         t_data[slot] = values[start:start + TRANSPOSE_CHUNK]
         placed += np.bincount(keys, minlength=len(placed))
-    return torch.from_numpy(t_col), torch.from_numpy(t_data)
+    return (torch.as_tensor(t_col, device=row.device),
+            torch.as_tensor(t_data, device=row.device))
