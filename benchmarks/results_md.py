@@ -151,6 +151,8 @@ VIEWS: dict[str, list[View]] = {
     "segment_scale": [View(["device", "gaussians", "views", "size", "iterations",
                             "seconds.render", "seconds.stage2", "seconds.instances",
                             "instances", "object_iou_mean", "semantic_share_percent_q5"])],
+    "segment_auto": [View(["scene", "variant", "gaussians", "objects", "instances",
+                           "click_miou_3d", "click_miou_2d", "seconds", "peak_rss_mb"])],
     "selection_real": [
         View(["masks", "variant", "coding", "selection.instance.miou_3d",
               "selection.instance.miou_2d", "semantic_share_percent"],

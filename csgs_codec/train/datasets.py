@@ -21,7 +21,8 @@ stem (``masks/frame_001.png`` for ``images/frame_001.jpg``), from the ``masks/``
 the images unless another folder is given. A mask may also have the size of the full-size
 image when an LLFF ``images_N/`` copy is read: it is then resized like the image. Without
 masks, the built-in segmenter (:mod:`csgs_codec.train.segmentation`) makes them, with a
-:class:`~csgs_codec.errors.FallbackWarning` (the CLI shows it even under ``--quiet``).
+:class:`~csgs_codec.errors.FallbackWarning` (the CLI shows it even under ``--quiet``), and
+marks them ``oversegmented`` (the semantic stages merge them into objects first).
 Foreground masks (object vs background, :mod:`.foreground`) are named the same way; a
 capture's ``masks/`` folder of 0/255 images is one (:func:`find_foreground_masks`), and is
 then not read as instance masks.
@@ -143,6 +144,7 @@ def load_dataset(path: str | Path, *, downscale: float = 1.0, masks: str | Path 
                       FallbackWarning, stacklevel=2)
         for view in views:
             view.mask = segment_image(view.image)
+            view.oversegmented = True
     return views
 
 

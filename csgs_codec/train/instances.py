@@ -241,11 +241,11 @@ def _join_masks(descriptors: np.ndarray, usable: np.ndarray, batch: ViewBatch,
 def _visibility(batch: ViewBatch) -> tuple[np.ndarray, np.ndarray]:
     """((G,) float64 summed rendered weight of each group over the masked pixels, (G,)
     float64 its largest weight at one pixel)."""
-    with torch.no_grad():
-        coo = batch.transpose.to_sparse_coo().coalesce()
-        group = coo.indices()[0].cpu().numpy()
-        weight = coo.values().double().cpu().numpy()
+    # The transpose's rows are the groups: its entries in order, without a COO copy.
     groups = batch.transpose.shape[0]
+    counts = torch.diff(batch.transpose.crow_indices()).cpu().numpy()
+    group = np.repeat(np.arange(groups), counts)
+    weight = batch.transpose.values().double().cpu().numpy()
     peak = np.zeros(groups)
     np.maximum.at(peak, group, weight)
     return np.bincount(group, weights=weight, minlength=groups), peak

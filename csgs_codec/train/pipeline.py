@@ -6,7 +6,9 @@
 3. Stage 2 fits per-anchor semantic features s to the views' instance masks on that
    reconstruction (:mod:`.semantic_stage`: quantization noise Q = 1, quality-aware weights
    from q_f, normalised over the range of steps the codec can give an anchor); stage 3
-   continues with the rate of s under a hyperprior on the anchor positions.
+   continues with the rate of s under a hyperprior on the anchor positions. The built-in
+   segmenter's over-segments are first made into objects consistent across views by the
+   anchors' 3D structure (:mod:`.segment_objects`).
 4. s, scaled from quantization steps to the encoder's semantic step, joins the anchors, and
    the scene is encoded with both layers.
 
@@ -46,6 +48,7 @@ from csgs_codec.train.color_stage import (
 )
 from csgs_codec.train.image_files import resize_mask
 from csgs_codec.train.losses import CONTRASTIVE_MARGIN
+from csgs_codec.train.segment_objects import object_masks
 from csgs_codec.train.semantic_stage import (
     SEMANTIC_DIM,
     SemanticResult,
@@ -293,6 +296,12 @@ def _semantic_steps(views: list[TrainingView], color: AnchorEncodeReport,
         prepared.append(SemanticView(matrix, torch.as_tensor(mask.astype(np.int64),
                                                              device=matrix.device)))
         report("stages 2-3: preparing the views", _count(done, len(views), m))
+    if all(view.oversegmented for view in views):
+        merged = object_masks([v.contributions for v in prepared],
+                              [v.mask.cpu().numpy() for v in prepared], scene.positions)
+        prepared = [SemanticView(v.contributions, torch.as_tensor(
+            mask.astype(np.int64), device=v.contributions.device))
+            for v, mask in zip(prepared, merged)]
 
     def steps(stage: str, total: int) -> Callable[[int], None]:
         report(stage, None)

@@ -8,6 +8,9 @@ images, cameras and instance masks.
 2. Stage 2 trains a D-channel feature per Gaussian with the intra-mask smoothing and
    inter-mask contrastive losses under quantization noise
    (:func:`~csgs_codec.train.semantic_stage.train_semantic_features`).
+   Views whose masks are the built-in segmenter's over-segments (every view's
+   ``oversegmented``) first have them made into objects consistent across views
+   (:func:`~csgs_codec.train.segment_objects.object_masks`).
 3. The features pick instances: masks of different views that show one object are joined by
    their features, each Gaussian takes the nearest object and then the majority of its 3D
    neighbours (:func:`~csgs_codec.train.instances.lift_instances`).
@@ -36,11 +39,12 @@ from csgs_codec.errors import InputError, require_type
 from csgs_codec.scene.gaussian_scene import GaussianScene
 from csgs_codec.scene.instance_table import MAX_EMBEDDING_DIM, InstanceTable
 from csgs_codec.train import defaults
+from csgs_codec.train.heap import release_freed_memory
 from csgs_codec.train.instances import NEIGHBOURS, Instances, lift_instances
+from csgs_codec.train.segment_objects import object_masks
 from csgs_codec.train.semantic_batch import ViewBatch
 from csgs_codec.train.semantic_stage import (
     SEMANTIC_DIM,
-    SemanticView,
     contribution_matrix,
     train_semantic_features,
 )
@@ -161,7 +165,7 @@ def segment_scene(scene: GaussianScene, views: list[TrainingView],
     report = progress or (lambda phase, done, total: None)
     seconds = {}
     began = time.perf_counter()
-    prepared = []
+    contributions, masks = [], []
     for i, view in enumerate(views):
         if view.mask is None:
             raise InputError("every view needs an instance mask", file=view.name or None,
@@ -170,17 +174,26 @@ def segment_scene(scene: GaussianScene, views: list[TrainingView],
             raise InputError(f"mask is {view.mask.shape[1]}x{view.mask.shape[0]} but its "
                              f"camera is {view.camera.width}x{view.camera.height}",
                              file=view.name or None, index=i, property="mask")
-        matrix = contribution_matrix(scene, view.camera, device=settings.device)
-        prepared.append(SemanticView(matrix, torch.as_tensor(view.mask.astype(np.int64),
-                                                             device=matrix.device)))
+        contributions.append(contribution_matrix(scene, view.camera, device=settings.device))
+        masks.append(view.mask)
         report("render", i + 1, len(views))
     seconds["render"] = time.perf_counter() - began
+    if all(view.oversegmented for view in views):
+        began = time.perf_counter()
+        masks = object_masks(contributions, masks, scene.positions)
+        seconds["objects"] = time.perf_counter() - began
+        release_freed_memory()
     began = time.perf_counter()
-    batch = ViewBatch.from_views([v.contributions for v in prepared],
-                                 [v.mask for v in prepared], len(scene),
-                                 ignore_id=settings.ignore_id, device=settings.device)
+    # The batch takes each view's matrix over as it reads it (release): the peak memory
+    # holds the contributions once.
+    batch = ViewBatch.from_views(
+        contributions, [torch.as_tensor(mask.astype(np.int64), device=settings.device)
+                        for mask in masks], len(scene),
+        ignore_id=settings.ignore_id, device=settings.device, release=True)
+    del contributions
+    release_freed_memory()
     trained = train_semantic_features(
-        prepared, len(scene), dim=settings.dim, iterations=settings.iterations,
+        [], len(scene), dim=settings.dim, iterations=settings.iterations,
         learning_rate=settings.learning_rate, margin=settings.margin,
         ignore_id=settings.ignore_id, seed=settings.seed, device=settings.device,
         on_step=lambda step: report("stage2", step + 1, settings.iterations), batch=batch)

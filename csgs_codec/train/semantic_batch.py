@@ -18,9 +18,11 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 
 from csgs_codec.errors import InputError
+from csgs_codec.train.heap import release_freed_memory
 
 #: Most mask ids one view may hold: the contrastive term compares every pair of a view's
 #: masks, so its memory grows as the square (12,695 ids in one view took 6.9 GB). SAM gives
@@ -83,17 +85,30 @@ class ViewBatch:
     @classmethod
     def from_views(cls, contributions: list[torch.Tensor], masks: list[torch.Tensor],
                    group_count: int, *, ignore_id: int | None = None,
-                   device: str | torch.device = "cpu") -> ViewBatch:
+                   device: str | torch.device = "cpu", release: bool = False) -> ViewBatch:
         """Stack views: ``contributions[v]`` (H_v * W_v, G) sparse, ``masks[v]`` (H_v, W_v)
-        integer ids (``ignore_id`` pixels belong to no mask).
+        integer ids (``ignore_id`` pixels belong to no mask). With ``release``, each
+        ``contributions[v]`` is set to None once read, so a caller that keeps no other
+        reference holds each view's matrix or its rows of the batch, never both.
 
         Raises:
             InputError: a matrix that does not match its mask or G.
         """
-        rows, cols, values, mask_parts, sizes, mask_view, ids = [], [], [], [], [], [], []
+        mask_parts, sizes, mask_view, ids = [], [], [], []
+        # Upper bound of the rows' entries, filled in place (no per-view copies to join).
+        capacity = sum(int(matrix.coalesce()._nnz()) if matrix.layout == torch.sparse_coo
+                       else 0 for matrix in contributions)
+        row = torch.empty(capacity, dtype=torch.int64, device=device)
+        col = torch.empty(capacity, dtype=torch.int64, device=device)
+        data = torch.empty(capacity, dtype=torch.float32, device=device)
+        filled = 0
+        mask_rows, mask_cols, mask_values = [], [], []
         masks_per_view, firsts, seconds, pair_views, pairs_per_view = [], [], [], [], []
         row_offset = mask_offset = total_pairs = 0
-        for v, (matrix, mask) in enumerate(zip(contributions, masks)):
+        for v, mask in enumerate(masks):
+            matrix = contributions[v]
+            if release:
+                contributions[v] = None
             pixels = mask.shape[0] * mask.shape[1] if mask.ndim == 2 else -1
             if tuple(matrix.shape) != (pixels, group_count):
                 raise InputError(f"view {v}: contributions {tuple(matrix.shape)} do not match "
@@ -117,6 +132,7 @@ class ViewBatch:
             mask_of_pixel = torch.full((pixels,), -1, dtype=torch.int64, device=device)
             mask_of_pixel[kept] = index
             coo = matrix.to(device).coalesce()
+            del matrix
             pixel, group = coo.indices()
             covered = torch.zeros(pixels, dtype=torch.bool, device=device)
             covered[pixel] = True
@@ -126,10 +142,23 @@ class ViewBatch:
             row_of_pixel[used] = torch.arange(int(used.sum()), device=device) + row_offset
             new_row = row_of_pixel[pixel]
             keep = new_row >= 0
-            rows.append(new_row[keep])
-            cols.append(group[keep])
-            values.append(coo.values()[keep].to(torch.float32))
+            end = filled + int(keep.sum())
+            row[filled:end] = new_row[keep]
+            col[filled:end] = group[keep]
+            data[filled:end] = coo.values()[keep].to(torch.float32)
             mask_parts.append(mask_of_pixel[used] + mask_offset)
+            # The view's rows summed per mask (masks of different views share no entry; one
+            # view at a time bounds the memory, and equals coalescing all views at once
+            # except for the order torch adds a mask's entries in on tiny views).
+            summed = torch.sparse_coo_tensor(
+                torch.stack([mask_of_pixel[pixel[keep]], group[keep]]), data[filled:end],
+                (max(count, 1), group_count), check_invariants=False,
+                device=device).coalesce()
+            filled = end
+            del coo, pixel, group, new_row, keep
+            mask_rows.append(summed.indices()[0] + mask_offset)
+            mask_cols.append(summed.indices()[1])
+            mask_values.append(summed.values())
             sizes.append(torch.bincount(index, minlength=count).to(torch.float32))
             mask_view.append(torch.full((count,), v, dtype=torch.int64, device=device))
             masks_per_view.append(count)
@@ -143,10 +172,19 @@ class ViewBatch:
         if not masks:
             raise InputError("stage 2 needs at least one view", property="views")
         row_mask = torch.cat(mask_parts)
-        row, col, data = torch.cat(rows), torch.cat(cols), torch.cat(values)
-        matrix, transpose = _csr_pair(row, col, data, (row_offset, group_count))
-        mask_matrix, mask_transpose = _csr_pair(row_mask[row], col, data,
-                                                (mask_offset, group_count))
+        del mask_parts
+        if release:
+            release_freed_memory()  # the views' matrices, before the transposes are built
+        row, col, data = row[:filled], col[:filled], data[:filled]
+        if filled < capacity // 2:  # many ignored pixels: drop the unused room
+            row, col, data = row.clone(), col.clone(), data.clone()
+        # Rows grow with the views and with the pixels of a (coalesced) view, so the triplets
+        # are already in row-major order without repeats: no coalescing needed for A.
+        matrix, transpose = _sorted_csr_pair(row, col, data, (row_offset, group_count))
+        del row, col, data
+        mask_matrix, mask_transpose = _sorted_csr_pair(
+            torch.cat(mask_rows), torch.cat(mask_cols), torch.cat(mask_values),
+            (mask_offset, group_count))
         return cls(matrix, transpose, mask_matrix, mask_transpose, row_mask, torch.cat(ids),
                    torch.cat(sizes), torch.cat(mask_view),
                    torch.tensor(masks_per_view, dtype=torch.float32, device=device),
@@ -196,14 +234,57 @@ class ViewBatch:
         return torch.sum(smoothing + contrastive_weight * contrast) / self.view_count
 
 
-def _csr_pair(row: torch.Tensor, col: torch.Tensor, data: torch.Tensor,
-              shape: tuple[int, int]) -> tuple[torch.Tensor, torch.Tensor]:
-    """(matrix, its transpose) as CSR from COO triplets (duplicates summed)."""
-    indices = torch.stack([row, col])
-    matrix = torch.sparse_coo_tensor(indices, data, shape, check_invariants=False,
-                                     device=data.device)
-    transpose = torch.sparse_coo_tensor(indices.flip(0), data, shape[::-1],
-                                        check_invariants=False, device=data.device)
+def _sorted_csr_pair(row: torch.Tensor, col: torch.Tensor, data: torch.Tensor,
+                     shape: tuple[int, int]) -> tuple[torch.Tensor, torch.Tensor]:
+    """(matrix, its transpose) as CSR from COO triplets already in row-major order without
+    repeated (row, col) pairs: the tensors that coalescing the triplets and converting them
+    gives (tests/train/test_semantic_batch.py checks them equal), without the two coalescing
+    sorts and their copies of the indices (the largest memory of a batch)."""
+    device = data.device
+    crow = torch.zeros(shape[0] + 1, dtype=torch.int64, device=device)
+    crow[1:] = torch.cumsum(torch.bincount(row, minlength=shape[0]), 0)
+    t_crow = torch.zeros(shape[1] + 1, dtype=torch.int64, device=device)
+    t_crow[1:] = torch.cumsum(torch.bincount(col, minlength=shape[1]), 0)
+    if device.type == "cpu":
+        t_col, t_data = _transposed_entries(row, col, data, t_crow)
+    else:
+        order = torch.argsort(col, stable=True)
+        t_col, t_data = row[order], data[order]
     with warnings.catch_warnings():  # torch calls its CSR support "beta" on every conversion
         warnings.filterwarnings("ignore", message=".*Sparse CSR tensor support.*")
-        return matrix.coalesce().to_sparse_csr(), transpose.coalesce().to_sparse_csr()
+        matrix = torch.sparse_csr_tensor(crow, col, data, shape, check_invariants=False,
+                                         device=device)
+        transpose = torch.sparse_csr_tensor(t_crow, t_col, t_data, shape[::-1],
+                                            check_invariants=False, device=device)
+    return matrix, transpose
+
+
+#: Entries placed at a time by :func:`_transposed_entries` (bounds its temporary memory).
+TRANSPOSE_CHUNK = 1 << 20
+
+
+def _transposed_entries(row: torch.Tensor, col: torch.Tensor, data: torch.Tensor,
+                        t_crow: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """(column indices, values) of the transpose of row-major CPU triplets: a counting sort
+    by ``col`` that keeps row order within a column (the stable order), placed a chunk at a
+    time so that no full-length permutation is ever held."""
+    rows, cols, values = row.numpy(), col.numpy(), data.numpy()
+    t_col = np.empty_like(rows)
+    t_data = np.empty_like(values)
+    placed = t_crow[:-1].numpy().copy()  # next free slot of each column
+    for start in range(0, len(cols), TRANSPOSE_CHUNK):
+        keys = cols[start:start + TRANSPOSE_CHUNK]
+        order = np.argsort(keys, kind="stable")
+        ordered = keys[order]
+        run_start = np.ones(len(keys), bool)
+        run_start[1:] = ordered[1:] != ordered[:-1]
+        starts = np.flatnonzero(run_start)
+        rank = np.empty(len(keys), np.int64)
+        rank[order] = np.arange(len(keys)) - np.repeat(starts, np.diff(np.r_[starts,
+                                                                               len(keys)]))
+        slot = placed[keys] + rank
+        t_col[slot] = rows[start:start + TRANSPOSE_CHUNK]
+        t_data[slot] = values[start:start + TRANSPOSE_CHUNK]
+        placed += np.bincount(keys, minlength=len(placed))
+    return (torch.as_tensor(t_col, device=row.device),
+            torch.as_tensor(t_data, device=row.device))

@@ -172,7 +172,8 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
     """Fit the semantic feature of every group to the views' masks (module notes).
 
     Args:
-        views: prepared views (:func:`contribution_matrix` and a mask each).
+        views: prepared views (:func:`contribution_matrix` and a mask each); may be empty
+            when ``batch`` holds them.
         group_count: G, the number of groups (anchors).
         color_steps: (G,) stage-1 color quantization step q_f per group for the
             quality-aware weights; None weighs every group 1.
@@ -207,7 +208,7 @@ def train_semantic_features(views: list[SemanticView], group_count: int, *,
         InputError: no views, a view whose matrix and mask disagree with each other or G, or
             a rate term without a quantization step.
     """
-    if not views:
+    if not views and batch is None:
         raise InputError("stage 2 needs at least one view", property="views")
     if batch is None:
         batch = ViewBatch.from_views([view.contributions for view in views],

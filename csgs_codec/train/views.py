@@ -24,6 +24,9 @@ class TrainingView:
         foreground: (H, W) bool, True where the photo shows the object being trained (the
             image is then already composited over the background elsewhere; see
             :mod:`csgs_codec.train.foreground`), or None to train every pixel.
+        oversegmented: the mask holds the built-in segmenter's over-segments rather than
+            instances; the semantic stages first make them into objects
+            (:mod:`csgs_codec.train.segment_objects`) when every view's is.
     """
 
     image: np.ndarray
@@ -31,6 +34,7 @@ class TrainingView:
     mask: np.ndarray | None = None
     name: str = ""
     foreground: np.ndarray | None = None
+    oversegmented: bool = False
 
     @property
     def height(self) -> int:

@@ -106,6 +106,8 @@ def test_missing_masks_fall_back_to_the_segmenter_with_a_warning(tmp_path, synth
         views = load_dataset(tmp_path)
     assert all(v.mask is not None and v.mask.dtype == np.int32 for v in views)
     assert all(len(np.unique(v.mask)) >= 2 for v in views)
+    # Marked as over-segments: the semantic stages make them into objects first.
+    assert all(v.oversegmented for v in views)
 
 
 def test_segment_missing_false_leaves_masks_absent_without_warning(tmp_path, synthetic):

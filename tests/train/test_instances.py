@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from csgs_codec.errors import InputError
-from csgs_codec.train.instances import approximate_neighbours, lift_instances
+from csgs_codec.train.instances import _visibility, approximate_neighbours, lift_instances
 from csgs_codec.train.semantic_batch import ViewBatch
 from csgs_codec.train.semantic_stage import prepare_semantic_views, train_semantic_features
 from csgs_codec.train.synthetic import make_synthetic_dataset
@@ -71,3 +71,16 @@ def test_approximate_neighbours_find_most_true_neighbours():
     exact = np.argsort(d2, axis=1)[:, :8]
     recall = np.mean([len(np.intersect1d(a, b)) / 8 for a, b in zip(found, exact)])
     assert recall > 0.95
+
+
+def test_visibility_sums_each_groups_weights_as_its_coo_entries_give(trained):
+    _, batch, _ = trained
+    coo = batch.transpose.to_sparse_coo().coalesce()
+    group = coo.indices()[0].numpy()
+    weight = coo.values().double().numpy()
+    groups = batch.transpose.shape[0]
+    peak = np.zeros(groups)
+    np.maximum.at(peak, group, weight)
+    visibility, found_peak = _visibility(batch)
+    assert np.array_equal(visibility, np.bincount(group, weights=weight, minlength=groups))
+    assert np.array_equal(found_peak, peak)
