@@ -179,8 +179,10 @@ export class LevelStreamer {
     this.cut = chooseCut(this.tiles, this.children, camera, this.sizes, this.limits);
     const { drawn, missing } = drawnTiles(this.tiles, this.children, this.cut, this.scenes);
     const changed = drawn.size !== this.drawn.size || [...drawn].some((n) => !this.drawn.has(n));
-    this.drawn = drawn;
-    if (changed) this.draw(drawn, this.scenes);
+    if (changed) { // the same Set while nothing changes: the page's join waits on it
+      this.drawn = drawn;
+      this.draw(drawn, this.scenes);
+    }
     const wanted = missing.filter((n) => !this.asked.has(n));
     if (wanted.length) {
       const scored = wanted.map((n) => ({ n, pixels: projectedSize(camera, this.tiles[n], this.sizes.get(this.tiles[n].parent) ?? 0) }));

@@ -101,7 +101,10 @@ function redraw() {
   if (!view) return;
   const { width, height } = view.size;
   view.setCamera(rig.camera(width, height));
-  if (streamer && streamer.scenes.size) streamer.update(rig.camera(width, height));
+  if (streamer && streamer.scenes.size) {
+    streamer.update(rig.camera(width, height));
+    noteComplete();
+  }
   drawAgain();
 }
 /** A promise of the next frame drawn after the splats were sorted for the current view. */
@@ -415,23 +418,26 @@ function drawnScene() {
   return { scene: joined, semantic: (features || labels) ? { features, channels, instances } : null, parts };
 }
 
+/** The selection at drawing-buffer pixel (column, row) of ``splats`` (arrays) by ``meaning``
+ * ({instances, features, channels}): by instance when there are instances, else by cosine
+ * with the page's threshold. Returns {result, rule, threshold}. */
+function pickAt(splats, meaning, column, row) {
+  const { width, height } = view.size;
+  const camera = rig.camera(width, height);
+  if (meaning.instances) {
+    return { result: selectInstanceAtPixel(splats, meaning.instances.ids, camera, column, row),
+      rule: `instance from ${meaning.instances.source}`, threshold: null };
+  }
+  const threshold = Number($('threshold').value) || DEFAULT_THRESHOLD;
+  return { result: selectAtPixel(splats, meaning.features, meaning.channels, camera, column, row, threshold),
+    rule: `threshold ${threshold}`, threshold };
+}
+
 function selectAt(column, row) {
   if (state.lod) return selectInStreamed(column, row);
   if (!scene) throw new Error('no scene is open');
   if (!semantic) throw new Error('the semantic layer is not loaded, so there is nothing to select by');
-  const { width, height } = view.size;
-  const camera = rig.camera(width, height);
-  let result;
-  let rule;
-  let threshold = null;
-  if (semantic.instances) {
-    result = selectInstanceAtPixel(scene, semantic.instances.ids, camera, column, row);
-    rule = `instance from ${semantic.instances.source}`;
-  } else {
-    threshold = Number($('threshold').value) || DEFAULT_THRESHOLD;
-    result = selectAtPixel(scene, semantic.features, semantic.channels, camera, column, row, threshold);
-    rule = `threshold ${threshold}`;
-  }
+  const { result, rule, threshold } = pickAt(scene, semantic, column, row);
   state.selection = { count: result.count, column, row, alpha: result.alpha, threshold, rule, mask: result.mask };
   view.highlight(result.mask);
   drawAgain();
@@ -444,19 +450,7 @@ function selectInStreamed(column, row) {
   if (!streamer || !streamer.drawn.size) throw new Error('nothing is drawn yet');
   const { scene: drawn, semantic: meaning, parts } = drawnScene();
   if (!meaning) throw new Error('the semantic layer is not loaded, so there is nothing to select by');
-  const { width, height } = view.size;
-  const camera = rig.camera(width, height);
-  let result;
-  let rule;
-  let threshold = null;
-  if (meaning.instances) {
-    result = selectInstanceAtPixel(drawn, meaning.instances.ids, camera, column, row);
-    rule = `instance from ${meaning.instances.source}`;
-  } else {
-    threshold = Number($('threshold').value) || DEFAULT_THRESHOLD;
-    result = selectAtPixel(drawn, meaning.features, meaning.channels, camera, column, row, threshold);
-    rule = `threshold ${threshold}`;
-  }
+  const { result, rule, threshold } = pickAt(drawn, meaning, column, row);
   const masks = new Map(parts.map(([n, start, count]) => [n, result.mask.subarray(start, start + count)]));
   state.selection = { count: result.count, column, row, alpha: result.alpha, threshold, rule, mask: result.mask, tiles: parts.map((p) => p[0]) };
   view.highlightTiles(masks);
