@@ -38,7 +38,7 @@ def dataset(tmp_path_factory):
     return folder
 
 
-def _refused(argv, victim, option, capsys):
+def assert_refused(argv, victim, option, capsys):
     before = victim.read_bytes()
     assert main([*argv, "-q"]) == 2
     err = capsys.readouterr().err
@@ -53,19 +53,19 @@ def test_query_output_is_not_the_query_embedding(files, tmp_path, capsys, how):
     if how != "same":
         out = tmp_path / "out.ply"
         (os.link if how == "hardlink" else os.symlink)(files["query"], out)
-    _refused(["query", str(files["scene"]), "--embedding", str(files["query"]), "-o",
+    assert_refused(["query", str(files["scene"]), "--embedding", str(files["query"]), "-o",
               str(out)], files["query"], "-o", capsys)
 
 
 @pytest.mark.parametrize("view", ["{}", "{}#0"])
 def test_select_output_is_not_the_view_cameras(files, capsys, view):
     cameras = str(files["cameras"])
-    _refused(["select", str(files["scene"]), "--view", view.format(cameras), "--click", "1,1",
+    assert_refused(["select", str(files["scene"]), "--view", view.format(cameras), "--click", "1,1",
               "-o", cameras], files["cameras"], "-o", capsys)
 
 
 def test_select_mask_is_not_the_scene(files, tmp_path, capsys):
-    _refused(["select", str(files["scene"]), "--view", "orbit:0", "--click", "1,1", "-o",
+    assert_refused(["select", str(files["scene"]), "--view", "orbit:0", "--click", "1,1", "-o",
               str(tmp_path / "o.ply"), "--save-mask", str(files["scene"])], files["scene"],
              "--save-mask", capsys)
 
@@ -79,12 +79,12 @@ def test_two_outputs_of_one_command_are_refused(files, tmp_path, capsys):
 
 
 def test_view_screenshot_is_not_the_scene(files, capsys):
-    _refused(["view", str(files["scene"]), "--screenshot", str(files["scene"])],
+    assert_refused(["view", str(files["scene"]), "--screenshot", str(files["scene"])],
              files["scene"], "--screenshot", capsys)
 
 
 def test_encode_output_is_not_the_cameras(files, capsys):
-    _refused(["encode", str(files["scene"]), "--cameras", str(files["cameras"]), "-o",
+    assert_refused(["encode", str(files["scene"]), "--cameras", str(files["cameras"]), "-o",
               str(files["cameras"])], files["cameras"], "-o", capsys)
 
 
@@ -93,7 +93,7 @@ def test_render_output_images_are_not_the_cameras(files, tmp_path, capsys):
     # by that name is an input
     cameras = tmp_path / "0.png"
     cameras.write_bytes(files["cameras"].read_bytes())
-    _refused(["render", str(files["scene"]), "--cameras", str(cameras), "-o", str(tmp_path)],
+    assert_refused(["render", str(files["scene"]), "--cameras", str(cameras), "-o", str(tmp_path)],
              cameras, "-o", capsys)
 
 
@@ -107,7 +107,7 @@ def test_train_output_is_no_file_of_the_dataset(dataset, tmp_path, capsys, victi
         target, extra = points, ["--points", str(points)]
     else:
         target = next(dataset.glob(victim.replace("000", "*")))
-    _refused(["train", str(dataset), "-o", str(target), *extra], target, "-o", capsys)
+    assert_refused(["train", str(dataset), "-o", str(target), *extra], target, "-o", capsys)
 
 
 def test_segment_output_is_no_file_of_the_capture(files, dataset, capsys):
@@ -115,7 +115,7 @@ def test_segment_output_is_no_file_of_the_capture(files, dataset, capsys):
     link = dataset / "link.ply"
     link.unlink(missing_ok=True)
     os.symlink(image, link)
-    _refused(["segment", str(files["scene"]), "--images", str(dataset), "-o", str(link)],
+    assert_refused(["segment", str(files["scene"]), "--images", str(dataset), "-o", str(link)],
              image, "-o", capsys)
 
 
@@ -125,7 +125,7 @@ def test_a_file_a_scene_folder_reads_is_protected_and_others_are_not(tmp_path, c
     cloud.parent.mkdir(parents=True)
     write_ply(random_scene(32, sh_degree=0), cloud)
     (folder / "cameras.json").write_text("[]")
-    _refused(["encode", str(folder), "-o", str(folder / "cameras.json")],
+    assert_refused(["encode", str(folder), "-o", str(folder / "cameras.json")],
              folder / "cameras.json", "-o", capsys)
     earlier = folder / "scene.csgs"  # an earlier run's output kept in the folder
     earlier.write_bytes(b"old")

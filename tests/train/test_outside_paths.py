@@ -30,7 +30,7 @@ def _move_first_image_out(root, tmp_path):
     return shutil.move(root / "images" / "view_000.png", outside / "view_000.png")
 
 
-def _refused(root, *fragments: str) -> None:
+def assert_refused(root, *fragments: str) -> None:
     with pytest.raises(InputError) as caught:
         load_dataset(root, segment_missing=False)
     for fragment in fragments:
@@ -47,7 +47,7 @@ def test_transforms_frame_leaving_the_folder_is_refused_unless_allowed(tmp_path,
     name = str(moved) if absolute else "../elsewhere/view_000.png"
     document["frames"][0]["file_path"] = name
     (root / "transforms.json").write_text(json.dumps(document))
-    _refused(root, "transforms.json", "frames[0].file_path", repr(name),
+    assert_refused(root, "transforms.json", "frames[0].file_path", repr(name),
              "--allow-outside-paths")
 
 
@@ -57,7 +57,7 @@ def test_inria_img_name_climbing_out_is_refused_unless_allowed(tmp_path):
     entries = json.loads((root / "cameras.json").read_text())
     entries[0]["img_name"] = "../../elsewhere/view_000"  # relative to images/
     (root / "cameras.json").write_text(json.dumps(entries))
-    _refused(root, "cameras.json", "[0].img_name", "'../../elsewhere/view_000'")
+    assert_refused(root, "cameras.json", "[0].img_name", "'../../elsewhere/view_000'")
 
 
 def test_colmap_image_name_climbing_out_is_refused_unless_allowed(tmp_path):
@@ -66,7 +66,7 @@ def test_colmap_image_name_climbing_out_is_refused_unless_allowed(tmp_path):
     images = root / "sparse" / "0" / "images.txt"
     images.write_text(images.read_text().replace("view_000.png",
                                                  "../../elsewhere/view_000.png"))
-    _refused(root, "images.txt", "image ../../elsewhere/view_000.png")
+    assert_refused(root, "images.txt", "image ../../elsewhere/view_000.png")
 
 
 def test_names_that_climb_but_stay_inside_load(tmp_path):
